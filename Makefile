@@ -1,0 +1,35 @@
+# Two entry points (see README): `make run` sets up and runs the main job on embedded data,
+# `make test` sets up and runs the default test suite. Both create .venv on first use.
+PYTHON ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed-stamp
+SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
+PIPELINE ?= pipelines/quickstart.yaml
+OUT ?= runs/quickstart
+
+.PHONY: setup run test test-all bench clean
+
+setup: $(STAMP)
+
+$(STAMP): pyproject.toml
+	@# open3d links against libusb-1.0, which minimal Debian images lack.
+	@ldconfig -p | grep -q 'libusb-1.0.so.0' || { $(SUDO) apt-get update -qq && $(SUDO) apt-get install -y -qq libusb-1.0-0; }
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/pip install -q --upgrade pip
+	$(BIN)/pip install -q -e '.[test]'
+	@# The rerun CLI phones home for analytics and can hang without network.
+	$(BIN)/python -m rerun analytics disable >/dev/null 2>&1 || true
+	touch $(STAMP)
+
+run: $(STAMP)
+	$(BIN)/slamkit run $(PIPELINE) --out $(OUT)
+
+test: $(STAMP)
+	$(BIN)/python -m pytest -q -m "not slow"
+
+test-all: $(STAMP)
+	$(BIN)/python -m pytest -q 
+
+clean:
+	rm -rf $(VENV) runs .pytest_cache

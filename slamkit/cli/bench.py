@@ -1,0 +1,61 @@
+"""``slamkit bench NAME [--json] [--quick]``: benchmark suites with same-run references."""
+
+from __future__ import annotations
+
+import importlib
+import json
+import os
+import platform
+import sys
+
+import typer
+from rich.console import Console
+from rich.table import Table
+
+from slamkit.cli.app import app
+
+#: suite name -> "module:function"; each function takes ``quick: bool`` and returns BenchCases.
+SUITES: dict[str, str] = {
+    "pose-graph": "slamkit.backend.benchmark:run",
+    "raycast": "slamkit.maps.benchmark:run",
+    "filters": "slamkit.estimation.benchmark:run",
+    "planning": "slamkit.planning.benchmark:run",
+    "control": "slamkit.control.benchmark:run",
+    "scan-matching": "slamkit.frontend.benchmark:run",
+}
+
+
+def run_bench(name: str, quick: bool = False) -> dict:
+    """Run one suite and return the JSON-ready object ``{"bench", "machine", "cases"}``."""
+    if name not in SUITES:
+        raise typer.BadParameter(f"unknown bench {name!r}; choose from {', '.join(sorted(SUITES))}")
+    module_name, fn_name = SUITES[name].split(":")
+    fn = getattr(importlib.import_module(module_name), fn_name)
+    cases = fn(quick=quick)
+    return {
+        "bench": name,
+        "machine": {"cpus": os.cpu_count(), "python": platform.python_version(),
+                    "platform": sys.platform},
+        "cases": [c.to_dict() for c in cases],
+    }
+
+
+@app.command()
+def bench(
+    name: str = typer.Argument(..., help=f"one of: {', '.join(SUITES)}"),
+    as_json: bool = typer.Option(False, "--json", help="print one JSON object on stdout"),
+    quick: bool = typer.Option(False, "--quick", help="smaller problem sizes (for smoke runs)"),
+) -> None:
+    """Time slamkit against a reference measured in the same run and print the ratios."""
+    result = run_bench(name, quick=quick)
+    if as_json:
+        print(json.dumps(result, indent=2))
+        return
+    table = Table(title=f"slamkit bench {name}")
+    for col in ("case", "value", "unit", "reference", "ref value", "ratio", "goal"):
+        table.add_column(col)
+    for c in result["cases"]:
+        fmt = lambda v: "" if v is None else (f"{v:.4g}" if isinstance(v, float) else str(v))  # noqa: E731
+        table.add_row(c["name"], fmt(c["value"]), c["unit"], fmt(c.get("reference")),
+                      fmt(c.get("reference_value")), fmt(c.get("ratio")), fmt(c.get("goal")))
+    Console().print(table)

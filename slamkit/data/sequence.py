@@ -1,0 +1,101 @@
+"""Sequences: timestamped sensor events plus ground truth, the input of every estimator.
+
+Events are small frozen dataclasses; a ``Sequence`` iterates them in time order. Frames: all
+body-frame quantities are in the robot body frame (x forward, y left); world quantities in
+the world frame; angles in radians, distances in metres, times in seconds.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Iterable, Iterator, Mapping
+
+import numpy as np
+
+from slamkit.data.trajectory import Trajectory
+
+
+@dataclass(frozen=True)
+class Odometry:
+    """Body-frame velocity command or odometry reading held over ``dt_s`` ending at ``stamp_s``."""
+
+    stamp_s: float
+    dt_s: float
+    v_mps: float
+    omega_radps: float
+
+
+@dataclass(frozen=True)
+class RangeBearing:
+    """Range-bearing observations taken at ``stamp_s``; ``landmark_ids`` is -1 where unknown."""
+
+    stamp_s: float
+    landmark_ids: np.ndarray
+    range_m: np.ndarray
+    bearing_rad: np.ndarray
+
+
+@dataclass(frozen=True)
+class Gps:
+    stamp_s: float
+    world_p_body: np.ndarray
+    sigma_m: float
+
+
+@dataclass(frozen=True)
+class Imu:
+    stamp_s: float
+    gyro_radps: np.ndarray
+    accel_mps2: np.ndarray
+
+
+@dataclass(frozen=True)
+class WheelEncoders:
+    stamp_s: float
+    ticks_left: int
+    ticks_right: int
+
+
+@dataclass(frozen=True)
+class Scan:
+    """A 2D lidar scan in the body frame: ``ranges_m`` is NaN where a beam returned nothing."""
+
+    stamp_s: float
+    angles_rad: np.ndarray
+    ranges_m: np.ndarray
+    max_range_m: float
+
+
+Event = Odometry | RangeBearing | Gps | Imu | WheelEncoders | Scan
+
+
+@dataclass(frozen=True)
+class Sequence:
+    """A named, finite, time-ordered run of events with optional ground truth.
+
+    ``ground_truth`` is the true ``world_T_body`` at (at least) every event stamp that changes
+    the robot state; ``world_p_landmarks`` maps landmark id to its true (x, y) when known.
+    ``metadata`` carries units, frames and noise parameters (for example ``odometry_sigma``
+    or ``range_bearing_sigma``) that estimators use as their noise models.
+    """
+
+    name: str
+    events: tuple[Event, ...]
+    ground_truth: Trajectory | None = None
+    world_p_landmarks: Mapping[int, np.ndarray] | None = None
+    initial_pose_xytheta: np.ndarray | None = None
+    metadata: Mapping[str, Any] = field(default_factory=dict)
+
+    def __iter__(self) -> Iterator[Event]:
+        return iter(self.events)
+
+    def __len__(self) -> int:
+        return len(self.events)
+
+    @classmethod
+    def from_events(cls, name: str, events: Iterable[Event], **kwargs) -> "Sequence":
+        ordered = sorted(events, key=lambda e: e.stamp_s)
+        return cls(name=name, events=tuple(ordered), **kwargs)
+
+    def of_type(self, kind: type) -> list:
+        return [e for e in self.events if isinstance(e, kind)]

@@ -1,0 +1,77 @@
+"""The import arrows of ARCHITECTURE.md section 3: an import may only point to an earlier layer,
+and gtsam / casadi / osqp / rerun / typer / yaml / matplotlib stay in their own packages."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+PACKAGE = Path(__file__).resolve().parents[1] / "slamkit"
+
+# package -> slamkit packages it may import (besides itself and the shared base modules)
+ALLOWED = {
+    "geometry": set(),
+    "models": {"geometry"},
+    "maps": {"geometry", "models"},
+    "sim": {"geometry", "models", "maps", "data"},
+    "data": {"geometry", "models", "maps"},
+    "estimation": {"geometry", "models", "maps", "data"},
+    "backend": {"geometry", "models", "data"},
+    "frontend": {"geometry", "models", "maps", "data"},
+    "planning": {"geometry", "maps"},
+    "control": {"geometry", "models", "maps"},
+    "metrics": {"geometry", "data"},
+    "experiments": {"geometry", "models", "maps", "sim", "data", "estimation", "backend",
+                    "frontend", "planning", "control", "metrics"},
+    "viz": {"geometry", "models", "maps", "sim", "data", "estimation", "backend", "frontend",
+            "planning", "control", "metrics", "experiments"},
+    "cli": None,  # may import everything
+}
+BASE_MODULES = {"errors", "timing", "config", "__init__"}
+# third-party packages confined to one slamkit package
+CONFINED = {
+    "gtsam": {"backend"},
+    "casadi": {"control"},
+    "osqp": {"control"},
+    "rerun": {"viz"},
+    "typer": {"cli"},
+    "matplotlib": {"experiments", "viz", "cli"},
+    "yaml": {"experiments", "cli", "sim", "viz"},
+}
+
+
+def _imports(path: Path) -> list[tuple[int, str]]:
+    tree = ast.parse(path.read_text(), filename=str(path))
+    out = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            out += [(node.lineno, alias.name) for alias in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            out.append((node.lineno, node.module))
+    return out
+
+
+def _files():
+    return sorted(p for p in PACKAGE.rglob("*.py") if p.parent != PACKAGE)
+
+
+@pytest.mark.parametrize("path", _files(), ids=lambda p: str(p.relative_to(PACKAGE)))
+def test_imports_follow_layers(path: Path) -> None:
+    layer = path.relative_to(PACKAGE).parts[0]
+    allowed = ALLOWED[layer]
+    for lineno, name in _imports(path):
+        top = name.split(".")[0]
+        if top == "slamkit":
+            parts = name.split(".")
+            if len(parts) < 2 or parts[1] in BASE_MODULES or parts[1] == layer or allowed is None:
+                continue
+            assert parts[1] in allowed, f"{path}:{lineno} ({layer}) imports {name}"
+        elif top in CONFINED:
+            assert layer in CONFINED[top], f"{path}:{lineno} ({layer}) imports {top}"
+
+
+def test_layer_table_covers_every_package() -> None:
+    packages = {p.name for p in PACKAGE.iterdir() if p.is_dir() and not p.name.startswith("_")}
+    assert packages - {"__pycache__"} == set(ALLOWED)
