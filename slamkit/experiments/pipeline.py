@@ -1,0 +1,110 @@
+"""``slamkit run PIPELINE.yaml``: load a pipeline config, dispatch to its kind, write the results
+folder (config.yaml, results.json, report.md, plots/, trajectories/, recording.rrd).
+
+A pipeline kind is a function ``run(config, folder, progress) -> PipelineOutput`` registered in
+``PIPELINES`` by import path, so importing this module stays cheap.
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Mapping
+
+import yaml
+from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+from slamkit.errors import ConfigError
+from slamkit.experiments.results import ResultsFolder, RunRecord
+
+PIPELINES: dict[str, str] = {
+    "pose_graph": "slamkit.experiments.pose_graph:run",
+    "filter_vs_smoother": "slamkit.experiments.filter_vs_smoother:run",
+    "local_planning": "slamkit.experiments.closed_loop:run",
+    "lidar_slam": "slamkit.experiments.lidar_slam:run",
+}
+
+
+@dataclass(frozen=True)
+class PipelineOutput:
+    runs: list[RunRecord]
+    report_md: str
+    summary: list[dict[str, Any]] | None = None
+    extra: Mapping[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class PipelineResult:
+    out_dir: Path
+    results: dict[str, Any]
+    report_md: str
+
+
+class ProgressReporter:
+    """Thin wrapper over rich progress so pipelines report steps without knowing the console.
+
+    ``task(label, total)`` returns an ``advance(n=1)`` callable. Silent when ``enabled`` is False.
+    """
+
+    def __init__(self, enabled: bool = True, console: Console | None = None):
+        self.enabled = enabled
+        self._progress = Progress(
+            TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+            console=console or Console(stderr=True), disable=not enabled, transient=False,
+        )
+
+    def __enter__(self) -> "ProgressReporter":
+        self._progress.__enter__()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._progress.__exit__(*exc)
+
+    def task(self, label: str, total: int) -> Callable[[int], None]:
+        task_id = self._progress.add_task(label, total=total)
+        return lambda n=1: self._progress.advance(task_id, n)
+
+
+def load_config(path: str | Path) -> dict[str, Any]:
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError(f"pipeline config {path} does not exist")
+    try:
+        config = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f":{mark.line + 1}" if mark is not None else ""
+        raise ConfigError(f"{path}{where}: invalid YAML: {exc}") from exc
+    if not isinstance(config, dict) or "pipeline" not in config:
+        raise ConfigError(f"{path}: a pipeline config is a mapping with a 'pipeline' key")
+    config.setdefault("name", path.stem)
+    return config
+
+
+def resolve_pipeline(kind: str) -> Callable[..., PipelineOutput]:
+    if kind not in PIPELINES:
+        raise ConfigError(f"unknown pipeline {kind!r}; known: {', '.join(sorted(PIPELINES))}")
+    module_name, fn_name = PIPELINES[kind].split(":")
+    return getattr(importlib.import_module(module_name), fn_name)
+
+
+def run_pipeline(config: str | Path | Mapping[str, Any], out_dir: str | Path | None = None,
+                 progress: bool = True, overrides: Mapping[str, Any] | None = None) -> PipelineResult:
+    """Run a pipeline config (path or mapping) and write its results folder atomically."""
+    cfg = load_config(config) if isinstance(config, (str, Path)) else dict(config)
+    if overrides:
+        cfg.update(overrides)
+    if "pipeline" not in cfg:
+        raise ConfigError("a pipeline config needs a 'pipeline' key")
+    fn = resolve_pipeline(cfg["pipeline"])
+    out = Path(out_dir) if out_dir is not None else Path("runs") / str(cfg.get("name", cfg["pipeline"]))
+    with ResultsFolder(out) as folder, ProgressReporter(enabled=progress) as reporter:
+        folder.write_config(cfg)
+        output = fn(cfg, folder, reporter)
+        final = folder.commit(cfg["pipeline"], output.runs, output.report_md, output.summary,
+                              output.extra)
+    results = json.loads((final / "results.json").read_text())
+    return PipelineResult(final, results, output.report_md)

@@ -1,0 +1,87 @@
+"""Results folder: shape, numbers, and atomicity."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import pytest
+import yaml
+
+from slamkit.errors import ConfigError
+from slamkit.experiments import pipeline as pipeline_mod
+from slamkit.experiments.pipeline import PipelineOutput, run_pipeline
+from slamkit.experiments.results import ResultsFolder, RunRecord, mean_ci95, summarise
+
+
+def test_mean_ci95_worked_example() -> None:
+    # n = 3, mean 2, sample std 1, t(0.975, 2) = 4.302653 -> half width 4.302653 / sqrt(3) = 2.484138
+    mean, (lo, hi), n = mean_ci95([1.0, 2.0, 3.0])
+    assert n == 3 and mean == 2.0
+    assert lo == pytest.approx(2.0 - 2.484138, abs=1e-6)
+    assert hi == pytest.approx(2.0 + 2.484138, abs=1e-6)
+
+
+def test_summary_groups_by_dataset_estimator_metric() -> None:
+    runs = [RunRecord("sim", "ekf", {"ate_rmse_m": v}, seed=s) for s, v in enumerate([0.1, 0.3])]
+    runs.append(RunRecord("sim", "isam2", {"ate_rmse_m": 0.05}, seed=0))
+    summary = summarise(runs)
+    ekf = next(s for s in summary if s["estimator"] == "ekf")
+    assert ekf["mean"] == pytest.approx(0.2) and ekf["n"] == 2
+    # t(0.975, 1) = 12.7062; std = 0.141421; half = 12.7062 * 0.141421 / sqrt(2) = 1.27062
+    assert ekf["ci95"][1] - ekf["mean"] == pytest.approx(1.27062, rel=1e-4)
+    assert next(s for s in summary if s["estimator"] == "isam2")["n"] == 1
+
+
+def _fake_pipeline(config, folder, progress):
+    advance = progress.task("fake", 2)
+    runs = []
+    for seed in range(2):
+        if config.get("fail_at") == seed:
+            raise RuntimeError("boom")
+        runs.append(RunRecord("toy", "est", {"ate_rmse_m": 1.0 + seed}, seed=seed))
+        advance()
+    (folder.plots / "p.png").write_bytes(b"\x89PNG")
+    return PipelineOutput(runs, "# toy\n")
+
+
+def test_run_pipeline_writes_the_documented_shape(tmp_path, monkeypatch) -> None:
+    monkeypatch.setitem(pipeline_mod.PIPELINES, "toy", f"{__name__}:_fake_pipeline")
+    cfg = tmp_path / "toy.yaml"
+    cfg.write_text(yaml.safe_dump({"pipeline": "toy", "seeds": 2}))
+    result = run_pipeline(cfg, tmp_path / "out", progress=False)
+    out = result.out_dir
+    assert sorted(p.name for p in out.iterdir()) == ["config.yaml", "plots", "report.md", "results.json"]
+    data = json.loads((out / "results.json").read_text())
+    assert data["pipeline"] == "toy" and len(data["runs"]) == 2
+    assert data["summary"][0]["mean"] == 1.5
+    assert yaml.safe_load((out / "config.yaml").read_text())["seeds"] == 2
+
+
+def test_failed_run_leaves_no_folder_and_keeps_previous(tmp_path, monkeypatch) -> None:
+    monkeypatch.setitem(pipeline_mod.PIPELINES, "toy", f"{__name__}:_fake_pipeline")
+    out = tmp_path / "out"
+    run_pipeline({"pipeline": "toy"}, out, progress=False)
+    before = (out / "results.json").read_text()
+    with pytest.raises(RuntimeError):
+        run_pipeline({"pipeline": "toy", "fail_at": 1}, out, progress=False)
+    assert (out / "results.json").read_text() == before
+    assert [p.name for p in tmp_path.iterdir()] == ["out"]  # no partial folder left behind
+    with pytest.raises(RuntimeError):
+        run_pipeline({"pipeline": "toy", "fail_at": 0}, tmp_path / "fresh", progress=False)
+    assert not (tmp_path / "fresh").exists()
+
+
+def test_bad_config_names_the_file_and_line(tmp_path) -> None:
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("pipeline: toy\nseeds: [1, 2\n")
+    with pytest.raises(ConfigError, match=r"bad\.yaml:\d+"):
+        run_pipeline(bad, tmp_path / "o", progress=False)
+    with pytest.raises(ConfigError, match="unknown pipeline"):
+        run_pipeline({"pipeline": "nope"}, tmp_path / "o", progress=False)
+
+
+def test_nan_metrics_become_null_not_invalid_json(tmp_path) -> None:
+    with ResultsFolder(tmp_path / "r") as folder:
+        final = folder.commit("x", [RunRecord("d", "e", {"m": math.nan})], "")
+    assert json.loads((final / "results.json").read_text())["runs"][0]["metrics"]["m"] is None
