@@ -8,7 +8,7 @@ files count them.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -19,7 +19,8 @@ from slamkit.errors import DataError
 class OccupancyGrid:
     occupied: np.ndarray
     resolution_m: float = 1.0
-    origin_xy_m: np.ndarray = np.zeros(2)
+    # default_factory: a shared ndarray default is rejected by dataclasses (unhashable)
+    origin_xy_m: np.ndarray = field(default_factory=lambda: np.zeros(2))
     name: str = "grid"
 
     def __post_init__(self) -> None:
