@@ -54,3 +54,20 @@ def shared_datasets() -> Path:
     if not SHARED_DATASETS.is_dir():
         pytest.skip("../shared/datasets is not beside the checkout")
     return SHARED_DATASETS
+
+
+@pytest.fixture(scope="session")
+def run_notebook():
+    """``run_notebook(path, timeout_s=300) -> NotebookNode``: execute a notebook top to bottom in
+    a kernel running this interpreter (fails the test on the first cell error)."""
+    import nbformat
+    from nbclient import NotebookClient
+
+    def _run(path: str | Path, timeout_s: int = 300):
+        nb = nbformat.read(str(path), as_version=4)
+        client = NotebookClient(nb, timeout=timeout_s, kernel_name="python3",
+                                resources={"metadata": {"path": str(Path(path).parent)}})
+        client.execute()
+        return nb
+
+    return _run

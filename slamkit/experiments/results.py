@@ -162,6 +162,15 @@ class ResultsFolder:
             results.update(_jsonable(dict(extra)))
         (self.path / "results.json").write_text(json.dumps(results, indent=2, allow_nan=False))
         (self.path / "report.md").write_text(report_md)
+        return self.finalize()
+
+    def write_json(self, name: str, data: Mapping[str, Any]) -> Path:
+        path = self.path / name
+        path.write_text(json.dumps(_jsonable(dict(data)), indent=2, allow_nan=False))
+        return path
+
+    def finalize(self) -> Path:
+        """Move the assembled folder onto its final name (replacing an earlier one)."""
         if self.final.exists():
             # keep the previous complete result until the new one is in place
             old = self.final.parent / f".{self.final.name}.old-{uuid.uuid4().hex[:8]}"
