@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from slamkit.errors import ConfigError
-from slamkit.models._angles import wrap_angle
+from slamkit.geometry.angles import wrap_angle
 
 __all__ = [
     "observe",
