@@ -1,0 +1,151 @@
+"""The Dynamic Window Approach (Fox, Burgard & Thrun, "The dynamic window approach to collision
+avoidance", IEEE Robotics & Automation Magazine 4(1), 1997).
+
+Search space (section 4.1 of the paper), over velocities (v, omega):
+
+* V_s  the velocity limits of the robot;
+* V_d  the dynamic window reachable within one control period dt from the current (v_c, omega_c)
+  under the acceleration limits:  [v_c - a dt, v_c + a dt] x [omega_c - alpha dt, omega_c + alpha dt];
+* V_a  the admissible velocities, with which the robot can still stop before the nearest
+  obstacle on its arc:  v <= sqrt(2 dist(v, omega) a_brake)  (eq. 9).
+
+Objective (eq. 12): G = w_h heading + w_c clearance + w_v velocity, each term normalised to [0, 1]
+with a fixed scale (not by the per-cycle sum of the paper, so that the weights mean the same in
+every cycle): heading = 1 - |angle from the rollout's final heading to the target| / pi, where the
+target is a carrot on the global path; velocity = v / v_max; clearance = min(clearance along the
+arc, cap) / cap for an arc that stays free over the horizon, and min(dist, horizon length) /
+horizon length (the paper's dist(v, omega)) for one that meets an obstacle later.
+
+Tiers (as ROS base_local_planner and PythonRobotics do in effect): when some admissible arc stays
+free over the whole horizon only those compete, because the heading term measured at the end of a
+long arc otherwise outweighs a collision two seconds away; admissible arcs that collide later
+(the robot could still stop) are used only when no free one exists.
+
+Candidates are a grid over the window, rolled out as exact arcs and scored all at once (numpy
+broadcasting over candidates x horizon x obstacles). No admissible candidate -> brake.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from slamkit.control.path_following import lookahead_point
+from slamkit.control.protocols import (ControlOutput, ControlStatus, LocalWorld, Reference,
+                                       RobotState, brake_command)
+from slamkit.control.rollout import distance_to_collision, rollout_arcs, trajectory_clearance
+from slamkit.errors import ControlError
+
+
+@dataclass(frozen=True)
+class DWAConfig:
+    dt_s: float = 0.1
+    v_min_mps: float = 0.0
+    v_max_mps: float = 0.8
+    omega_max_radps: float = 1.5
+    accel_max_mps2: float = 0.5
+    alpha_max_radps2: float = 1.0
+    #: deceleration used for the admissibility test (the robot's braking capability)
+    brake_decel_mps2: float = 0.5
+    n_v: int = 11
+    n_omega: int = 21
+    horizon_s: float = 2.0
+    rollout_dt_s: float = 0.1
+    robot_radius_m: float = 0.2
+    safety_margin_m: float = 0.05
+    w_heading: float = 1.0
+    w_clearance: float = 0.4
+    w_velocity: float = 0.3
+    clearance_cap_m: float = 1.0
+    lookahead_m: float = 1.5
+    goal_tolerance_m: float = 0.2
+
+    def __post_init__(self) -> None:
+        if self.n_v < 1 or self.n_omega < 1:
+            raise ControlError("DWAConfig.n_v and n_omega must be >= 1")
+        if min(self.dt_s, self.horizon_s, self.rollout_dt_s, self.accel_max_mps2,
+               self.alpha_max_radps2, self.brake_decel_mps2, self.clearance_cap_m) <= 0:
+            raise ControlError("DWAConfig times, accelerations and clearance_cap_m must be positive")
+        if self.v_max_mps < self.v_min_mps:
+            raise ControlError("DWAConfig.v_max_mps < v_min_mps")
+
+
+def dynamic_window(v_c: float, omega_c: float, config: DWAConfig) -> tuple[tuple[float, float], tuple[float, float]]:
+    """V_s intersected with V_d: ((v_lo, v_hi), (omega_lo, omega_hi))."""
+    c = config
+    v_lo = max(c.v_min_mps, v_c - c.accel_max_mps2 * c.dt_s)
+    v_hi = min(c.v_max_mps, v_c + c.accel_max_mps2 * c.dt_s)
+    w_lo = max(-c.omega_max_radps, omega_c - c.alpha_max_radps2 * c.dt_s)
+    w_hi = min(c.omega_max_radps, omega_c + c.alpha_max_radps2 * c.dt_s)
+    if v_lo > v_hi:  # current speed outside V_s (e.g. after a config change): nearest reachable
+        v_lo = v_hi = float(np.clip(v_c, c.v_min_mps, c.v_max_mps))
+    if w_lo > w_hi:
+        w_lo = w_hi = float(np.clip(omega_c, -c.omega_max_radps, c.omega_max_radps))
+    return (v_lo, v_hi), (w_lo, w_hi)
+
+
+def _wrap(a: np.ndarray) -> np.ndarray:
+    return (a + np.pi) % (2 * np.pi) - np.pi
+
+
+class DWAController:
+    name = "dwa"
+
+    def __init__(self, config: DWAConfig = DWAConfig()):
+        self.config = config
+
+    def reset(self) -> None:
+        pass
+
+    def candidates(self, state: RobotState) -> np.ndarray:
+        (v_lo, v_hi), (w_lo, w_hi) = dynamic_window(*state.command, self.config)
+        v = np.linspace(v_lo, v_hi, self.config.n_v)
+        w = np.linspace(w_lo, w_hi, self.config.n_omega)
+        vv, ww = np.meshgrid(v, w, indexing="ij")
+        return np.column_stack([vv.ravel(), ww.ravel()])
+
+    def compute(self, state: RobotState, reference: Reference, world: LocalWorld) -> ControlOutput:
+        t0 = time.perf_counter()
+        c = self.config
+        xy = state.pose_xytheta[:2]
+        goal = reference.goal_xy_m
+        dist_goal = float(np.linalg.norm(goal - xy))
+        if dist_goal <= c.goal_tolerance_m:
+            cmd = brake_command(state.command, c.accel_max_mps2, c.alpha_max_radps2, c.dt_s)
+            return ControlOutput(cmd, ControlStatus.GOAL_REACHED, solve_time_s=time.perf_counter() - t0)
+
+        cand = self.candidates(state)
+        steps = max(1, int(round(c.horizon_s / c.rollout_dt_s)))
+        traj = rollout_arcs(state.pose_xytheta, cand, c.rollout_dt_s, steps)
+        clear = trajectory_clearance(traj, world, c.rollout_dt_s, c.robot_radius_m + c.safety_margin_m)
+        dist = distance_to_collision(traj, clear, cand[:, 0], c.rollout_dt_s)
+        admissible = cand[:, 0] <= np.sqrt(2.0 * dist * c.brake_decel_mps2)
+        # slow enough to stop at the goal (else the robot circles it)
+        admissible &= cand[:, 0] <= max(np.sqrt(2.0 * dist_goal * c.brake_decel_mps2), c.v_min_mps)
+
+        target = lookahead_point(reference.path_xy_m, xy, c.lookahead_m)
+        to_target = target - traj[:, -1, :2]
+        bearing = np.arctan2(to_target[:, 1], to_target[:, 0])
+        heading = 1.0 - np.abs(_wrap(bearing - traj[:, -1, 2])) / np.pi
+        horizon_len = max(c.v_max_mps * c.horizon_s, 1e-9)
+        free = np.isinf(dist)
+        clearance = np.where(free, np.clip(clear.min(axis=1), 0.0, c.clearance_cap_m) / c.clearance_cap_m,
+                             np.minimum(dist, horizon_len) / horizon_len)
+        if np.any(admissible & free):
+            admissible &= free
+        velocity = cand[:, 0] / max(c.v_max_mps, 1e-9)
+        score = c.w_heading * heading + c.w_clearance * clearance + c.w_velocity * velocity
+        score = np.where(admissible, score, -np.inf)
+        info = {"window_v_mps": (float(cand[:, 0].min()), float(cand[:, 0].max())),
+                "window_omega_radps": (float(cand[:, 1].min()), float(cand[:, 1].max())),
+                "n_admissible": int(admissible.sum()), "target_xy_m": target}
+        if not admissible.any():
+            cmd = brake_command(state.command, c.accel_max_mps2, c.alpha_max_radps2, c.dt_s)
+            return ControlOutput(cmd, ControlStatus.FALLBACK_BRAKE, candidates_xytheta=traj,
+                                 scores=score, chosen=-1, solve_time_s=time.perf_counter() - t0,
+                                 info=info)
+        best = int(np.argmax(score))
+        return ControlOutput(cand[best], ControlStatus.OK, candidates_xytheta=traj, scores=score,
+                             chosen=best, solve_time_s=time.perf_counter() - t0, info=info)

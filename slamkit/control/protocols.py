@@ -1,0 +1,240 @@
+"""The local-planning contract: what every controller takes and what it returns.
+
+``Controller.compute(state, reference, world) -> ControlOutput``. The output carries the command
+*and what explains it* (the rollouts and their scores for DWA, the force vectors for potential
+fields, the predicted horizon for MPC) so a viewer can show why the robot did what it did,
+without the controller importing a viewer (ARCHITECTURE.md section 5, "algorithms expose hooks").
+
+Frames and units: every pose is ``world_T_body`` as (x, y, theta) in metres and radians; the
+command of a unicycle / differential drive is (v [m/s], omega [rad/s]); the command of a
+kinematic bicycle is (v [m/s], steering [rad]). Obstacles the controller knows about are given
+in a :class:`LocalWorld`: moving circles (with a constant-velocity prediction) and a static
+distance field. Control sits below ``slamkit.sim`` in the layer table, so the simulator's
+moving-obstacle objects are flattened into plain arrays here by the caller.
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, field
+from typing import Any, Mapping, Protocol, runtime_checkable
+
+import numpy as np
+
+from slamkit.errors import ControlError
+
+
+class ControlStatus(enum.Enum):
+    OK = "ok"
+    #: the goal tolerance is met; the command is zero
+    GOAL_REACHED = "goal_reached"
+    #: potential fields: the robot sits in a local minimum and asks the global planner for help
+    LOCAL_MINIMUM = "local_minimum"
+    #: potential fields: random-walk escape from a local minimum in progress
+    ESCAPING = "escaping"
+    #: no admissible candidate (DWA) or the solver failed (MPC): the command is a safe brake
+    FALLBACK_BRAKE = "fallback_brake"
+
+
+def _ro(a: np.ndarray) -> np.ndarray:
+    a.setflags(write=False)
+    return a
+
+
+@dataclass(frozen=True)
+class RobotState:
+    """``pose_xytheta`` (3,) of world_T_body; ``command`` (2,) the command applied during the last
+    cycle (v, omega) or (v, steering) -- DWA builds its window and MPC its rate limits from it."""
+
+    pose_xytheta: np.ndarray
+    command: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    t_s: float = 0.0
+
+    def __post_init__(self) -> None:
+        pose = np.asarray(self.pose_xytheta, dtype=float).reshape(-1)
+        cmd = np.asarray(self.command, dtype=float).reshape(-1)
+        if pose.shape != (3,) or cmd.shape != (2,):
+            raise ControlError(f"RobotState needs pose_xytheta (3,) and command (2,), got "
+                               f"{pose.shape} and {cmd.shape}")
+        if not (np.all(np.isfinite(pose)) and np.all(np.isfinite(cmd))):
+            raise ControlError("RobotState.pose_xytheta/command must be finite")
+        object.__setattr__(self, "pose_xytheta", _ro(pose.copy()))
+        object.__setattr__(self, "command", _ro(cmd.copy()))
+
+
+@dataclass(frozen=True)
+class Reference:
+    """What to track: ``path_xy_m`` (M, 2) from the global planner (the goal is its last point)
+    and an optional ``goal_theta_rad``; ``speed_mps`` is the desired cruise speed."""
+
+    path_xy_m: np.ndarray
+    speed_mps: float = 0.5
+    goal_theta_rad: float | None = None
+
+    def __post_init__(self) -> None:
+        path = np.asarray(self.path_xy_m, dtype=float)
+        if path.ndim == 1 and path.size == 2:
+            path = path.reshape(1, 2)
+        if path.ndim != 2 or path.shape[1] != 2 or len(path) == 0:
+            raise ControlError(f"Reference.path_xy_m must be (M, 2) with M >= 1, got {path.shape}")
+        if not np.all(np.isfinite(path)):
+            raise ControlError("Reference.path_xy_m contains non-finite values")
+        object.__setattr__(self, "path_xy_m", _ro(path.copy()))
+
+    @property
+    def goal_xy_m(self) -> np.ndarray:
+        return self.path_xy_m[-1]
+
+
+@dataclass(frozen=True)
+class DistanceGrid:
+    """A static Euclidean distance field sampled on the cells of an occupancy grid:
+    ``distance_m[iy, ix]`` is the distance from the centre of cell (iy, ix) to the nearest occupied
+    cell (0 inside obstacles). Outside the grid the distance is 0 (unknown counts as occupied).
+
+    Bilinear interpolation between cell centres keeps the gradient defined everywhere but on cell
+    borders, which the MPC linearisation and the potential-field repulsion both need."""
+
+    distance_m: np.ndarray
+    resolution_m: float
+    origin_xy_m: np.ndarray = field(default_factory=lambda: np.zeros(2))
+
+    def __post_init__(self) -> None:
+        d = np.asarray(self.distance_m, dtype=float)
+        if d.ndim != 2 or d.size == 0:
+            raise ControlError(f"DistanceGrid.distance_m must be a non-empty 2D array, got {d.shape}")
+        if not self.resolution_m > 0:
+            raise ControlError(f"DistanceGrid.resolution_m must be positive, got {self.resolution_m}")
+        object.__setattr__(self, "distance_m", _ro(d.copy()))
+        object.__setattr__(self, "origin_xy_m", _ro(np.asarray(self.origin_xy_m, float).reshape(2).copy()))
+        object.__setattr__(self, "resolution_m", float(self.resolution_m))
+
+    def query(self, xy_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(..., 2) points -> (distance (...), gradient (..., 2)), bilinear, vectorised."""
+        xy = np.asarray(xy_m, dtype=float)
+        shape = xy.shape[:-1]
+        p = xy.reshape(-1, 2)
+        h, w = self.distance_m.shape
+        # continuous index whose integer values are cell centres
+        g = (p - self.origin_xy_m) / self.resolution_m - 0.5
+        inside = (g[:, 0] >= -0.5) & (g[:, 0] <= w - 0.5) & (g[:, 1] >= -0.5) & (g[:, 1] <= h - 0.5)
+        gx = np.clip(g[:, 0], 0.0, w - 1.0)
+        gy = np.clip(g[:, 1], 0.0, h - 1.0)
+        x0 = np.minimum(np.floor(gx).astype(np.int64), max(w - 2, 0))
+        y0 = np.minimum(np.floor(gy).astype(np.int64), max(h - 2, 0))
+        x1 = np.minimum(x0 + 1, w - 1)
+        y1 = np.minimum(y0 + 1, h - 1)
+        fx = gx - x0
+        fy = gy - y0
+        d = self.distance_m
+        d00, d10, d01, d11 = d[y0, x0], d[y0, x1], d[y1, x0], d[y1, x1]
+        val = (d00 * (1 - fx) * (1 - fy) + d10 * fx * (1 - fy) + d01 * (1 - fx) * fy + d11 * fx * fy)
+        ddx = ((d10 - d00) * (1 - fy) + (d11 - d01) * fy) / self.resolution_m
+        ddy = ((d01 - d00) * (1 - fx) + (d11 - d10) * fx) / self.resolution_m
+        val = np.where(inside, val, 0.0)
+        grad = np.stack([np.where(inside, ddx, 0.0), np.where(inside, ddy, 0.0)], axis=-1)
+        return val.reshape(shape), grad.reshape(shape + (2,))
+
+
+@dataclass(frozen=True)
+class LocalWorld:
+    """What a controller knows about its surroundings at time ``t_s``.
+
+    ``circle_xy_m`` (K, 2) centres, ``circle_radius_m`` (K,), ``circle_velocity_mps`` (K, 2): moving
+    (or static, velocity 0) circular obstacles, predicted with constant velocity;
+    ``distance`` the static map as a :class:`DistanceGrid` (or None for open space)."""
+
+    circle_xy_m: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    circle_radius_m: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    circle_velocity_mps: np.ndarray | None = None
+    distance: DistanceGrid | None = None
+    t_s: float = 0.0
+
+    def __post_init__(self) -> None:
+        c = np.asarray(self.circle_xy_m, dtype=float).reshape(-1, 2)
+        r = np.asarray(self.circle_radius_m, dtype=float).reshape(-1)
+        v = (np.zeros_like(c) if self.circle_velocity_mps is None
+             else np.asarray(self.circle_velocity_mps, dtype=float).reshape(-1, 2))
+        if not (len(c) == len(r) == len(v)):
+            raise ControlError(f"LocalWorld: {len(c)} circle centres, {len(r)} radii, {len(v)} velocities")
+        if np.any(r < 0):
+            raise ControlError("LocalWorld.circle_radius_m must be >= 0")
+        object.__setattr__(self, "circle_xy_m", _ro(c.copy()))
+        object.__setattr__(self, "circle_radius_m", _ro(r.copy()))
+        object.__setattr__(self, "circle_velocity_mps", _ro(v.copy()))
+
+    @property
+    def num_circles(self) -> int:
+        return len(self.circle_radius_m)
+
+    def circles_at(self, dt_s: np.ndarray) -> np.ndarray:
+        """Constant-velocity prediction: (T,) time offsets -> (T, K, 2) centres."""
+        dt = np.asarray(dt_s, dtype=float).reshape(-1)
+        return self.circle_xy_m[None, :, :] + dt[:, None, None] * self.circle_velocity_mps[None, :, :]
+
+    def clearance_m(self, xy_m: np.ndarray, dt_s: np.ndarray | float = 0.0) -> np.ndarray:
+        """Distance from points (..., T, 2) to the nearest obstacle surface, the circles predicted
+        ``dt_s`` (T,) ahead (broadcast over the leading axes). +inf with no obstacles."""
+        xy = np.asarray(xy_m, dtype=float)
+        if xy.ndim == 1:
+            xy = xy[None, :]
+        dt = np.broadcast_to(np.asarray(dt_s, dtype=float), xy.shape[-2:-1])
+        out = np.full(xy.shape[:-1], np.inf)
+        if self.num_circles:
+            centres = self.circles_at(dt)  # (T, K, 2)
+            dist = np.linalg.norm(xy[..., :, None, :] - centres, axis=-1) - self.circle_radius_m
+            out = np.minimum(out, dist.min(axis=-1))
+        if self.distance is not None:
+            out = np.minimum(out, self.distance.query(xy)[0])
+        return out
+
+
+@dataclass(frozen=True)
+class ControlOutput:
+    """A controller's answer for one cycle.
+
+    ``command`` (2,); ``status``; ``candidates_xytheta`` (K, T+1, 3) rollouts with ``scores`` (K,)
+    and ``chosen`` (index, -1 if none) for sampling controllers; ``predicted_xytheta`` (N+1, 3) and
+    ``predicted_commands`` (N, 2) for MPC; ``force_xy`` for potential fields;
+    ``solve_time_s`` the wall time of the decision; ``info`` solver details (iterations,
+    solver status string, cost terms)."""
+
+    command: np.ndarray
+    status: ControlStatus = ControlStatus.OK
+    candidates_xytheta: np.ndarray | None = None
+    scores: np.ndarray | None = None
+    chosen: int = -1
+    predicted_xytheta: np.ndarray | None = None
+    predicted_commands: np.ndarray | None = None
+    force_xy: Mapping[str, np.ndarray] = field(default_factory=dict)
+    solve_time_s: float = 0.0
+    info: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        cmd = np.asarray(self.command, dtype=float).reshape(-1)
+        if cmd.shape != (2,):
+            raise ControlError(f"ControlOutput.command must have 2 entries, got {cmd.shape}")
+        object.__setattr__(self, "command", _ro(cmd.copy()))
+
+
+@runtime_checkable
+class Controller(Protocol):
+    """Local planners and trackers. Engines keep private state (the warm start of MPC, the escape
+    state of potential fields); ``reset`` clears it between episodes."""
+
+    name: str
+
+    def reset(self) -> None: ...
+
+    def compute(self, state: RobotState, reference: Reference, world: LocalWorld) -> ControlOutput: ...
+
+
+def brake_command(command: np.ndarray, decel_mps2: float, omega_decel_radps2: float,
+                  dt_s: float) -> np.ndarray:
+    """The safe fallback: decelerate (v, omega) towards zero within the acceleration limits."""
+    v, w = np.asarray(command, dtype=float).reshape(2)
+    dv = decel_mps2 * dt_s
+    dw = omega_decel_radps2 * dt_s
+    v_new = np.sign(v) * max(abs(v) - dv, 0.0)
+    w_new = np.sign(w) * max(abs(w) - dw, 0.0)
+    return np.array([v_new, w_new])
