@@ -13,7 +13,12 @@ import numpy as np
 import pytest
 
 from slamkit.models import diff_drive as dd
+from slamkit.models import planar
 from slamkit.models import range_bearing as rb
+from slamkit.models.bicycle import Bicycle
+from slamkit.models.mecanum import Mecanum
+from slamkit.models.omni import Omni3
+from slamkit.models.tracked import Tracked
 
 
 @dataclass(frozen=True)
@@ -32,11 +37,22 @@ def _motion_case(name, f, jac, u):
     return Case(name, lambda x, u: f(x, u, 0.7), lambda x, u: jac(x, u, 0.7), (x, np.asarray(u)), (0, 1), (2,))
 
 
+_CAR = Bicycle(wheelbase_m=2.5, max_steer_rad=0.6)
+_TANK = Tracked(track_width_m=0.5, slip_left=0.1, slip_right=0.05, icr_left_m=0.35, icr_right_m=-0.3, icr_x_m=0.05)
+
 CASES = [
     _motion_case("diff_drive.motion", dd.motion, dd.motion_jacobians, [1.3, 0.8]),
     _motion_case("diff_drive.motion(omega=1e-9)", dd.motion, dd.motion_jacobians, [1.3, 1e-9]),
     _motion_case("diff_drive.motion(omega=0)", dd.motion, dd.motion_jacobians, [-0.4, 0.0]),
     _motion_case("diff_drive.motion_straight", dd.motion_straight, dd.motion_straight_jacobians, [1.3, 0.8]),
+    _motion_case("planar.motion_twist", planar.motion_twist, planar.motion_twist_jacobians, [1.3, -0.4, 0.8]),
+    _motion_case("planar.motion_twist(omega=1e-9)", planar.motion_twist, planar.motion_twist_jacobians,
+                 [1.3, -0.4, 1e-9]),
+    _motion_case("bicycle.motion", _CAR.motion, _CAR.motion_jacobians, [2.0, 0.3]),
+    _motion_case("bicycle.motion(straight)", _CAR.motion, _CAR.motion_jacobians, [2.0, 0.0]),
+    _motion_case("tracked.motion", _TANK.motion, _TANK.motion_jacobians, [1.0, 0.4]),
+    _motion_case("omni.motion", Omni3().motion, Omni3().motion_jacobians, [3.0, -1.0, 2.0]),
+    _motion_case("mecanum.motion", Mecanum().motion, Mecanum().motion_jacobians, [3.0, -1.0, 2.0, 0.5]),
     Case("diff_drive.forward", lambda w: dd.DiffDrive(0.1, 0.2).forward(w),
          lambda w: (dd.DiffDrive(0.1, 0.2).forward_jacobian(),), (np.array([2.0, 1.0]),), (0,)),
     Case("range_bearing.observe", rb.observe, rb.observe_jacobians,
