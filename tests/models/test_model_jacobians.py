@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from slamkit.models import diff_drive as dd
+from slamkit.models import gps
 from slamkit.models import planar
 from slamkit.models import range_bearing as rb
 from slamkit.models.bicycle import Bicycle
@@ -55,6 +56,8 @@ CASES = [
     _motion_case("mecanum.motion", Mecanum().motion, Mecanum().motion_jacobians, [3.0, -1.0, 2.0, 0.5]),
     Case("diff_drive.forward", lambda w: dd.DiffDrive(0.1, 0.2).forward(w),
          lambda w: (dd.DiffDrive(0.1, 0.2).forward_jacobian(),), (np.array([2.0, 1.0]),), (0,)),
+    Case("gps.observe(lever arm)", lambda x: gps.observe(x, (0.4, -0.3)),
+         lambda x: (gps.observe_jacobian(x, (0.4, -0.3)),), (np.array([1.0, 2.0, 0.7]),), (0,)),
     Case("range_bearing.observe", rb.observe, rb.observe_jacobians,
          (np.array([1.0, 2.0, 0.4]), np.array([-3.0, 5.0])), (0, 1), (1,)),
     Case("range_bearing.inverse_observe", rb.inverse_observe, rb.inverse_observe_jacobians,
