@@ -14,6 +14,7 @@ import pytest
 
 from slamkit.models import diff_drive as dd
 from slamkit.models import gps
+from slamkit.models import lidar
 from slamkit.models import planar
 from slamkit.models import range_bearing as rb
 from slamkit.models.bicycle import Bicycle
@@ -58,6 +59,9 @@ CASES = [
          lambda w: (dd.DiffDrive(0.1, 0.2).forward_jacobian(),), (np.array([2.0, 1.0]),), (0,)),
     Case("gps.observe(lever arm)", lambda x: gps.observe(x, (0.4, -0.3)),
          lambda x: (gps.observe_jacobian(x, (0.4, -0.3)),), (np.array([1.0, 2.0, 0.7]),), (0,)),
+    Case("lidar.scan_endpoints", lambda x: lidar.scan_endpoints(x, [2.0, 3.5], [0.3, -1.2], (0.2, 0.1, 0.05)).ravel(),
+         lambda x: (lidar.scan_endpoints_jacobian(x, [2.0, 3.5], [0.3, -1.2], (0.2, 0.1, 0.05)).reshape(4, 3),),
+         (np.array([1.0, 2.0, 0.7]),), (0,)),
     Case("range_bearing.observe", rb.observe, rb.observe_jacobians,
          (np.array([1.0, 2.0, 0.4]), np.array([-3.0, 5.0])), (0, 1), (1,)),
     Case("range_bearing.inverse_observe", rb.inverse_observe, rb.inverse_observe_jacobians,
