@@ -1,1 +1,122 @@
-"""(filled in by its issue)"""
+"""``slamkit eval ate|rpe --ref FILE --est FILE ...``: trajectory metrics from files.
+
+A thin shell over :func:`slamkit.metrics.evaluate_files`, which returns an
+:class:`~slamkit.metrics.EvaluationResult`; ``--json`` prints its ``to_dict()`` (rmse, mean,
+median, std, min, max, sse, num_pairs, align, ...) as one JSON object on stdout.
+"""
+
+from __future__ import annotations
+
+import json
+from enum import Enum
+from pathlib import Path
+
+import typer
+from rich.console import Console
+from rich.table import Table
+
+from slamkit.cli.app import app
+from slamkit.errors import SlamkitError
+
+eval_app = typer.Typer(
+    name="eval",
+    help="Trajectory metrics (evo's definitions): ATE and RPE of an estimate against a reference.",
+    no_args_is_help=True,
+    add_completion=False,
+)
+app.add_typer(eval_app, name="eval")
+
+
+class Format(str, Enum):
+    auto = "auto"
+    tum = "tum"
+    kitti = "kitti"
+    g2o = "g2o"
+
+
+class Align(str, Enum):
+    none = "none"
+    origin = "origin"
+    se2 = "se2"
+    se3 = "se3"
+    sim3 = "sim3"
+
+
+class DeltaUnit(str, Enum):
+    frames = "frames"
+    m = "m"
+
+
+class Relation(str, Enum):
+    trans = "trans"
+    angle_deg = "angle_deg"
+    angle_rad = "angle_rad"
+
+
+REF = typer.Option(..., "--ref", help="reference (ground-truth) trajectory file")
+EST = typer.Option(..., "--est", help="estimated trajectory file")
+FORMAT = typer.Option(Format.auto, "--format", help="file format of both files (auto: .g2o suffix -> "
+                      "g2o, 12 numbers a line -> kitti, else tum)")
+ALIGN = typer.Option(Align.none, "--align", help="alignment of the estimate before scoring")
+RELATION = typer.Option(Relation.trans, "--relation", help="what the statistics measure: translation "
+                        "(m) or rotation angle (deg / rad)")
+MAX_DIFF = typer.Option(0.01, "--max-diff", help="max. stamp difference (s) for association")
+N_FIRST = typer.Option(None, "--n-first", help="align using only the first N pose pairs")
+JSON = typer.Option(False, "--json", help="print one JSON object on stdout")
+
+
+def _run(metric: str, ref: Path, est: Path, fmt: Format, align: Align, relation: Relation,
+         max_diff: float, n_first: int | None, as_json: bool, **rpe_args) -> None:
+    from slamkit.metrics import evaluate_files
+
+    try:
+        result = evaluate_files(ref, est, metric=metric, fmt=fmt.value, align=align.value,
+                                relation=relation.value, max_diff_s=max_diff, n_first=n_first,
+                                **rpe_args)
+    except SlamkitError as exc:
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(2)
+    out = result.to_dict()
+    if as_json:
+        print(json.dumps(out))
+        return
+    title = f"{metric.upper()} ({relation.value}, {out['unit']}), align={align.value}"
+    if metric == "rpe":
+        title += f", delta={out['delta']:g} {out['delta_unit']}"
+    table = Table(title=title)
+    table.add_column("statistic")
+    table.add_column("value", justify="right")
+    for name in ("rmse", "mean", "median", "std", "min", "max", "sse"):
+        table.add_row(name, f"{out[name]:.6g}")
+    table.add_row("pairs", str(out["num_pairs"]))
+    if align == Align.sim3:
+        table.add_row("scale", f"{out['scale']:.6g}")
+    Console().print(table)
+
+
+@eval_app.command("ate")
+def ate_command(
+    ref: Path = REF, est: Path = EST, fmt: Format = FORMAT, align: Align = ALIGN,
+    relation: Relation = RELATION, max_diff: float = MAX_DIFF, n_first: int = N_FIRST,
+    delta: float = typer.Option(None, "--delta", help="(RPE only; accepted and ignored here)"),
+    delta_unit: DeltaUnit = typer.Option(None, "--delta-unit", help="(RPE only; ignored here)"),
+    as_json: bool = JSON,
+) -> None:
+    """Absolute trajectory error: per-pose position (or rotation) error after alignment."""
+    if delta is not None or delta_unit is not None:
+        typer.echo("note: --delta/--delta-unit apply to 'slamkit eval rpe' only; ignored", err=True)
+    _run("ate", ref, est, fmt, align, relation, max_diff, n_first, as_json)
+
+
+@eval_app.command("rpe")
+def rpe_command(
+    ref: Path = REF, est: Path = EST, fmt: Format = FORMAT, align: Align = ALIGN,
+    relation: Relation = RELATION, max_diff: float = MAX_DIFF, n_first: int = N_FIRST,
+    delta: float = typer.Option(1.0, "--delta", help="pose-pair spacing, in --delta-unit"),
+    delta_unit: DeltaUnit = typer.Option(DeltaUnit.frames, "--delta-unit", help="frames or metres of path"),
+    all_pairs: bool = typer.Option(False, "--all-pairs", help="every pair delta apart, not only consecutive ones"),
+    as_json: bool = JSON,
+) -> None:
+    """Relative pose error over pose pairs delta frames or metres apart (drift)."""
+    _run("rpe", ref, est, fmt, align, relation, max_diff, n_first, as_json, delta=delta,
+         delta_unit=delta_unit.value, all_pairs=all_pairs)
