@@ -72,23 +72,12 @@ def transform_points(a_T_b: np.ndarray, b_p: np.ndarray) -> np.ndarray:
 
 
 def _v_matrix(phi: np.ndarray) -> np.ndarray:
-    theta = np.linalg.norm(phi, axis=-1)
-    _, b, c = so3._coefficients(theta)
-    K = so3.hat(phi)
-    return np.eye(3) + b[..., None, None] * K + c[..., None, None] * (K @ K)
+    """V = J_l(phi), the left Jacobian of SO(3)."""
+    return so3.left_jacobian(phi)
 
 
 def _v_inverse(phi: np.ndarray) -> np.ndarray:
-    theta = np.linalg.norm(phi, axis=-1)
-    t2 = theta * theta
-    small = theta < SMALL_ANGLE_RAD
-    safe = np.where(small, 1.0, theta)
-    # D = (1 - A/(2B)) / t^2 = (1 - t sin t / (2 (1 - cos t))) / t^2 ; 1 - cos t = 2 sin^2(t/2)
-    d_big = (1.0 - safe * np.sin(safe) / (4.0 * np.sin(0.5 * safe) ** 2)) / (safe * safe)
-    d_small = 1.0 / 12.0 + t2 / 720.0 + t2 * t2 / 30240.0 + t2 * t2 * t2 / 1209600.0
-    d = np.where(small, d_small, d_big)
-    K = so3.hat(phi)
-    return np.eye(3) - 0.5 * K + d[..., None, None] * (K @ K)
+    return so3.left_jacobian_inverse(phi)
 
 
 def exp(xi: np.ndarray) -> np.ndarray:

@@ -14,6 +14,9 @@ Conventions
 * ZYX Euler: R = Rz(yaw) @ Ry(pitch) @ Rx(roll), pitch in [-pi/2, pi/2].
 * ``local(R1, R2) = log(R1^T R2)`` and ``retract(R, phi) = R exp(phi)`` (right perturbation).
 * ``adjoint(R) = R``: R exp(phi) R^T = exp(R phi).
+* Jacobians (Barfoot eqs. 7.77, 7.87; Sola et al. 2018 eqs. 143-146):
+  exp(phi + d) ~ exp(phi) exp(J_r(phi) d) ~ exp(J_l(phi) d) exp(phi), with
+  J_l = I + B hat + C hat^2, J_r(phi) = J_l(-phi), and the closed-form inverses.
 
 All functions are pure, broadcast over leading dimensions and never modify their inputs.
 """
@@ -97,6 +100,42 @@ def log(R: np.ndarray) -> np.ndarray:
     scale_small = 2.0 / np.where(small, w, 1.0) * (1.0 - r / 3.0 + r * r / 5.0)
     scale = np.where(small, scale_small, scale_big)
     return scale[..., None] * v
+
+
+def left_jacobian(phi: np.ndarray) -> np.ndarray:
+    """J_l(phi) (..., 3, 3) = I + B hat(phi) + C hat(phi)^2 (also SE(3)'s V matrix)."""
+    phi = _arr(phi)
+    _, b, c = _coefficients(np.linalg.norm(phi, axis=-1))
+    K = hat(phi)
+    return np.eye(3) + b[..., None, None] * K + c[..., None, None] * (K @ K)
+
+
+def right_jacobian(phi: np.ndarray) -> np.ndarray:
+    """J_r(phi) = J_l(-phi): exp(phi + d) ~ exp(phi) exp(J_r d) for small d."""
+    return left_jacobian(-_arr(phi))
+
+
+def _inverse_coefficient(theta: np.ndarray) -> np.ndarray:
+    """D = (1 - A / (2B)) / t^2 = 1/t^2 - (1 + cos t) / (2 t sin t), Taylor-expanded when small."""
+    t2 = theta * theta
+    small = theta < SMALL_ANGLE_RAD
+    safe = np.where(small, 1.0, theta)
+    # 1 - cos t = 2 sin^2(t/2) keeps the big-angle branch finite at t = pi
+    d_big = (1.0 - safe * np.sin(safe) / (4.0 * np.sin(0.5 * safe) ** 2)) / (safe * safe)
+    d_small = 1.0 / 12.0 + t2 / 720.0 + t2 * t2 / 30240.0 + t2 * t2 * t2 / 1209600.0
+    return np.where(small, d_small, d_big)
+
+
+def left_jacobian_inverse(phi: np.ndarray) -> np.ndarray:
+    """J_l(phi)^-1 = I - hat(phi)/2 + D hat(phi)^2 (valid for |phi| < 2 pi)."""
+    phi = _arr(phi)
+    d = _inverse_coefficient(np.linalg.norm(phi, axis=-1))
+    K = hat(phi)
+    return np.eye(3) - 0.5 * K + d[..., None, None] * (K @ K)
+
+
+def right_jacobian_inverse(phi: np.ndarray) -> np.ndarray:
+    return left_jacobian_inverse(-_arr(phi))
 
 
 def compose(a_R_b: np.ndarray, b_R_c: np.ndarray) -> np.ndarray:

@@ -212,3 +212,23 @@ def test_se3_batch_shapes():
     assert se3.transform_points(T, np.zeros(3)).shape == (7, 3)
     assert so3.to_quat_wxyz(T[:, :3, :3]).shape == (7, 4)
     np.testing.assert_allclose(so3.normalize(T[:, :3, :3] * 1.0001), T[:, :3, :3], atol=1e-12)
+
+
+@settings(max_examples=40, deadline=None)
+@given(rotvec)
+def test_so3_jacobians_match_finite_differences(phi):
+    assume(np.linalg.norm(phi) < np.pi - 1e-3)
+    eps = 1e-6
+    Jr = so3.right_jacobian(phi)
+    Jl = so3.left_jacobian(phi)
+    R = so3.exp(phi)
+    for i in range(3):
+        d = np.zeros(3)
+        d[i] = eps
+        # central differences of exp(phi + d) expressed on the right and on the left of exp(phi)
+        right = (so3.log(R.T @ so3.exp(phi + d)) - so3.log(R.T @ so3.exp(phi - d))) / (2 * eps)
+        left = (so3.log(so3.exp(phi + d) @ R.T) - so3.log(so3.exp(phi - d) @ R.T)) / (2 * eps)
+        np.testing.assert_allclose(right, Jr[:, i], atol=1e-7)
+        np.testing.assert_allclose(left, Jl[:, i], atol=1e-7)
+    np.testing.assert_allclose(Jr @ so3.right_jacobian_inverse(phi), np.eye(3), atol=1e-9)
+    np.testing.assert_allclose(Jl @ so3.left_jacobian_inverse(phi), np.eye(3), atol=1e-9)
