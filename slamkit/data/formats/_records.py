@@ -18,7 +18,7 @@ reader behaves the same:
 * no edges and no vertices -> ``DataError`` ("empty graph");
 * information that is not positive definite (smallest eigenvalue <= 0) -> ``policy`` decides:
   ``'keep'`` (default; GTSAM uses information as given) records the count in ``notes``,
-  ``'repair'`` clips eigenvalues to ``1e-9 * largest`` (the nearest PD matrix in Frobenius norm up
+  ``'repair'`` clips eigenvalues to ``1e-9 * max(largest |eigenvalue|, 1)`` (the nearest PD matrix in Frobenius norm up
   to that floor) and records the count, ``'reject'`` raises ``DataError`` naming the first line;
 * more than one connected component -> recorded in ``notes`` (the back-end needs a prior per
   component); see :func:`connected_components`.
@@ -29,7 +29,9 @@ Vertices are returned sorted by id (GTSAM's ``Values`` order), edges in file ord
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 from typing import Literal
 
@@ -46,10 +48,45 @@ REPAIR_RELATIVE_FLOOR = 1e-9
 
 @dataclass
 class Block:
-    """All lines of one tag: one-based line numbers and the tokens after the tag."""
+    """All lines of one tag: one-based line numbers and the raw line strings (tag included)."""
 
-    lines: list[int]
-    rows: list[list[str]]
+    tag: str
+    lines: np.ndarray
+    raw: list[str]
+
+    @property
+    def rows(self) -> list[list[str]]:
+        """Tokens after the tag, per line (the slow path; only used to locate errors)."""
+        return [line.split()[1:] for line in self.raw]
+
+    @cached_property
+    def payload(self) -> str:
+        """The lines without their tags, joined by newlines."""
+        n = len(self.tag)
+        return "\n".join([line[line.find(self.tag) + n:] for line in self.raw])
+
+    def token_counts(self) -> np.ndarray:
+        """Number of fields after the tag on each line, computed on bytes without a Python loop."""
+        if not self.raw:
+            return np.zeros(0, dtype=np.int64)
+        data = self.payload.encode("utf-8", errors="replace")
+        buf = np.frombuffer(data, dtype=np.uint8)
+        space = (buf == 32) | (buf == 9) | (buf == 10) | (buf == 13) | (buf == 11) | (buf == 12)
+        starts = ~space
+        starts[1:] &= space[:-1]
+        line_of_byte = np.cumsum(buf == 10)
+        return np.bincount(line_of_byte[starts], minlength=len(self.raw))[: len(self.raw)]
+
+    def subset(self, mask: np.ndarray) -> "Block":
+        index = np.flatnonzero(mask)
+        return Block(self.tag, self.lines[index], [self.raw[k] for k in index])
+
+    def __len__(self) -> int:
+        return len(self.raw)
+
+
+def empty_block(tag: str) -> Block:
+    return Block(tag, np.zeros(0, dtype=np.int64), [])
 
 
 def read_records(path: str | Path) -> dict[str, Block]:
@@ -63,66 +100,86 @@ def read_records(path: str | Path) -> dict[str, Block]:
         raise DataError(f"not a text file ({exc.reason} at byte {exc.start})", path) from None
     except IsADirectoryError:
         raise DataError("is a directory, not a file", path) from None
+    lines = text.splitlines()
+    # partition(" ") is the cheap common case; lines that start with whitespace or use tabs
+    # take the general split
+    heads = [line.partition(" ")[0] for line in lines]
+    for k, head in enumerate(heads):
+        if not head or "\t" in head or "\x0b" in head or "\x0c" in head:
+            tokens = lines[k].split(None, 1)
+            heads[k] = tokens[0] if tokens else ""
+    head_array = np.array(heads)
     blocks: dict[str, Block] = {}
-    for lineno, line in enumerate(text.splitlines(), start=1):
-        tokens = line.split()
-        if not tokens or tokens[0].startswith("#"):
+    for tag in dict.fromkeys(heads):
+        if not tag or tag.startswith("#"):
             continue
-        block = blocks.get(tokens[0])
-        if block is None:
-            block = blocks[tokens[0]] = Block([], [])
-        block.lines.append(lineno)
-        block.rows.append(tokens[1:])
+        index = np.flatnonzero(head_array == tag)
+        blocks[tag] = Block(tag, index + 1, [lines[k] for k in index])
     return blocks
 
 
-def numeric(path: str | Path, tag: str, block: Block, n_ids: int, n_values: int,
-            allowed_counts: tuple[int, ...] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Convert a block to integer ids (K, n_ids) and finite floats (K, n_values).
+def numeric(path: str | Path, tag: str, block: Block, n_ids: int,
+            n_values: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Convert a block to line numbers (K,), integer ids (K, n_ids) and finite floats (K, n_values).
 
-    ``allowed_counts`` lets a tag accept several value counts (the values are then left-aligned
-    and the rest padded with NaN is NOT done: callers pass one count per call)."""
+    Fast path: one ``np.fromstring`` over the whole block after a vectorised per-line field
+    count; any failure falls back to a line-by-line scan that names the line and field."""
     expected = n_ids + n_values
-    counts = allowed_counts or (expected,)
-    for lineno, row in zip(block.lines, block.rows):
-        if len(row) not in counts:
-            raise DataError(f"{tag} needs {expected} fields after the tag, got {len(row)}", path, lineno)
     lines = np.asarray(block.lines, dtype=np.int64)
-    if not block.rows:
+    if not len(block):
         return lines, np.zeros((0, n_ids), np.int64), np.zeros((0, n_values))
-    try:
-        ids = np.array([row[:n_ids] for row in block.rows], dtype=np.int64).reshape(-1, n_ids)
-    except (ValueError, OverflowError):
-        _locate_bad_token(path, tag, block, 0, n_ids, int)
-        raise  # pragma: no cover - _locate_bad_token always raises
-    try:
-        values = np.array([row[n_ids:expected] for row in block.rows], dtype=float).reshape(-1, n_values)
-    except ValueError:
-        _locate_bad_token(path, tag, block, n_ids, expected, float)
-        raise  # pragma: no cover
+    counts = block.token_counts()
+    wrong = np.flatnonzero(counts != expected)
+    if len(wrong):
+        k = int(wrong[0])
+        raise DataError(f"{tag} needs {expected} fields after the tag, got {int(counts[k])}",
+                        path, int(lines[k]))
+    flat = None
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        try:
+            flat = np.fromstring(block.payload, dtype=float, sep=" ")
+        except (ValueError, DeprecationWarning):
+            flat = None
+    if flat is None or flat.size != len(block) * expected:
+        _locate_bad_token(path, tag, block, expected)
+    table = flat.reshape(len(block), expected)
+    id_part = table[:, :n_ids]
+    integral = (id_part == np.round(id_part)) & (np.abs(id_part) < 2.0**53)
+    if not integral.all():
+        k = int(np.flatnonzero(~integral.all(axis=1))[0])
+        col = int(np.flatnonzero(~integral[k])[0])
+        raise DataError(f"{tag} field {col + 1} is {block.rows[k][col]!r}, expected an integer id",
+                        path, int(lines[k]))
+    values = table[:, n_ids:]
     finite = np.isfinite(values).all(axis=1)
     if not finite.all():
         bad = int(np.flatnonzero(~finite)[0])
-        raise DataError(f"{tag} contains NaN or infinity", path, block.lines[bad])
-    return lines, ids, values
+        raise DataError(f"{tag} contains NaN or infinity", path, int(lines[bad]))
+    return lines, id_part.astype(np.int64), np.ascontiguousarray(values)
 
 
-def _locate_bad_token(path, tag, block, start, stop, kind) -> None:
-    what = "an integer id" if kind is int else "a number"
-    for lineno, row in zip(block.lines, block.rows):
-        for col in range(start, stop):
+def _locate_bad_token(path, tag, block: Block, expected: int) -> None:
+    for lineno, row in zip(block.lines.tolist(), block.rows):
+        for col in range(expected):
             try:
-                kind(row[col])
-            except (ValueError, OverflowError):
-                raise DataError(f"{tag} field {col + 1} is {row[col]!r}, expected {what}",
+                float(row[col])
+            except ValueError:
+                raise DataError(f"{tag} field {col + 1} is {row[col]!r}, expected a number",
                                 path, lineno) from None
     raise DataError(f"{tag}: could not convert values", path)  # pragma: no cover
 
 
 def wrap_angle_rad(angle_rad: np.ndarray) -> np.ndarray:
-    """Angles into (-pi, pi] the way gtsam's Rot2 does (atan2 of sin and cos), so parsed values
-    equal what gtsam stores even when a file writes 5.2 rad for -1.08 rad."""
-    return np.arctan2(np.sin(angle_rad), np.cos(angle_rad))
+    """Angles outside (-pi, pi] wrapped the way gtsam's Rot2 does (atan2 of sin and cos), so a
+    file's 5.2 rad reads as gtsam's -1.083 rad; angles already in range are kept bit-exact."""
+    angle_rad = np.asarray(angle_rad, dtype=float)
+    outside = (angle_rad > np.pi) | (angle_rad <= -np.pi)
+    if not outside.any():
+        return angle_rad
+    out = angle_rad.copy()
+    out[outside] = np.arctan2(np.sin(angle_rad[outside]), np.cos(angle_rad[outside]))
+    return out
 
 
 def symmetric_from_upper(values: np.ndarray, n: int) -> np.ndarray:
@@ -140,24 +197,7 @@ def upper_from_symmetric(matrices: np.ndarray) -> np.ndarray:
     return matrices[:, rows, cols]
 
 
-# --- small quaternion helpers (wxyz) used by chaining; kept local so the readers depend on numpy only
-
-
-def quat_multiply_wxyz(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    aw, ax, ay, az = a
-    bw, bx, by, bz = b
-    return np.array([
-        aw * bw - ax * bx - ay * by - az * bz,
-        aw * bx + ax * bw + ay * bz - az * by,
-        aw * by - ax * bz + ay * bw + az * bx,
-        aw * bz + ax * by - ay * bx + az * bw,
-    ])
-
-
-def quat_rotate_wxyz(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    w, u = q[0], q[1:]
-    # v' = v + 2 u x (u x v + w v), valid for unit q
-    return v + 2.0 * np.cross(u, np.cross(u, v) + w * v)
+# --- small rotation helpers, kept local so the readers depend on numpy only
 
 
 def normalize_quats_wxyz(q: np.ndarray, path, lines: np.ndarray, tag: str) -> np.ndarray:
@@ -214,18 +254,28 @@ def chain_initial(dim: int, edge_from: np.ndarray, edge_to: np.ndarray,
         cs = np.asarray(rots, dtype=float).reshape(-1, 2)
         out = np.column_stack([xy, np.arctan2(cs[:, 1], cs[:, 0])])
     else:
-        identity = np.array([0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0])
-        for a, b, m in zip(edge_from.tolist(), edge_to.tolist(), measurements):
+        # scalar Python on tuples: per-edge numpy calls would cost ~20x more here
+        for a, b, m in zip(edge_from.tolist(), edge_to.tolist(), measurements.tolist()):
             if a not in known:
                 known[a] = len(poses)
-                poses.append(identity)
+                poses.append((0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0))
             if b not in known:
-                p = poses[known[a]]
-                q = quat_multiply_wxyz(p[3:], m[3:])
-                q = q / np.linalg.norm(q)
-                t = p[:3] + quat_rotate_wxyz(p[3:], m[:3])
+                x, y, z, w1, x1, y1, z1 = poses[known[a]]
+                tx, ty, tz, w2, x2, y2, z2 = m
+                qw = w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2
+                qx = w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2
+                qy = w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2
+                qz = w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2
+                norm = math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
+                # rotate (tx, ty, tz) by q1: v + 2 u x (u x v + w v)
+                cx = y1 * tz - z1 * ty + w1 * tx
+                cy = z1 * tx - x1 * tz + w1 * ty
+                cz = x1 * ty - y1 * tx + w1 * tz
+                rx = tx + 2.0 * (y1 * cz - z1 * cy)
+                ry = ty + 2.0 * (z1 * cx - x1 * cz)
+                rz = tz + 2.0 * (x1 * cy - y1 * cx)
                 known[b] = len(poses)
-                poses.append(np.concatenate([t, q]))
+                poses.append((x + rx, y + ry, z + rz, qw / norm, qx / norm, qy / norm, qz / norm))
         out = np.asarray(poses, dtype=float).reshape(-1, 7)
     return np.fromiter(known.keys(), dtype=np.int64, count=len(known)), out
 
@@ -334,7 +384,7 @@ def assemble(*, path: str | Path, dim: int, vertex_ids: np.ndarray, poses: np.nd
 
 def note_ignored(blocks: dict[str, Block], handled: set[str]) -> list[str]:
     """Notes for tags a reader skips, e.g. ``ignored 40 EQUIV lines``."""
-    return [f"ignored {len(blocks[tag].lines)} {tag} lines" for tag in sorted(blocks)
+    return [f"ignored {len(blocks[tag])} {tag} lines" for tag in sorted(blocks)
             if tag not in handled]
 
 

@@ -38,6 +38,7 @@ import numpy as np
 from slamkit.data.formats._records import (
     InformationPolicy,
     assemble,
+    empty_block,
     normalize_quats_wxyz,
     note_ignored,
     numeric,
@@ -71,17 +72,16 @@ def read_g2o(path: str | Path, policy: InformationPolicy = "keep", name: str | N
             hint = " (EDGE3 records: this looks like an iSAM or TORO-3D file)"
         raise DataError(f"empty graph: no VERTEX_SE2/EDGE_SE2 or VERTEX_SE3:QUAT/EDGE_SE3:QUAT "
                         f"records{hint}", path)
-    empty = _empty_block()
     if has2:
-        vl, vid, vval = numeric(path, "VERTEX_SE2", blocks.get("VERTEX_SE2", empty), 1, 3)
-        el, eid, evals = numeric(path, "EDGE_SE2", blocks.get("EDGE_SE2", empty), 2, 9)
+        vl, vid, vval = numeric(path, "VERTEX_SE2", _get(blocks, "VERTEX_SE2"), 1, 3)
+        el, eid, evals = numeric(path, "EDGE_SE2", _get(blocks, "EDGE_SE2"), 2, 9)
         poses = np.column_stack([vval[:, :2], wrap_angle_rad(vval[:, 2])])
         meas = np.column_stack([evals[:, :2], wrap_angle_rad(evals[:, 2])])
         info = symmetric_from_upper(evals[:, 3:], 3)
         dim = 2
     else:
-        vl, vid, vval = numeric(path, "VERTEX_SE3:QUAT", blocks.get("VERTEX_SE3:QUAT", empty), 1, 7)
-        el, eid, evals = numeric(path, "EDGE_SE3:QUAT", blocks.get("EDGE_SE3:QUAT", empty), 2, 28)
+        vl, vid, vval = numeric(path, "VERTEX_SE3:QUAT", _get(blocks, "VERTEX_SE3:QUAT"), 1, 7)
+        el, eid, evals = numeric(path, "EDGE_SE3:QUAT", _get(blocks, "EDGE_SE3:QUAT"), 2, 28)
         poses = _xyz_xyzw_to_xyz_wxyz(vval, path, vl, "VERTEX_SE3:QUAT")
         meas = _xyz_xyzw_to_xyz_wxyz(evals[:, :7], path, el, "EDGE_SE3:QUAT")
         info = symmetric_from_upper(evals[:, 7:], 6)
@@ -94,10 +94,8 @@ def read_g2o(path: str | Path, policy: InformationPolicy = "keep", name: str | N
     )
 
 
-def _empty_block():
-    from slamkit.data.formats._records import Block
-
-    return Block([], [])
+def _get(blocks, tag):
+    return blocks.get(tag) or empty_block(tag)
 
 
 def _xyz_xyzw_to_xyz_wxyz(values: np.ndarray, path, lines, tag) -> np.ndarray:
