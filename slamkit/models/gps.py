@@ -23,6 +23,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.signal import lfilter
 
 from slamkit.errors import ConfigError
 
@@ -92,11 +93,13 @@ class Gps:
         else:
             phi = np.exp(-np.diff(t, prepend=t[0]) / self.correlation_time_s)
             drive = np.sqrt(1.0 - phi**2) * self.sigma_m
-            e = w[0] * self.sigma_m  # start in the stationary distribution
-            err[0] = e
-            for k in range(1, len(x)):  # a recursion in time (N fixes at ~1 Hz), not per particle
-                e = phi[k] * e + drive[k] * w[k]
-                err[k] = e
+            err[0] = w[0] * self.sigma_m  # start in the stationary distribution
+            if len(x) > 1 and np.allclose(phi[1:], phi[1]):
+                # uniform rate: the recursion is a first-order IIR filter, run in C by lfilter
+                err[1:] = lfilter([drive[1]], [1.0, -phi[1]], w[1:], axis=0, zi=phi[1] * err[:1])[0]
+            else:
+                for k in range(1, len(x)):  # irregular stamps: a recursion in time, not per particle
+                    err[k] = phi[k] * err[k - 1] + drive[k] * w[k]
         return observe(x, self.body_p_antenna) + err
 
 

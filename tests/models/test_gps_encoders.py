@@ -77,3 +77,14 @@ def test_encoder_quantisation_variance():
     err = phi - angle_from_ticks(ticks_from_angle(phi, 64), 64)
     assert np.all((err >= -1e-9) & (err < enc.resolution_rad))
     assert err.var() == pytest.approx(enc.quantisation_variance_rad2, rel=0.02)
+
+
+def test_gps_irregular_stamps_match_the_uniform_filter():
+    """The lfilter path (uniform rate) and the explicit recursion (irregular stamps) agree."""
+    unit = gps.Gps(sigma_m=1.0, correlation_time_s=5.0)
+    t = np.arange(50) * 0.5
+    t_jitter = t.copy()
+    t_jitter[-1] += 1e-3  # breaks uniformity only at the last step
+    a = unit.simulate_fixes(np.random.default_rng(3), np.zeros((50, 3)), t)
+    b = unit.simulate_fixes(np.random.default_rng(3), np.zeros((50, 3)), t_jitter)
+    np.testing.assert_allclose(a[:-1], b[:-1], atol=1e-12)

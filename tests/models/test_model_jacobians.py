@@ -12,12 +12,15 @@ from typing import Callable
 import numpy as np
 import pytest
 
+from slamkit.geometry import se3
 from slamkit.models import diff_drive as dd
 from slamkit.models import gps
 from slamkit.models import lidar
 from slamkit.models import planar
 from slamkit.models import range_bearing as rb
 from slamkit.models.bicycle import Bicycle
+from slamkit.models.camera import PinholeCamera
+from slamkit.models.stereo import StereoCamera
 from slamkit.models.mecanum import Mecanum
 from slamkit.models.omni import Omni3
 from slamkit.models.tracked import Tracked
@@ -42,6 +45,11 @@ def _motion_case(name, f, jac, u):
 _CAR = Bicycle(wheelbase_m=2.5, max_steer_rad=0.6)
 _TANK = Tracked(track_width_m=0.5, slip_left=0.1, slip_right=0.05, icr_left_m=0.35, icr_right_m=-0.3, icr_x_m=0.05)
 
+_CAM = PinholeCamera(458.6, 457.3, 367.2, 248.4, k1=-0.28, k2=0.074, k3=0.01, p1=2e-4, p2=-3e-4)
+_STEREO = StereoCamera(700.0, 690.0, 320.0, 240.0, 0.12)
+_T_CAM = se3.exp(np.array([0.5, -0.2, 1.0, 0.1, -0.3, 0.2]))
+_P_WORLD = se3.transform_points(_T_CAM, np.array([0.4, -0.3, 3.0]))  # 3 m in front of the camera
+
 CASES = [
     _motion_case("diff_drive.motion", dd.motion, dd.motion_jacobians, [1.3, 0.8]),
     _motion_case("diff_drive.motion(omega=1e-9)", dd.motion, dd.motion_jacobians, [1.3, 1e-9]),
@@ -62,6 +70,17 @@ CASES = [
     Case("lidar.scan_endpoints", lambda x: lidar.scan_endpoints(x, [2.0, 3.5], [0.3, -1.2], (0.2, 0.1, 0.05)).ravel(),
          lambda x: (lidar.scan_endpoints_jacobian(x, [2.0, 3.5], [0.3, -1.2], (0.2, 0.1, 0.05)).reshape(4, 3),),
          (np.array([1.0, 2.0, 0.7]),), (0,)),
+    Case("camera.project", _CAM.project, lambda p: (_CAM.project_jacobian(p),), (np.array([0.4, -0.3, 2.0]),), (0,)),
+    Case("camera.distort", _CAM.distort, lambda xy: (_CAM.distort_jacobian(xy),), (np.array([0.3, -0.4]),), (0,)),
+    Case("camera.project_world(pose, right perturbation)",
+         lambda xi: _CAM.project_world(se3.retract(_T_CAM, xi), _P_WORLD),
+         lambda xi: (_CAM.project_world_jacobians(_T_CAM, _P_WORLD)[0],), (np.zeros(6),), (0,), tol=1e-4),
+    Case("camera.project_world(point)", lambda p: _CAM.project_world(_T_CAM, p),
+         lambda p: (_CAM.project_world_jacobians(_T_CAM, p)[1],), (_P_WORLD,), (0,), tol=1e-4),
+    Case("stereo.project", _STEREO.project, lambda p: (_STEREO.project_jacobian(p),),
+         (np.array([0.4, -0.3, 2.0]),), (0,), tol=1e-5),
+    Case("stereo.triangulate", _STEREO.triangulate, lambda m: (_STEREO.triangulate_jacobian(m),),
+         (np.array([400.0, 200.0, 30.0]),), (0,)),
     Case("range_bearing.observe", rb.observe, rb.observe_jacobians,
          (np.array([1.0, 2.0, 0.4]), np.array([-3.0, 5.0])), (0, 1), (1,)),
     Case("range_bearing.inverse_observe", rb.inverse_observe, rb.inverse_observe_jacobians,
