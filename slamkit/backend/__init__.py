@@ -1,1 +1,15 @@
+"""Factor-graph back-end: the only slamkit package that imports gtsam.
 
+Pose graphs: :func:`build_graph` (graph.py) -> :func:`initial_values` (initialisation.py) ->
+:func:`optimize` with an :class:`OptimizeConfig` (solvers.py; LM, GN, dog-leg, iSAM2 replay,
+QR fallback, marginals) -> :class:`OptimizeResult`; :func:`sesync_objective` (objective.py)
+scores any solution in SE-Sync's objective. ``slamkit bench pose-graph`` lives in benchmark.py.
+"""
+
+from slamkit.backend.graph import build_graph
+from slamkit.backend.initialisation import InitialEstimate, initial_values
+from slamkit.backend.objective import sesync_objective, sesync_weights
+from slamkit.backend.solvers import OptimizeConfig, OptimizeResult, optimize
+
+__all__ = ["build_graph", "initial_values", "InitialEstimate", "optimize", "OptimizeConfig",
+           "OptimizeResult", "sesync_objective", "sesync_weights"]
