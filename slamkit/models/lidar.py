@@ -98,6 +98,46 @@ class BeamModel:
         p = self.probability(ranges_m, expected_ranges_m, max_range_m)
         return np.sum(np.log(np.maximum(p, 1e-300)), axis=-1)
 
+    def fit(self, ranges_m, expected_ranges_m, max_range_m: float, iterations: int = 200,
+            tol: float = 1e-7) -> "BeamModel":
+        """Maximum-likelihood parameters for measured ranges given expected ranges, by EM.
+
+        Probabilistic Robotics Table 6.2 computes the responsibilities e_hit, e_short, e_max,
+        e_rand without the current mixture weights and iterates; we run the full EM (weights
+        included), start from ``self``, and solve the lambda M-step exactly for the exponential
+        truncated at z* (1/lambda - z - z* e^(-lambda z*) / (1 - e^(-lambda z*)), weighted by
+        e_short, set to zero). sigma uses the untruncated Gaussian update of Table 6.2 line 11,
+        accurate while z* lies several sigma inside [0, z_max].
+        """
+        from scipy.optimize import brentq
+
+        z = np.asarray(ranges_m, dtype=float).ravel()
+        zs = np.broadcast_to(np.asarray(expected_ranges_m, dtype=float), np.shape(ranges_m)).ravel()
+        zc = np.where(np.isnan(z), max_range_m, np.minimum(z, max_range_m))
+        model = self
+        for _ in range(iterations):
+            c = model.components(z, zs, max_range_m)
+            parts = np.stack([model.z_hit * c["hit"], model.z_short * c["short"],
+                              model.z_max * c["max"], model.z_rand * c["rand"]])
+            e = parts / np.maximum(parts.sum(axis=0), 1e-300)
+            weights = e.mean(axis=1)
+            sigma = np.sqrt(np.sum(e[0] * (zc - zs) ** 2) / max(e[0].sum(), 1e-300))
+            lam = model.lambda_short
+            if e[1].sum() > 1e-9:
+                def score(lmb):
+                    tail = zs * np.exp(-lmb * zs) / np.maximum(-np.expm1(-lmb * zs), 1e-300)
+                    return np.sum(e[1] * (1.0 / lmb - zc - tail))
+                lo, hi = 1e-6, 1e4
+                if score(lo) > 0 > score(hi):
+                    lam = brentq(score, lo, hi, xtol=1e-12)
+            w = weights / weights.sum()
+            new = BeamModel(*(float(v) for v in w), sigma_hit_m=float(max(sigma, 1e-6)), lambda_short=float(lam))
+            change = max(abs(a - b) for a, b in zip(new.__dict__.values(), model.__dict__.values()))
+            model = new
+            if change < tol:
+                break
+        return model
+
     def sample(self, rng: np.random.Generator, expected_ranges_m, max_range_m: float) -> np.ndarray:
         """Draw ranges from the mixture for expected ranges z* (any shape); max readings are
         returned as exactly ``max_range_m``. Draw order is fixed (component, then one uniform
