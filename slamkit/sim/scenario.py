@@ -1,0 +1,133 @@
+"""Scenario files: YAML at the edge, frozen dataclasses inside.
+
+A scenario YAML has a ``kind`` (``landmark`` or ``grid``), for landmark scenarios an optional
+``preset`` (``mild`` or ``strong``), and any fields of :class:`~slamkit.sim.landmark_world.
+LandmarkScenario` or :class:`~slamkit.sim.grid_world.GridScenario`. Nested configs (``sensor``,
+``robot``, ``encoder``, ``lidar`` with its ``beam_model``, ``gps``) are mappings of their own
+fields; ``null`` switches an optional sensor off; ``imu_noise`` may be a preset name; ``gps`` may
+say ``preset: rtk`` plus overrides. Unknown keys and bad values raise ``ConfigError`` naming the
+file and the key path.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+import yaml
+
+from slamkit.data.sequence import Sequence
+from slamkit.errors import ConfigError, SlamkitError
+from slamkit.maps.occupancy_grid import OccupancyGrid
+from slamkit.models.gps import Gps
+from slamkit.models.imu import ImuNoise
+from slamkit.sim.grid_world import GridScenario, simulate_grid_sequence
+from slamkit.sim.landmark_world import PRESETS, LandmarkScenario, simulate_landmark_sequence
+
+Scenario = LandmarkScenario | GridScenario
+
+
+def _tupled(value: Any) -> Any:
+    if isinstance(value, list):
+        return tuple(_tupled(v) for v in value)
+    return value
+
+
+def _build(cls: type, values: Mapping[str, Any], where: str, base: Any = None) -> Any:
+    """Instantiate dataclass ``cls`` from a mapping, recursing into nested dataclass fields
+    (recognised by their default values). ``base`` supplies defaults (a preset)."""
+    if not isinstance(values, Mapping):
+        raise ConfigError(f"{where}: expected a mapping of {cls.__name__} fields, got {values!r}")
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    unknown = sorted(set(values) - set(fields))
+    if unknown:
+        raise ConfigError(f"{where}: unknown key(s) {unknown} for {cls.__name__}; "
+                          f"known: {sorted(fields)}")
+    kwargs: dict[str, Any] = {}
+    for name, value in values.items():
+        f = fields[name]
+        if base is not None:
+            default = getattr(base, name)
+        elif f.default_factory is not dataclasses.MISSING:  # type: ignore[misc]
+            default = f.default_factory()  # type: ignore[misc]
+        else:
+            default = f.default
+        key = f"{where}.{name}"
+        if value is None:
+            kwargs[name] = None
+        elif name == "imu_noise" and isinstance(value, str):
+            kwargs[name] = ImuNoise.preset(value)
+        elif name == "gps" and isinstance(value, Mapping) and "preset" in value:
+            overrides = {k: _tupled(v) for k, v in value.items() if k != "preset"}
+            try:
+                kwargs[name] = Gps.preset(value["preset"], **overrides)
+            except TypeError as exc:
+                raise ConfigError(f"{key}: {exc}") from None
+        elif dataclasses.is_dataclass(default) and not isinstance(default, type):
+            kwargs[name] = _build(type(default), value, key)
+        else:
+            kwargs[name] = _tupled(value)
+    try:
+        if base is not None:
+            return dataclasses.replace(base, **kwargs)
+        return cls(**kwargs)
+    except ConfigError as exc:
+        raise ConfigError(f"{where}: {exc}") from None
+    except (TypeError, ValueError) as exc:
+        raise ConfigError(f"{where}: {exc}") from None
+
+
+def scenario_from_dict(data: Mapping[str, Any], source: str = "<scenario>") -> Scenario:
+    if not isinstance(data, Mapping):
+        raise ConfigError(f"{source}: a scenario must be a mapping, got {type(data).__name__}")
+    values = dict(data)
+    kind = values.pop("kind", None)
+    preset = values.pop("preset", None)
+    if kind == "landmark":
+        base = None
+        if preset is not None:
+            if preset not in PRESETS:
+                raise ConfigError(f"{source}: preset: unknown preset {preset!r}; known: {sorted(PRESETS)}")
+            base = PRESETS[preset]()
+        return _build(LandmarkScenario, values, source, base=base)
+    if kind == "grid":
+        if preset is not None:
+            raise ConfigError(f"{source}: preset: grid scenarios have no presets")
+        return _build(GridScenario, values, source)
+    raise ConfigError(f"{source}: kind: expected 'landmark' or 'grid', got {kind!r}")
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    path = Path(path)
+    try:
+        data = yaml.safe_load(path.read_text())
+    except FileNotFoundError:
+        raise ConfigError(f"{path}: no such scenario file") from None
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"{path}: not valid YAML: {exc}") from None
+    return scenario_from_dict(data or {}, str(path))
+
+
+@dataclass(frozen=True)
+class SimulationResult:
+    sequence: Sequence
+    grid: OccupancyGrid | None
+    scenario: Scenario
+    seed: int
+
+
+def simulate(scenario: Scenario, seed: int) -> SimulationResult:
+    """Run a scenario with ``numpy.random.default_rng(seed)``; the seed goes into the metadata."""
+    rng = np.random.default_rng(seed)
+    try:
+        if isinstance(scenario, LandmarkScenario):
+            seq, grid = simulate_landmark_sequence(scenario, rng), None
+        else:
+            seq, grid = simulate_grid_sequence(scenario, rng)
+    except SlamkitError:
+        raise
+    seq = dataclasses.replace(seq, metadata={**seq.metadata, "seed": int(seed)})
+    return SimulationResult(seq, grid, scenario, int(seed))
