@@ -81,3 +81,13 @@ def test_stereo_round_trip_and_monte_carlo_depth_sigma():
     assert depths.std() == pytest.approx(st_cam.depth_sigma(2.0), rel=0.02)
     cov = st_cam.point_covariance(st_cam.project(p[0]), sigma_pixel_px=0.0)
     assert np.sqrt(cov[2, 2]) == pytest.approx(st_cam.depth_sigma(2.0), rel=1e-12)
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.floats(-0.7, 0.7), st.floats(-0.5, 0.5), st.floats(0.3, 30.0))
+def test_project_jacobian_matches_finite_differences_over_the_view(x, y, depth):
+    p = np.array([x * depth, y * depth, depth])
+    J = EUROC.project_jacobian(p)
+    h = 1e-6 * max(1.0, depth)
+    num = np.stack([(EUROC.project(p + e) - EUROC.project(p - e)) / (2 * h) for e in np.eye(3) * h], axis=-1)
+    np.testing.assert_allclose(J, num, rtol=1e-5, atol=1e-4)

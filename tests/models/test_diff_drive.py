@@ -138,3 +138,24 @@ def test_dsinc_matches_finite_difference(z, small):
         h = 1e-6
         num = (dd.sinc(zz + h) - dd.sinc(zz - h)) / (2 * h)
         assert dd.dsinc(zz) == pytest.approx(num, abs=1e-8)
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.floats(-3.1, 3.1), st.floats(-2, 2), st.floats(-3, 3), st.floats(0.01, 2.0))
+def test_motion_jacobians_match_finite_differences_everywhere(theta, v, w, dt):
+    x0, u0, h = np.array([0.2, -0.4, theta]), np.array([v, w]), 1e-6
+
+    def f(x, u):
+        return dd.motion(x, u, dt)
+
+    F, L = dd.motion_jacobians(x0, u0, dt)
+    for k in range(3):
+        e = np.eye(3)[k] * h
+        d = f(x0 + e, u0) - f(x0 - e, u0)
+        d[2] = np.angle(np.exp(1j * d[2]))
+        np.testing.assert_allclose(F[:, k], d / (2 * h), atol=1e-6)
+    for k in range(2):
+        e = np.eye(2)[k] * h
+        d = f(x0, u0 + e) - f(x0, u0 - e)
+        d[2] = np.angle(np.exp(1j * d[2]))
+        np.testing.assert_allclose(L[:, k], d / (2 * h), atol=1e-6)
