@@ -5,13 +5,13 @@ Conventions: a planar pose is ``world_xytheta_body = (x_m, y_m, theta_rad)`` (ba
 wheel speeds are ``(..., 2) = [right, left]`` in rad/s.
 
 Kinematics (Siegwart, Nourbakhsh & Scaramuzza, *Introduction to Autonomous Mobile Robots*,
-2nd ed., eq. 3.9):
+2nd ed., sec. 3.2.1):
 
     v = r (w_R + w_L) / 2,        omega = r (w_R - w_L) / (2 l)
 
 with wheel radius r and half axle length l (wheel-to-centre distance).
 
-Motion model (Thrun, Burgard & Fox, *Probabilistic Robotics*, eq. 5.9, noise-free): holding
+Motion model (Thrun, Burgard & Fox, *Probabilistic Robotics*, sec. 5.3, noise-free): holding
 (v, omega) for dt the robot drives an arc. Instead of the textbook form
 ``x + v/w (sin(theta + w dt) - sin theta)``, which divides by omega, we use the identity
 
@@ -23,10 +23,10 @@ without a special case. The first-order ("straight-line") update
 ``x += v dt cos(theta)`` is kept beside it because many filters and textbooks use it.
 
 Jacobians F = df/dx and L = df/du are those of the exact arc; the process noise in state
-space is Q = L M L^T for control noise covariance M (Probabilistic Robotics, Table 3.3, line 5
-with V_t = L).
+space is Q = L M L^T for control noise covariance M (the V M V^T term of EKF localisation,
+Probabilistic Robotics Table 7.2, with V = L).
 
-Odometry from encoders (Siegwart et al., eq. 5.1-5.7): each wheel turns 2 pi r ticks / N
+Odometry from encoders (Siegwart et al., sec. 5.2.4): each wheel turns 2 pi r ticks / N
 metres; the centre travels the mean of the wheel distances and turns by their difference over
 the axle length 2 l. Integration uses the exact arc or the straight-line approximation.
 """

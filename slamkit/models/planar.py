@@ -2,7 +2,7 @@
 
 Every planar robot model reduces to a body twist: diff drive and bicycle have v_y = 0,
 holonomic platforms (omni, mecanum) and a slipping tracked vehicle do not. Holding the twist
-for dt moves the pose by the group exponential (Lynch & Park, *Modern Robotics*, sec. 13.4,
+for dt moves the pose by the group exponential (Lynch & Park, *Modern Robotics*, sec. 13.4;
 eq. 13.33; Barfoot, *State Estimation for Robotics*, sec. 7.1.9):
 
     world_T_body(t + dt) = world_T_body(t) o exp(dt * (v_x, v_y, omega))

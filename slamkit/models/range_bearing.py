@@ -1,7 +1,7 @@
 """Range-bearing observations of point landmarks from a planar robot.
 
-Measurement model (Thrun, Burgard & Fox, *Probabilistic Robotics*, eq. 6.40 and Table 10.1
-line 14 for the Jacobian): for pose (x, y, theta) and landmark (m_x, m_y),
+Measurement model (Thrun, Burgard & Fox, *Probabilistic Robotics*, sec. 6.6 for the model and
+Table 10.1, EKF SLAM, for the Jacobian): for pose (x, y, theta) and landmark (m_x, m_y),
 
     delta = m - (x, y),  q = |delta|^2
     h = [sqrt(q), atan2(delta_y, delta_x) - theta]          (bearing wrapped to [-pi, pi))
