@@ -2,7 +2,7 @@
 
 Both follow Thrun, Burgard & Fox, *Probabilistic Robotics* (2005):
 
-Beam model (sec. 6.3, eq. 6.4-6.12, Table 6.1). A beam with expected range z* (from ray
+Beam model (sec. 6.3, Table 6.1). A beam with expected range z* (from ray
 casting, which lives in ``slamkit.maps``) measures z with the mixture
 
     p(z | z*) = z_hit p_hit + z_short p_short + z_max p_max + z_rand p_rand

@@ -3,8 +3,8 @@
 Wheels at (+-l, +-w) from the centre (l half the wheelbase, w half the track), each driving
 forward with rollers at 45 degrees in the usual "X" layout (seen from above the rollers of
 the four wheels form an X; front-left and rear-right have gamma = -45 deg). The rim speed of
-wheel i is (Lynch & Park, *Modern Robotics*, eq. 13.5 with beta = 0, gamma = -+45 deg,
-rows reordered to FL, FR, RL, RR):
+wheel i is (Lynch & Park, *Modern Robotics*, sec. 13.2.1, with beta = 0, gamma = -+45 deg,
+rows ordered FL, FR, RL, RR):
 
     r phi_FL = v_x - v_y - (l + w) omega
     r phi_FR = v_x + v_y + (l + w) omega

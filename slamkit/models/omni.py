@@ -4,7 +4,7 @@ Wheel i sits at distance d from the centre at angle alpha_i in the body frame, a
 tangentially, direction (-sin alpha_i, cos alpha_i); its rollers make it free radially. The
 rim speed of wheel i is the body velocity at the wheel projected on that direction
 (Siegwart et al., *Introduction to Autonomous Mobile Robots*, sec. 3.2.3; Lynch & Park,
-*Modern Robotics*, eq. 13.5 with gamma = 0):
+*Modern Robotics*, sec. 13.2.1, with roller angle gamma = 0):
 
     r phi_dot_i = -sin(alpha_i) v_x + cos(alpha_i) v_y + d omega
 

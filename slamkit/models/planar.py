@@ -2,8 +2,8 @@
 
 Every planar robot model reduces to a body twist: diff drive and bicycle have v_y = 0,
 holonomic platforms (omni, mecanum) and a slipping tracked vehicle do not. Holding the twist
-for dt moves the pose by the group exponential (Lynch & Park, *Modern Robotics*, sec. 13.4;
-eq. 13.33; Barfoot, *State Estimation for Robotics*, sec. 7.1.9):
+for dt moves the pose by the group exponential (Lynch & Park, *Modern Robotics*, sec. 13.4 "Odometry";
+Barfoot, *State Estimation for Robotics*, ch. 7):
 
     world_T_body(t + dt) = world_T_body(t) o exp(dt * (v_x, v_y, omega))
 
@@ -84,7 +84,7 @@ class LinearWheelKinematics:
     wheel_speeds_radps = H @ (v_x, v_y, omega) with H = ``self.wheel_matrix()`` (n_wheels, 3).
 
     ``inverse`` applies H; ``forward`` applies its pseudo-inverse, the least-squares twist for
-    possibly inconsistent wheel speeds (Lynch & Park, *Modern Robotics*, eq. 13.2 and 13.12).
+    possibly inconsistent wheel speeds (Lynch & Park, *Modern Robotics*, sec. 13.2.1 and 13.4).
     forward(inverse(twist)) == twist whenever H has full column rank; inverse(forward(w)) == w
     only for wheel speeds in the range of H (always, when H is square and invertible).
     """

@@ -1,8 +1,8 @@
 """Rectified stereo pair: depth from disparity and its uncertainty.
 
 For a rectified pair with focal length f (pixels) and baseline b (metres) a point at depth Z
-appears with disparity d = u_left - u_right = f b / Z, so (Hartley & Zisserman, *Multiple View
-Geometry*, 2nd ed., sec. 9.6 / eq. for the rectified case):
+appears with disparity d = u_left - u_right = f b / Z, so (Szeliski, *Computer Vision:
+Algorithms and Applications*, 1st ed., sec. 11.1):
 
     Z = f b / d,     X = (u - c_x) Z / f_x,     Y = (v - c_y) Z / f_y
 

@@ -3,7 +3,7 @@
 Tracks slip on the ground, so the ideal diff-drive relation v = (V_R + V_L)/2,
 omega = (V_R - V_L)/B over-predicts both speed and turn rate. We use the instantaneous-centres-
 of-rotation (ICR) model of Martinez, Mandow, Morales, Pedraza & Garcia-Cerezo, "Approximating
-kinematics for tracked mobile robots", IJRR 24(10), 2005, eq. 3-5, with longitudinal slip ratios
+kinematics for tracked mobile robots", IJRR 24(10), 2005, sec. 3, with longitudinal slip ratios
 on top (Wong, *Theory of Ground Vehicles*, slip i = 1 - V_actual / V_track):
 
     V_L' = (1 - s_L) V_L,   V_R' = (1 - s_R) V_R          (effective track speeds, m/s)
