@@ -27,6 +27,7 @@ odometry, encoders, IMU, lidar, GPS), so one seed gives one sequence, byte for b
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
+from pathlib import Path
 
 import numpy as np
 from scipy.sparse import coo_matrix
@@ -35,7 +36,7 @@ from scipy.sparse.csgraph import dijkstra
 from slamkit.data.sequence import Event, Gps, Imu, Odometry, Scan, Sequence, WheelEncoders
 from slamkit.data.trajectory import Trajectory
 from slamkit.errors import ConfigError
-from slamkit.maps import generators
+from slamkit.maps import generators, movingai
 from slamkit.maps.distance_field import distance_field_m
 from slamkit.maps.occupancy_grid import OccupancyGrid
 from slamkit.maps.raycast import RayCaster
@@ -46,6 +47,7 @@ from slamkit.models.imu import ImuNoise, simulate_imu
 from slamkit.models.lidar import BeamModel
 from slamkit.sim import paths
 from slamkit.sim.landmark_world import _plain
+from slamkit.sim.ros_map import load_ros_map
 
 GRAVITY_MPS2 = 9.81
 
@@ -69,8 +71,12 @@ class Lidar:
 @dataclass(frozen=True)
 class GridScenario:
     name: str = "office_tour"
-    #: "office" or "warehouse" (generated with ``world_seed``-independent streams of ``rng``)
+    #: "office" or "warehouse" (generated from the world stream of ``rng``), or "file":
+    #: ``map_file``, a ROS map_server YAML (.yaml/.yml) or a MovingAI .map
     world: str = "office"
+    map_file: str | None = None
+    #: cell size given to a MovingAI map (its cells are unit-less); ROS maps carry their own
+    map_resolution_m: float = 0.5
     world_size_m: tuple[float, float] = (30.0, 30.0)
     world_resolution_m: float = 0.05
     num_goals: int = 4
@@ -90,8 +96,10 @@ class GridScenario:
     gps: gps_model.Gps | None = field(default_factory=lambda: gps_model.Gps(sigma_m=2.5, rate_hz=1.0))
 
     def __post_init__(self) -> None:
-        if self.world not in ("office", "warehouse"):
-            raise ConfigError(f"GridScenario.world: unknown world {self.world!r} (office, warehouse)")
+        if self.world not in ("office", "warehouse", "file"):
+            raise ConfigError(f"GridScenario.world: unknown world {self.world!r} (office, warehouse, file)")
+        if (self.world == "file") != (self.map_file is not None):
+            raise ConfigError("GridScenario: world 'file' and map_file go together")
         for name in ("control_rate_hz", "duration_s", "speed_mps", "world_resolution_m"):
             if not getattr(self, name) > 0:
                 raise ConfigError(f"GridScenario.{name} must be > 0, got {getattr(self, name)}")
@@ -101,6 +109,14 @@ class GridScenario:
 
 def make_world(config: GridScenario, rng: np.random.Generator) -> OccupancyGrid:
     w, h = config.world_size_m
+    if config.world == "file":
+        path = Path(str(config.map_file))
+        if path.suffix in (".yaml", ".yml"):
+            return load_ros_map(path).grid
+        if path.suffix == ".map":
+            g = movingai.load_map(path)
+            return OccupancyGrid(g.occupied, config.map_resolution_m, g.origin_xy_m, name=g.name)
+        raise ConfigError(f"GridScenario.map_file: {path} is neither a ROS map YAML nor a MovingAI .map")
     if config.world == "office":
         return generators.office(rng, generators.OfficeConfig(width_m=w, height_m=h,
                                                               resolution_m=config.world_resolution_m))

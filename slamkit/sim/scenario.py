@@ -108,7 +108,13 @@ def load_scenario(path: str | Path) -> Scenario:
         raise ConfigError(f"{path}: no such scenario file") from None
     except yaml.YAMLError as exc:
         raise ConfigError(f"{path}: not valid YAML: {exc}") from None
-    return scenario_from_dict(data or {}, str(path))
+    scenario = scenario_from_dict(data or {}, str(path))
+    if isinstance(scenario, GridScenario) and scenario.map_file is not None:
+        # a relative map path is relative to the scenario file, not to the working directory
+        map_path = Path(scenario.map_file)
+        if not map_path.is_absolute():
+            scenario = dataclasses.replace(scenario, map_file=str((path.parent / map_path).resolve()))
+    return scenario
 
 
 @dataclass(frozen=True)

@@ -95,3 +95,25 @@ def test_scenario_dicts_presets_nesting_and_switches():
                        ({"kind": "landmark", "duration": 3}, "duration")]:
         with pytest.raises(ConfigError, match=match):
             scenario_from_dict(bad, "s.yaml")
+
+
+def test_map_file_worlds_ros_yaml_and_movingai(tmp_path, shared_datasets):
+    from slamkit.maps.generators import OfficeConfig, office
+    from slamkit.sim.ros_map import save_ros_map
+    from slamkit.sim.scenario import simulate
+
+    grid = office(np.random.default_rng(2), OfficeConfig(width_m=20.0, height_m=20.0, resolution_m=0.1))
+    save_ros_map(tmp_path / "maps" / "office.yaml", grid)
+    (tmp_path / "s.yaml").write_text(
+        "kind: grid\nworld: file\nmap_file: maps/office.yaml\nduration_s: 5.0\n"
+        "imu_rate_hz: null\nencoder: null\ngps: null\nlidar: {num_beams: 30}\n")
+    result = simulate(load_scenario(tmp_path / "s.yaml"), seed=1)
+    np.testing.assert_array_equal(result.grid.occupied, grid.occupied)  # lossless through PGM
+    assert len(result.sequence.of_type(Scan)) == 51
+
+    den = load_scenario(ROOT / "pipelines" / "scenarios" / "movingai_den312d.yaml")
+    den = type(den)(**{**den.__dict__, "duration_s": 5.0})
+    result = simulate(den, seed=0)
+    assert result.grid.shape == (81, 65) and result.grid.resolution_m == 0.5
+    gt = result.sequence.ground_truth.xytheta()
+    assert result.grid.is_free_world(gt[:, :2]).all()
