@@ -1,1 +1,57 @@
-"""(filled in by its issue)"""
+"""``slamkit optimize SOURCE``: solve a pose graph from the registry or a file."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import typer
+from rich.console import Console
+from rich.table import Table
+
+from slamkit.cli.app import app
+from slamkit.errors import SlamkitError
+
+
+@app.command()
+def optimize(
+    source: str = typer.Argument(..., help="registry name (see `slamkit data list`) or a g2o/TORO/iSAM file"),
+    solver: str = typer.Option("lm", help="lm | gn | dogleg | isam2"),
+    init: str = typer.Option("file", help="file | odometry | lago (2D) | chordal (3D)"),
+    robust: str = typer.Option("none", help="none | huber | cauchy"),
+    robust_k: float = typer.Option(None, "--robust-k", help="kernel width (default: GTSAM's)"),
+    max_iterations: int = typer.Option(100, "--max-iterations"),
+    marginals: bool = typer.Option(False, "--marginals", help="compute marginal covariances"),
+    out: Path = typer.Option(None, "--out", help="folder for the optimised graph, TUM trajectory, config and metrics.json"),
+    rrd: Path = typer.Option(None, "--rrd", help="write a Rerun recording"),
+    spawn: bool = typer.Option(False, "--spawn", help="open a Rerun viewer"),
+    as_json: bool = typer.Option(False, "--json", help="print one JSON object on stdout"),
+) -> None:
+    """Optimise a pose graph; report GTSAM error, chi2, SE-Sync objective, iterations, times, ATE."""
+    from slamkit.backend.solvers import OptimizeConfig
+    from slamkit.experiments.pose_graph import optimize_source
+
+    try:
+        config = OptimizeConfig(solver=solver, init=init, robust=robust, robust_k=robust_k,
+                                max_iterations=max_iterations, compute_marginals=marginals)
+        report = optimize_source(source, config, out=out, keep_iterates=rrd is not None or spawn)
+        if rrd is not None or spawn:
+            from slamkit.viz.pose_graph import record_optimization
+
+            record_optimization(report, rrd, spawn)
+    except SlamkitError as exc:
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(2)
+    summary = report.summary()
+    if as_json:
+        print(json.dumps(summary))
+        return
+    table = Table(title=f"slamkit optimize {report.dataset}", show_header=False)
+    for key, value in summary.items():
+        if key == "warnings":
+            continue
+        table.add_row(key, f"{value:.6g}" if isinstance(value, float) else str(value))
+    console = Console()
+    console.print(table)
+    for w in report.warnings:
+        console.print(f"[yellow]warning:[/yellow] {w}")

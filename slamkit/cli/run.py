@@ -6,7 +6,6 @@ from pathlib import Path
 
 import typer
 from rich.console import Console
-from rich.markdown import Markdown
 
 from slamkit.cli.app import app
 from slamkit.errors import SlamkitError
@@ -17,16 +16,19 @@ def run_command(
     pipeline: Path = typer.Argument(..., help="pipeline config (YAML), e.g. pipelines/pose_graph.yaml"),
     out: Path = typer.Option(None, "--out", help="results folder (default runs/<config name>)"),
     quiet: bool = typer.Option(False, "--quiet", help="no progress bar or table"),
+    spawn: bool = typer.Option(False, "--spawn", help="also stream the recording to a Rerun viewer"),
 ) -> None:
     """Run a pipeline config and write config.yaml, results.json, report.md, plots and a recording."""
     from slamkit.experiments.pipeline import run_pipeline
+    from slamkit.viz.pipelines import observer_for
 
     try:
-        result = run_pipeline(pipeline, out, progress=not quiet)
+        result = run_pipeline(pipeline, out, progress=not quiet,
+                              observer_factory=lambda kind, path: observer_for(kind, path, spawn))
     except SlamkitError as exc:
         typer.echo(f"error: {exc}", err=True)
         raise typer.Exit(2)
     if not quiet:
-        console = Console()
-        console.print(Markdown(result.report_md))
-        console.print(f"\nresults written to [bold]{result.out_dir}[/bold]")
+        # plain Markdown: tables stay readable at any terminal width and in logs
+        typer.echo(result.report_md)
+        Console().print(f"results written to [bold]{result.out_dir}[/bold]")

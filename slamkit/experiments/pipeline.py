@@ -1,8 +1,10 @@
 """``slamkit run PIPELINE.yaml``: load a pipeline config, dispatch to its kind, write the results
 folder (config.yaml, results.json, report.md, plots/, trajectories/, recording.rrd).
 
-A pipeline kind is a function ``run(config, folder, progress) -> PipelineOutput`` registered in
-``PIPELINES`` by import path, so importing this module stays cheap.
+A pipeline kind is a function ``run(config, folder, progress, observer) -> PipelineOutput``
+registered in ``PIPELINES`` by import path, so importing this module stays cheap. Recording is
+not done here: ``observer_factory(kind, recording_path)`` (the viz layer supplies one) returns a
+``PipelineObserver`` that sees the run's steps and its output.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from slamkit.errors import ConfigError
+from slamkit.experiments.observers import NullObserver, PipelineObserver
 from slamkit.experiments.results import ResultsFolder, RunRecord
 
 PIPELINES: dict[str, str] = {
@@ -34,6 +37,8 @@ class PipelineOutput:
     report_md: str
     summary: list[dict[str, Any]] | None = None
     extra: Mapping[str, Any] = field(default_factory=dict)
+    #: in-memory results for observers (not written to results.json)
+    payload: Any = None
 
 
 @dataclass(frozen=True)
@@ -91,9 +96,16 @@ def resolve_pipeline(kind: str) -> Callable[..., PipelineOutput]:
     return getattr(importlib.import_module(module_name), fn_name)
 
 
+ObserverFactory = Callable[[str, Path], PipelineObserver]
+
+
 def run_pipeline(config: str | Path | Mapping[str, Any], out_dir: str | Path | None = None,
-                 progress: bool = True, overrides: Mapping[str, Any] | None = None) -> PipelineResult:
-    """Run a pipeline config (path or mapping) and write its results folder atomically."""
+                 progress: bool = True, overrides: Mapping[str, Any] | None = None,
+                 observer_factory: ObserverFactory | None = None) -> PipelineResult:
+    """Run a pipeline config (path or mapping) and write its results folder atomically.
+
+    With ``observer_factory`` and ``record: true`` in the config (the default), the observer
+    writes ``recording.rrd`` inside the folder before it is committed."""
     cfg = load_config(config) if isinstance(config, (str, Path)) else dict(config)
     if overrides:
         cfg.update(overrides)
@@ -103,7 +115,13 @@ def run_pipeline(config: str | Path | Mapping[str, Any], out_dir: str | Path | N
     out = Path(out_dir) if out_dir is not None else Path("runs") / str(cfg.get("name", cfg["pipeline"]))
     with ResultsFolder(out) as folder, ProgressReporter(enabled=progress) as reporter:
         folder.write_config(cfg)
-        output = fn(cfg, folder, reporter)
+        record = observer_factory is not None and bool(cfg.get("record", True))
+        observer = observer_factory(cfg["pipeline"], folder.recording_path) if record else NullObserver()
+        try:
+            output = fn(cfg, folder, reporter, observer)
+            observer.on_output(output)
+        finally:
+            observer.close()
         final = folder.commit(cfg["pipeline"], output.runs, output.report_md, output.summary,
                               output.extra)
     results = json.loads((final / "results.json").read_text())

@@ -75,3 +75,62 @@ def log_pose_graph(stream: rr.RecordingStream, graph: PoseGraph, initial_poses: 
             indexes=[rr.TimeColumn("iteration", sequence=np.arange(len(errors)))],
             columns=rr.Scalars.columns(scalars=errors),
         )
+
+
+class _Prefixed:
+    """Log into a subtree ``<prefix>/...`` of a recording (one subtree per dataset)."""
+
+    def __init__(self, stream: rr.RecordingStream, prefix: str):
+        self._stream, self._prefix = stream, prefix
+
+    def log(self, path: str, *args, **kwargs):
+        return self._stream.log(f"{self._prefix}/{path}", *args, **kwargs)
+
+    def send_columns(self, path: str, *args, **kwargs):
+        return self._stream.send_columns(f"{self._prefix}/{path}", *args, **kwargs)
+
+    def set_time(self, *args, **kwargs):
+        return self._stream.set_time(*args, **kwargs)
+
+
+def record_optimization(report, path=None, spawn: bool = False) -> None:
+    """Record one ``slamkit.experiments.pose_graph.OptimizeReport`` (``slamkit optimize --rrd``)."""
+    from slamkit.viz.recording import open_recording
+
+    with open_recording(f"slamkit_optimize_{report.dataset}", path, spawn, blueprint()) as rec:
+        log_pose_graph(rec.stream, report.graph, report.result.initial_poses, report.result.poses,
+                       report.result.errors, report.iterates, report.ground_truth)
+
+
+class PoseGraphPipelineObserver:
+    """Records the ``pose_graph`` pipeline: the first run of every dataset under
+    ``<dataset>/world/...`` and ``<dataset>/plots/error``."""
+
+    def __init__(self, path, spawn: bool = False):
+        self.path, self.spawn = path, spawn
+
+    def on_step(self, snapshot) -> None:
+        pass
+
+    def on_output(self, output) -> None:
+        from slamkit.viz.recording import open_recording
+
+        reports, seen = [], set()
+        for r in output.payload or ():
+            if r.dataset not in seen:
+                seen.add(r.dataset)
+                reports.append(r)
+        if not reports:
+            return
+        views = [rrb.Spatial3DView(origin=f"{r.dataset}/world", name=r.dataset) for r in reports]
+        series = [rrb.TimeSeriesView(origin=f"{r.dataset}/plots", name=f"{r.dataset} error")
+                  for r in reports]
+        bp = rrb.Blueprint(rrb.Vertical(rrb.Grid(*views), rrb.Grid(*series), row_shares=[3, 1]),
+                           collapse_panels=True)
+        with open_recording("slamkit_pose_graph", self.path, self.spawn, bp) as rec:
+            for r in reports:
+                log_pose_graph(_Prefixed(rec.stream, r.dataset), r.graph, r.result.initial_poses,
+                               r.result.poses, r.result.errors, (), r.ground_truth)
+
+    def close(self) -> None:
+        pass

@@ -33,7 +33,7 @@ def test_summary_groups_by_dataset_estimator_metric() -> None:
     assert next(s for s in summary if s["estimator"] == "isam2")["n"] == 1
 
 
-def _fake_pipeline(config, folder, progress):
+def _fake_pipeline(config, folder, progress, observer):
     advance = progress.task("fake", 2)
     runs = []
     for seed in range(2):
