@@ -57,8 +57,15 @@ def toro_information(values: np.ndarray) -> np.ndarray:
     return values[:, _TORO_TO_MATRIX]
 
 
-def read_toro(path: str | Path, policy: InformationPolicy = "keep", name: str | None = None) -> PoseGraph:
-    """Read a 2D (VERTEX2/EDGE2) or 3D (VERTEX3/EDGE3) TORO graph."""
+def read_toro(path: str | Path, policy: InformationPolicy = "keep", name: str | None = None,
+              information_order: str = "toro") -> PoseGraph:
+    """Read a 2D (VERTEX2/EDGE2) or 3D (VERTEX3/EDGE3) TORO graph.
+
+    ``information_order='g2o'`` reads 2D EDGE2 information as g2o's upper triangle
+    (I11 I12 I13 I22 I23 I33) instead, for files such as gtsam's ``w100_30.g2o`` that use TORO
+    tags with g2o numbers."""
+    if information_order not in ("toro", "g2o"):
+        raise DataError(f"unknown information order {information_order!r}; use 'toro' or 'g2o'", path)
     blocks = read_records(path)
     reject_numeric_tags(path, blocks)
     has2 = "VERTEX2" in blocks or "EDGE2" in blocks
@@ -73,7 +80,8 @@ def read_toro(path: str | Path, policy: InformationPolicy = "keep", name: str | 
         el, eid, evals = numeric(path, "EDGE2", blocks.get("EDGE2") or empty_block("EDGE2"), 2, 9)
         poses = np.column_stack([vval[:, :2], wrap_angle_rad(vval[:, 2])])
         meas = np.column_stack([evals[:, :2], wrap_angle_rad(evals[:, 2])])
-        info = toro_information(evals[:, 3:])
+        info = (toro_information(evals[:, 3:]) if information_order == "toro"
+                else symmetric_from_upper(evals[:, 3:], 3))
         dim, handled = 2, {"VERTEX2", "EDGE2"}
     else:
         vl, vid, vval = numeric(path, "VERTEX3", blocks.get("VERTEX3") or empty_block("VERTEX3"), 1, 6)
