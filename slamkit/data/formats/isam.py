@@ -147,10 +147,10 @@ def _merge(edge2: Block, odometry: Block | None) -> Block:
     """EDGE2 and ODOMETRY lines as one EDGE2 block in file order."""
     if odometry is None or not len(odometry):
         return edge2
-    raw = edge2.raw + [line.replace("ODOMETRY", "EDGE2", 1) for line in odometry.raw]
+    rests = edge2.rests + odometry.rests
     lines = np.concatenate([edge2.lines, odometry.lines])
     order = np.argsort(lines, kind="stable")
-    return Block("EDGE2", lines[order], [raw[k] for k in order])
+    return Block("EDGE2", lines[order], [rests[k] for k in order])
 
 
 def _landmarks(path, blocks, dim, graph: PoseGraph) -> LandmarkObservations | None:
