@@ -132,3 +132,10 @@ def test_recorded_sources_are_pinned_urls():
             assert len(f.sha256) == 64
     intel = registry.get("intel").primary
     assert intel.url == "https://raw.githubusercontent.com/david-m-rosen/SE-Sync/9b631b6b82d8/data/intel.g2o"
+
+
+def test_fetch_with_progress_bar(served, tmp_path):
+    """The rich progress bar path (used when stderr is a terminal) downloads the same bytes."""
+    cache = tmp_path / "cache"
+    path = registry.fetch("ring", url_override=served.url, cache_dir=cache, progress=True)
+    assert registry.sha256_of(path) == registry.get("ring").primary.sha256

@@ -263,3 +263,45 @@ def test_write_is_atomic_and_replaces(tmp_path):
     write_g2o(target, _random_graph(2, 5, 1))
     assert read_g2o(target).num_poses == 5
     assert sorted(p.name for p in target.parent.iterdir()) == ["g.g2o"]  # no temporary left behind
+
+
+# --- parser properties ---------------------------------------------------------------------
+
+FLOAT_FORMATS = ["{!r}", "{:.6g}", "{:e}", "{:+.3f}", "{:.17g}", "{:.0f}."]
+
+
+@settings(max_examples=40, deadline=None)
+@given(values=st.lists(st.floats(allow_nan=False, allow_infinity=False, min_value=-1e12, max_value=1e12),
+                       min_size=9, max_size=9),
+       formats=st.lists(st.sampled_from(FLOAT_FORMATS), min_size=9, max_size=9))
+def test_numbers_parse_exactly_like_python_float(tmp_path_factory, values, formats):
+    tokens = [fmt.format(v) for fmt, v in zip(formats, values)]
+    path = tmp_path_factory.mktemp("num") / "g.g2o"
+    path.write_text("VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 0 0 0\nEDGE_SE2 0 1 " + "\t ".join(tokens) + "\n")
+    g = read_g2o(path, policy="keep")
+    expected = [float(t) for t in tokens]
+    assert g.measurements[0, :2].tolist() == expected[:2]
+    # angles are wrapped only when outside (-pi, pi]
+    theta = expected[2]
+    if -math.pi < theta <= math.pi:
+        assert g.measurements[0, 2] == theta
+    upper = g.information[0][np.triu_indices(3)]
+    assert upper.tolist() == expected[3:]
+
+
+@settings(max_examples=40, deadline=None)
+@given(n=st.integers(3, 40), data=st.data())
+def test_a_corrupted_token_is_reported_at_its_line(tmp_path_factory, n, data):
+    lines = [f"VERTEX_SE2 {i} {i}.5 0 0.1" for i in range(n)]
+    lines += [f"EDGE_SE2 {i} {i + 1} 1 0 0 {INFO6}" for i in range(n - 1)]
+    k = data.draw(st.integers(0, len(lines) - 1), label="line")
+    tokens = lines[k].split()
+    col = data.draw(st.integers(2, len(tokens) - 1), label="field")
+    garbage = data.draw(st.sampled_from(["x", "1.2.3", "--1", "nan", "inf", "0x10", "", "1 2"]))
+    tokens[col] = garbage
+    lines[k] = " ".join(tokens)
+    path = tmp_path_factory.mktemp("bad") / "g.g2o"
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(DataError) as info:
+        read_g2o(path)
+    assert info.value.line == k + 1

@@ -17,6 +17,7 @@ from pathlib import Path
 
 from slamkit.data.formats._records import InformationPolicy, connected_components
 from slamkit.data.formats.g2o import read_g2o, write_g2o
+from slamkit.data.formats.ground_truth import GROUND_TRUTH_FORMATS, read_ground_truth
 from slamkit.data.formats.isam import LandmarkObservations, read_isam, read_isam_with_landmarks
 from slamkit.data.formats.toro import read_toro
 from slamkit.data.pose_graph import PoseGraph
@@ -64,12 +65,14 @@ def load_pose_graph(path: str | Path, format: str = "auto", policy: InformationP
 
 
 __all__ = [
+    "GROUND_TRUTH_FORMATS",
     "LandmarkObservations",
     "POSE_GRAPH_FORMATS",
     "connected_components",
     "detect_pose_graph_format",
     "load_pose_graph",
     "read_g2o",
+    "read_ground_truth",
     "read_isam",
     "read_isam_with_landmarks",
     "read_toro",
