@@ -271,3 +271,34 @@ def cast_ray_loop(grid: OccupancyGrid, origin_xy_m: np.ndarray, angle_rad: float
             iy = iy0 + stepy * ny
         if t > max_t:
             return float(no_hit)
+
+
+def cast_circles(origins_xy_m: np.ndarray, angles_rad: np.ndarray, centers_xy_m: np.ndarray,
+                 radii_m: np.ndarray, max_range_m: float, no_hit: float = np.nan) -> np.ndarray:
+    """(N,) range of N rays to the nearest of K discs (moving obstacles), vectorised over N x K.
+
+    Solves |o + t d - c|^2 = R^2 for the smaller root t = b - sqrt(b^2 - |o - c|^2 + R^2) with
+    b = d . (c - o); a ray starting inside a disc has range 0. Combine with the grid's ranges by
+    ``np.fmin`` (NaN means no hit in either)."""
+    origins = np.asarray(origins_xy_m, float).reshape(-1, 2)
+    angles = np.asarray(angles_rad, float).reshape(-1)
+    if len(origins) != len(angles):
+        raise DataError(f"cast_circles needs one angle per origin, got {len(origins)} and {len(angles)}")
+    c = np.asarray(centers_xy_m, float).reshape(-1, 2)
+    r = np.asarray(radii_m, float).reshape(-1)
+    out = np.full(len(origins), float(no_hit))
+    if len(c) == 0 or len(origins) == 0:
+        return out
+    d = np.column_stack([np.cos(angles), np.sin(angles)])
+    oc = c[None, :, :] - origins[:, None, :]                    # (N, K, 2)
+    b = np.einsum("nkj,nj->nk", oc, d)
+    q = np.einsum("nkj,nkj->nk", oc, oc) - r[None, :] ** 2      # > 0 outside the disc
+    disc = b * b - q
+    with np.errstate(invalid="ignore"):
+        t = np.where(q <= 0, 0.0, b - np.sqrt(disc))
+    valid = (q <= 0) | ((disc >= 0) & (t >= 0))
+    t = np.where(valid & (t <= max_range_m), t, np.inf)
+    best = t.min(axis=1)
+    hit = np.isfinite(best)
+    out[hit] = best[hit]
+    return out

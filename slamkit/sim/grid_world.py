@@ -18,6 +18,10 @@ Sensors and what each event means (all stamps on one clock starting at 0):
   max-range reading from the mixture) is NaN.
 * ``Gps`` at ``gps.rate_hz``: 2D antenna fixes with Gauss-Markov error (``slamkit.models.gps``).
 
+Optional ``moving_obstacles`` (discs shuttling across the route, ``slamkit.sim.moving_obstacles``)
+appear in the scans; their parameters are in ``metadata["moving_obstacles"]`` so their positions at
+any stamp can be rebuilt with ``MovingObstacles(**...).position_at(t)``.
+
 The robot visits ``num_goals`` random free places in turn along shortest routes on a 0.25 m
 routing grid that keeps ``clearance_m`` from walls (Dijkstra, ``scipy.sparse.csgraph``), driven by
 pure pursuit (:mod:`slamkit.sim.paths`). ``rng`` is split into independent streams (world, route,
@@ -26,6 +30,7 @@ odometry, encoders, IMU, lidar, GPS), so one seed gives one sequence, byte for b
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -39,7 +44,7 @@ from slamkit.errors import ConfigError
 from slamkit.maps import generators, movingai
 from slamkit.maps.distance_field import distance_field_m
 from slamkit.maps.occupancy_grid import OccupancyGrid
-from slamkit.maps.raycast import RayCaster
+from slamkit.maps.raycast import RayCaster, cast_circles
 from slamkit.models import gps as gps_model
 from slamkit.models.diff_drive import DiffDrive
 from slamkit.models.encoders import Encoder
@@ -47,6 +52,7 @@ from slamkit.models.imu import ImuNoise, simulate_imu
 from slamkit.models.lidar import BeamModel
 from slamkit.sim import paths
 from slamkit.sim.landmark_world import _plain
+from slamkit.sim.moving_obstacles import MovingObstacles, crossing_obstacles
 from slamkit.sim.ros_map import load_ros_map
 
 GRAVITY_MPS2 = 9.81
@@ -94,6 +100,9 @@ class GridScenario:
     imu_noise: ImuNoise = field(default_factory=lambda: ImuNoise.preset("consumer_mems"))
     lidar: Lidar | None = field(default_factory=Lidar)
     gps: gps_model.Gps | None = field(default_factory=lambda: gps_model.Gps(sigma_m=2.5, rate_hz=1.0))
+    #: discs shuttling across the route (``slamkit.sim.moving_obstacles``) that the lidar sees;
+    #: the robot does not avoid them (dynamic clutter for estimation, not a planning test)
+    moving_obstacles: int = 0
 
     def __post_init__(self) -> None:
         if self.world not in ("office", "warehouse", "file"):
@@ -185,7 +194,7 @@ def _stamps(rate_hz: float, end_s: float) -> np.ndarray:
 def simulate_grid_sequence(config: GridScenario, rng: np.random.Generator,
                            grid: OccupancyGrid | None = None) -> tuple[Sequence, OccupancyGrid]:
     """One seeded tour of ``config`` (or of ``grid`` when given). Returns the sequence and the map."""
-    world_rng, route_rng, odo_rng, enc_rng, imu_rng, lidar_rng, gps_rng = rng.spawn(7)
+    world_rng, route_rng, odo_rng, enc_rng, imu_rng, lidar_rng, gps_rng, obs_rng = rng.spawn(8)
     if grid is None:
         grid = make_world(config, world_rng)
     waypoints = route(grid, route_rng, config.num_goals, config.clearance_m)
@@ -194,6 +203,13 @@ def simulate_grid_sequence(config: GridScenario, rng: np.random.Generator,
                                paths.PurePursuit(config.speed_mps, config.lookahead_m,
                                                  config.max_omega_radps), goal_tolerance_m=0.3)
     end_s = float(drive.stamps_s[-1])
+    obstacles = MovingObstacles.empty()
+    if config.moving_obstacles > 0:
+        obstacles = crossing_obstacles(waypoints, config.moving_obstacles, obs_rng, grid,
+                                       nominal_speed_mps=config.speed_mps)
+        # random phases: the generator times obstacles to meet the robot, which would drive
+        # through them here since this robot does not avoid anything
+        obstacles = dataclasses.replace(obstacles, phase=obs_rng.uniform(0.0, 2.0, len(obstacles)))
     events: list[tuple[float, int, Event]] = []  # (stamp, priority, event): motion before sensing
 
     sigma_u = np.array([config.odometry_sigma_v_mps, config.odometry_sigma_omega_radps])
@@ -260,6 +276,12 @@ def simulate_grid_sequence(config: GridScenario, rng: np.random.Generator,
         poses = drive.pose_at(t)
         beams = lid.angles_rad()
         expected = RayCaster(grid).scan(poses, beams, lid.max_range_m)
+        if len(obstacles):
+            for i, ti in enumerate(t):
+                dyn = cast_circles(np.repeat(poses[i:i + 1, :2], len(beams), axis=0),
+                                   poses[i, 2] + beams, obstacles.position_at(float(ti)),
+                                   obstacles.radius_m, lid.max_range_m)
+                expected[i] = np.fmin(expected[i], dyn)
         no_return = np.isnan(expected)
         noisy = lid.beam_model.sample(lidar_rng, np.where(no_return, lid.max_range_m, expected),
                                       lid.max_range_m)
@@ -282,6 +304,12 @@ def simulate_grid_sequence(config: GridScenario, rng: np.random.Generator,
         metadata.update(gps_rate_hz=g.rate_hz, gps_sigma_m=g.sigma_m,
                         gps_body_p_antenna=list(g.body_p_antenna),
                         gps_correlation_time_s=g.correlation_time_s)
+
+    if len(obstacles):
+        metadata["moving_obstacles"] = {
+            "a_xy_m": obstacles.a_xy_m.tolist(), "b_xy_m": obstacles.b_xy_m.tolist(),
+            "speed_mps": obstacles.speed_mps.tolist(), "radius_m": obstacles.radius_m.tolist(),
+            "phase": obstacles.phase.tolist()}
 
     # stable order: by stamp, motion (odometry) before the sensors read at the same stamp, then
     # by kind in insertion order

@@ -11,6 +11,7 @@ Entity tree (mirrors the frame tree; static data logged once):
     world/robot/scan/beams    the beams as segments from the sensor to their end points
     world/robot/observations  range-bearing rays to the landmarks seen, per observation
     world/gps                 GPS fixes (world frame), per fix
+    world/moving_obstacles    moving discs at every scan stamp (when the sequence has them)
     plots/odometry/v_mps, plots/odometry/omega_radps   odometry readings (sent as columns)
 
 Time runs on the ``sim_time`` timeline (seconds since the start of the sequence).
@@ -26,6 +27,7 @@ import rerun.blueprint as rrb
 
 from slamkit.data.sequence import Gps, Odometry, RangeBearing, Scan
 from slamkit.maps.occupancy_grid import OccupancyGrid
+from slamkit.sim.moving_obstacles import MovingObstacles
 from slamkit.viz.recording import open_recording
 
 TIMELINE = "sim_time"
@@ -35,6 +37,7 @@ COLOR_GROUND_TRUTH = (40, 200, 80)
 COLOR_SCAN = (30, 120, 255)
 COLOR_OBSERVATION = (255, 140, 0)
 COLOR_GPS = (200, 60, 200)
+COLOR_OBSTACLE = (250, 200, 0)
 
 
 def blueprint() -> rrb.Blueprint:
@@ -86,6 +89,9 @@ def log_sequence(stream: rr.RecordingStream, sequence, grid: OccupancyGrid | Non
         )
         stream.log("world/robot/body", rr.Boxes3D(half_sizes=[[0.25, 0.18, 0.05]],
                                                   colors=[COLOR_GROUND_TRUTH]), static=True)
+    obstacles = None
+    if isinstance(sequence.metadata, dict) and sequence.metadata.get("moving_obstacles"):
+        obstacles = MovingObstacles(**sequence.metadata["moving_obstacles"])
     odo_t, odo_v, odo_w = [], [], []
     for event in sequence:
         if isinstance(event, Odometry):
@@ -104,6 +110,10 @@ def log_sequence(stream: rr.RecordingStream, sequence, grid: OccupancyGrid | Non
             sub = _xyz(end[::step])
             beams = np.stack([np.zeros_like(sub), sub], axis=1)
             stream.log("world/robot/scan/beams", rr.LineStrips3D(beams, radii=[0.005], colors=[COLOR_SCAN]))
+            if obstacles is not None:
+                stream.log("world/moving_obstacles",
+                           rr.Points3D(_xyz(obstacles.position_at(event.stamp_s)),
+                                       radii=obstacles.radius_m, colors=[COLOR_OBSTACLE]))
         elif isinstance(event, RangeBearing):
             stream.set_time(TIMELINE, duration=event.stamp_s)
             r = np.asarray(event.range_m, float)

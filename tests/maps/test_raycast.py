@@ -113,3 +113,20 @@ def test_raycaster_is_reusable_and_empty_grid_gives_no_hits():
     r = caster.cast(np.array([[2.5, 2.5], [1.0, 1.0]]), np.array([0.1, 2.0]), 100.0)
     assert np.all(np.isnan(r))
     assert caster.cast(np.zeros((0, 2)), np.zeros(0), 5.0).shape == (0,)
+
+
+def test_cast_circles_worked_example():
+    from slamkit.maps.raycast import cast_circles
+
+    origins = np.zeros((4, 2))
+    angles = np.array([0.0, np.pi / 2, np.pi, np.arctan2(1.0, 4.0)])
+    centers = np.array([[3.0, 0.0], [0.0, 10.0]])
+    radii = np.array([0.5, 1.0])
+    r = cast_circles(origins, angles, centers, radii, max_range_m=8.0)
+    assert r[0] == pytest.approx(2.5)          # straight at the first disc
+    assert np.isnan(r[1])                       # second disc at 9 m: beyond max range
+    assert np.isnan(r[2])                       # behind the robot
+    # grazing: the line through (4, 1) passes at distance |4*0 - 1*3| / sqrt(17) = 0.728 m > 0.5
+    assert np.isnan(r[3])
+    assert cast_circles(np.array([[3.2, 0.0]]), np.array([1.0]), centers, radii, 8.0)[0] == 0.0
+    assert cast_circles(origins[1:2], angles[1:2], np.array([[0.0, 10.0]]), radii[1:], 20.0)[0] == pytest.approx(9.0)

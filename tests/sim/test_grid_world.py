@@ -124,3 +124,26 @@ def test_same_seed_same_file_and_warehouse_world(tmp_path):
     assert grid.name == "warehouse" and seq.metadata["map"]["shape"] == [200, 200]
     with pytest.raises(ConfigError):
         GridScenario(world="castle")
+
+
+def test_moving_obstacles_shorten_beams_exactly_where_they_are():
+    from slamkit.maps.raycast import cast_circles
+    from slamkit.sim.moving_obstacles import MovingObstacles
+
+    exact = Lidar(num_beams=120, beam_model=BeamModel(1.0, 0.0, 0.0, 0.0, 1e-9, 1.0))
+    cfg = GridScenario(**{**SMALL, "duration_s": 30.0}, lidar=exact, imu_rate_hz=None, gps=None,
+                       encoder=None, moving_obstacles=3)
+    seq, grid = simulate_grid_sequence(cfg, np.random.default_rng(0))
+    obstacles = MovingObstacles(**seq.metadata["moving_obstacles"])
+    assert len(obstacles) >= 1
+    gt = seq.ground_truth
+    caster = RayCaster(grid)
+    shortened = 0
+    for scan in seq.of_type(Scan):
+        pose = gt.xytheta()[np.searchsorted(gt.stamps_s, scan.stamp_s - 1e-9)]
+        static = caster.scan(pose, scan.angles_rad, exact.max_range_m)[0]
+        dyn = cast_circles(np.repeat(pose[None, :2], len(scan.angles_rad), axis=0), pose[2] + scan.angles_rad,
+                           obstacles.position_at(scan.stamp_s), obstacles.radius_m, exact.max_range_m)
+        np.testing.assert_allclose(scan.ranges_m, np.fmin(static, dyn), atol=1e-6)
+        shortened += int(np.sum(dyn < static - 1e-6))
+    assert shortened > 50  # the obstacles are seen

@@ -58,7 +58,8 @@ def test_grid_scenario_recording_has_map_scan_and_gps(tmp_path, verify_rrd):
     yaml_path = tmp_path / "grid.yaml"
     yaml_path.write_text(
         "kind: grid\nworld: warehouse\nworld_size_m: [20, 20]\nworld_resolution_m: 0.1\n"
-        "duration_s: 6.0\nimu_rate_hz: null\nencoder: null\nlidar: {num_beams: 60}\n")
+        "duration_s: 6.0\nimu_rate_hz: null\nencoder: null\nlidar: {num_beams: 60}\n"
+        "moving_obstacles: 2\n")
     out = _run(str(yaml_path), "--seed", "0", "--out", str(tmp_path / "g.slamseq"),
                "--rrd", str(tmp_path / "g.rrd"))
     assert set(out["events"]) == {"Odometry", "Scan", "Gps"}
@@ -66,7 +67,7 @@ def test_grid_scenario_recording_has_map_scan_and_gps(tmp_path, verify_rrd):
     assert len(seq.of_type(Scan)[0].ranges_m) == 60
     entities = verify_rrd(tmp_path / "g.rrd")
     assert {"/world/map", "/world/robot/scan", "/world/robot/scan/beams", "/world/gps",
-            "/world/ground_truth"} <= entities
+            "/world/ground_truth", "/world/moving_obstacles"} <= entities
 
 
 def test_bad_scenario_exits_with_the_key_named(tmp_path):
