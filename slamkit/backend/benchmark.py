@@ -89,6 +89,10 @@ def _raw_isam2(factors: list, initial: gtsam.Values) -> tuple[float, int]:
         new_factors.add(factor)
     isam.update(new_factors, new_values)
     updates += 1
+    for _ in range(10):  # let relinearisation finish, as slamkit's replay does
+        updates += 1
+        if isam.update(force_relinearize=True).getVariablesRelinearized() == 0:
+            break
     estimate = isam.calculateEstimate()
     everything = gtsam.NonlinearFactorGraph()
     for f in factors:

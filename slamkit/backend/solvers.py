@@ -20,7 +20,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Callable
 
 import gtsam
@@ -221,10 +221,20 @@ def optimize(graph: PoseGraph, config: OptimizeConfig = OptimizeConfig(),
             hook = on_iteration
             if hook is not None:
                 hook(0, initial_error, init.poses)
-            values, iterations = isam2_replay(graph, fg, config.isam2, on_update=hook)
+            isam_params = config.isam2
+            try:
+                values, iterations = isam2_replay(graph, fg, isam_params, on_update=hook)
+            except RuntimeError as exc:
+                if not (is_indeterminant(exc) and config.qr_fallback
+                        and isam_params.factorization == "cholesky"):
+                    raise BackendError(f"{graph.name}: iSAM2 replay failed: {exc}") from exc
+                warnings.append(f"iSAM2 with Cholesky hit an indeterminant linear system on "
+                                f"{graph.name}; replay redone with QR factorisation")
+                isam_params = replace(isam_params, factorization="qr")
+                values, iterations = isam2_replay(graph, fg, isam_params, on_update=hook)
             errors = [initial_error, fg.error(values)]
             converged = True
-            linear = config.isam2.factorization
+            linear = isam_params.factorization
         else:
             try:
                 values, errors, iterations, converged = _batch(fg, init.values, solver, linear,

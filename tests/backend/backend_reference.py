@@ -58,8 +58,10 @@ CASES = [
     # 2D g2o
     Case("pose_graph_2d/intel.g2o", anchor_error=22.5021, anchor_iterations=4, anchor_F=54.5039),
     Case("pose_graph_2d/intel_g2o_943.g2o", anchor_error=273.232, anchor_iterations=4),
+    # LM crawls on MITb (32 iterations at tolerance 1e-10): the default tolerances stop it where
+    # F is still 1.2e-4 above the MANIFEST's value, so it is solved with the MANIFEST settings
     Case("pose_graph_2d/input_MITb_g2o.g2o", anchor_error=385.119, anchor_iterations=32,
-         anchor_F=1360.85),
+         anchor_F=1360.85, manifest_settings=True),
     Case("pose_graph_2d/CSAIL.g2o", anchor_error=20.2754, anchor_iterations=5, anchor_F=53.4863),
     Case("pose_graph_2d/manhattan.g2o", anchor_error=1774.52, anchor_iterations=5, anchor_F=6610.21),
     Case("pose_graph_2d/input_M3500_g2o.g2o", anchor_error=68.9574, anchor_iterations=6),
