@@ -174,3 +174,10 @@ def test_missing_file_and_non_json_metadata(tmp_path):
     with pytest.raises(DataError, match="metadata.fn"):
         save_sequence(tmp_path / "m.slamseq", seq)
     assert not (tmp_path / "m.slamseq").exists() and not (tmp_path / "m.slamseq.partial").exists()
+
+
+def test_saving_an_opened_file_reproduces_its_bytes(tmp_path):
+    first = save_sequence(tmp_path / "a.slamseq", _mixed_sequence())
+    with open_sequence(first) as reader:
+        second = save_sequence(tmp_path / "b.slamseq", reader)
+    assert first.read_bytes() == second.read_bytes()

@@ -130,3 +130,15 @@ def test_cast_circles_worked_example():
     assert np.isnan(r[3])
     assert cast_circles(np.array([[3.2, 0.0]]), np.array([1.0]), centers, radii, 8.0)[0] == 0.0
     assert cast_circles(origins[1:2], angles[1:2], np.array([[0.0, 10.0]]), radii[1:], 20.0)[0] == pytest.approx(9.0)
+
+
+def test_bench_raycast_cases_compare_equal_work():
+    from slamkit.maps.benchmark import run
+
+    cases = run(quick=True)
+    assert [c.name for c in cases] == ["raycast_office_1000x1000", "raycast_warehouse_1000x1000",
+                                       "raycast_clutter_1000x1000"]
+    for c in cases:
+        assert c.unit == "beams/s" and c.goal == ">= 30"
+        assert c.extra["identical_to_reference"] is True  # the ratio compares equal results
+        assert 0.0 <= c.extra["no_hit_fraction"] < 0.2 and 2.0 < c.extra["mean_range_m"] < 15.0
