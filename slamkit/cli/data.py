@@ -24,11 +24,13 @@ data_app = typer.Typer(
 app.add_typer(data_app, name="data")
 
 
-def list_rows(include_missing: bool = False, verify: bool = False) -> list[dict]:
+def list_rows(include_missing: bool = False, verify: bool = False, kind: str | None = None) -> list[dict]:
     """One row per dataset (available ones, or all): name, kind, format, counts, location."""
     rows = []
     for name in registry.names():
         entry = registry.get(name)
+        if kind is not None and not entry.kind.startswith(kind):
+            continue
         hits = [registry.locate(f) for f in entry.files]
         available = all(h is not None for h in hits)
         if not (available or include_missing):
@@ -49,10 +51,12 @@ def list_rows(include_missing: bool = False, verify: bool = False) -> list[dict]
 def list_cmd(
     all_: bool = typer.Option(False, "--all", help="also list registered datasets not available locally"),
     verify: bool = typer.Option(False, "--verify", help="check the sha256 of every local file"),
+    kind: str = typer.Option(None, "--kind", help="only kinds starting with this, e.g. pose_graph, "
+                             "pose_graph_3d, landmark, grid_map"),
     as_json: bool = typer.Option(False, "--json", help="print one JSON object on stdout"),
 ) -> None:
     """Datasets available locally (location, format, pose and edge counts)."""
-    rows = list_rows(include_missing=all_, verify=verify)
+    rows = list_rows(include_missing=all_, verify=verify, kind=kind)
     if as_json:
         typer.echo(json.dumps({"datasets": rows, "search_roots": [
             {"label": label, "path": str(p)} for label, p in registry.search_roots()]}))

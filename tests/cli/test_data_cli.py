@@ -29,6 +29,10 @@ def test_list_json_shows_local_datasets_with_counts(shared_datasets):
     assert [root["label"] for root in out["search_roots"]][-1] == "cache"
     everything = json.loads(runner.invoke(app, ["data", "list", "--all", "--json"]).stdout)
     assert len(everything["datasets"]) == len(registry.REGISTRY)
+    three_d = json.loads(runner.invoke(app, ["data", "list", "--all", "--kind", "pose_graph_3d", "--json"]).stdout)
+    names = {r["name"] for r in three_d["datasets"]}
+    assert {"torus3d", "parking-garage", "cubicle", "sphere400"} <= names
+    assert all(r["kind"] == "pose_graph_3d" for r in three_d["datasets"])
 
 
 def test_list_table_and_verify(shared_datasets):

@@ -176,6 +176,17 @@ def test_missing_file_is_a_data_error(tmp_path):
         read_g2o(tmp_path / "nope.g2o")
 
 
+def test_binary_file_is_a_data_error(tmp_path):
+    path = tmp_path / "blob.g2o"
+    path.write_bytes(bytes(range(256)) * 4)
+    with pytest.raises(DataError, match="not a text file"):
+        read_g2o(path)
+    with pytest.raises(DataError, match="not a text file"):
+        load_pose_graph(path)  # .g2o suffix: detection falls back to g2o, which refuses it
+    with pytest.raises(DataError, match="cannot tell"):
+        load_pose_graph(path.rename(tmp_path / "blob.bin"))
+
+
 def test_vertices_without_edges_are_a_valid_graph(tmp_path):
     g = read_g2o(write(tmp_path, "VERTEX_SE2 0 0 0 0\n"))
     assert g.num_poses == 1 and g.num_edges == 0
