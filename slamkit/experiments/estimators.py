@@ -1,0 +1,172 @@
+"""Estimator registry: the names users type in configs -> factories that build an estimator for
+one ``Sequence``.
+
+One table spans the filters of ``slamkit.estimation`` and the smoothers of ``slamkit.backend``
+(ARCHITECTURE.md section 6 names: ``ekf``, ``ukf``, ``pf``, ``mcl``, ``ekf_slam``, ``fastslam``,
+``batch``, ``isam2``, ``fixed_lag``). Modules are imported only when an estimator is built, so
+listing the registry stays cheap, and an estimator whose module is not installed is reported as
+unavailable instead of breaking the others.
+
+Every factory reads the noise the filter should assume from ``Sequence.metadata``
+(``odometry_sigma``, ``range_bearing_sigma``; see ``slamkit.sim.landmark_world``) unless the
+config overrides it (``sigma_v_mps``, ``sigma_omega_radps``, ``sigma_range_m``,
+``sigma_bearing_rad``); other parameters go to the estimator's config dataclass by field name.
+Localisation filters (``ekf``, ``ukf``, ``pf``, ``mcl``) are given the sequence's true landmark
+map; SLAM filters and smoothers are not.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib
+from dataclasses import dataclass
+from typing import Any, Callable, Literal, Mapping
+
+import numpy as np
+
+from slamkit.data.estimate import BatchEstimator, Estimator, Prior
+from slamkit.data.sequence import Sequence
+from slamkit.errors import ConfigError
+
+#: what a factory returns for one sequence
+Factory = Callable[[Sequence], "Estimator | BatchEstimator"]
+
+NOISE_FIELDS = ("sigma_v_mps", "sigma_omega_radps", "sigma_range_m", "sigma_bearing_rad")
+
+
+@dataclass(frozen=True)
+class EstimatorSpec:
+    """One registry row: ``target`` is ``module:attribute`` of the estimator class."""
+
+    name: str
+    kind: Literal["filter", "smoother", "batch"]
+    target: str
+    #: localisation against the true landmark map (not SLAM)
+    needs_landmark_map: bool
+    #: name of the config dataclass in the same module (None: the class takes keyword params)
+    config: str | None
+    #: the constructor takes ``rng`` (particle methods)
+    random: bool
+    description: str
+
+
+REGISTRY: dict[str, EstimatorSpec] = {s.name: s for s in [
+    EstimatorSpec("ekf", "filter", "slamkit.estimation.ekf:EKFLocalization", True,
+                  "EKFLocalizationConfig", False, "EKF localisation on the known landmark map"),
+    EstimatorSpec("ukf", "filter", "slamkit.estimation.ukf:UKFLocalization", True,
+                  "UKFLocalizationConfig", False, "UKF localisation on the known landmark map"),
+    EstimatorSpec("pf", "filter", "slamkit.estimation.particle_filter:ParticleFilterLocalization",
+                  True, "ParticleFilterConfig", True, "bootstrap particle filter localisation"),
+    EstimatorSpec("mcl", "filter", "slamkit.estimation.mcl:MonteCarloLocalization", True,
+                  "MCLConfig", True, "Monte Carlo localisation (KLD-sampling, augmented MCL)"),
+    EstimatorSpec("ekf_slam", "filter", "slamkit.estimation.ekf_slam:EKFSlam", False,
+                  "EKFSlamConfig", False, "EKF-SLAM"),
+    EstimatorSpec("fastslam", "filter", "slamkit.estimation.fastslam:FastSlam", False,
+                  "FastSlamConfig", True, "FastSLAM 1.0"),
+    EstimatorSpec("batch", "batch", "slamkit.backend.landmark_slam:BatchLandmarkSlam", False,
+                  "LandmarkSlamConfig", False, "batch Levenberg-Marquardt over the whole sequence"),
+    EstimatorSpec("isam2", "smoother", "slamkit.backend.landmark_slam:Isam2LandmarkSlam", False,
+                  "LandmarkSlamConfig", False, "iSAM2 incremental smoothing"),
+    EstimatorSpec("fixed_lag", "smoother", "slamkit.backend.landmark_slam:FixedLagLandmarkSlam",
+                  False, "LandmarkSlamConfig", False, "fixed-lag smoother (lag in seconds)"),
+]}
+
+
+def names() -> list[str]:
+    return list(REGISTRY)
+
+
+def spec(name: str) -> EstimatorSpec:
+    try:
+        return REGISTRY[name]
+    except KeyError:
+        raise ConfigError(f"unknown estimator {name!r}; known: {', '.join(REGISTRY)}") from None
+
+
+def _resolve(target: str) -> Any:
+    module_name, attr = target.split(":")
+    return getattr(importlib.import_module(module_name), attr)
+
+
+def is_available(name: str) -> bool:
+    """True when the estimator's module is installed and defines its class."""
+    try:
+        _resolve(spec(name).target)
+    except (ImportError, AttributeError):
+        return False
+    return True
+
+
+def available() -> list[str]:
+    return [n for n in REGISTRY if is_available(n)]
+
+
+def _noise(sequence: Sequence, params: Mapping[str, Any]):
+    from slamkit.estimation._common import NoiseParams
+
+    overrides = {k: float(params[k]) for k in NOISE_FIELDS if k in params}
+    return NoiseParams.from_metadata(sequence.metadata, **overrides)
+
+
+def _config(cls: type, params: Mapping[str, Any], where: str) -> Any:
+    fields = {f.name for f in dataclasses.fields(cls)}
+    unknown = sorted(set(params) - fields)
+    if unknown:
+        raise ConfigError(f"{where}: unknown parameter(s) {unknown}; {cls.__name__} has {sorted(fields)}")
+    return cls(**params)
+
+
+def factory(name: str, params: Mapping[str, Any] | None = None, seed: int = 0) -> Factory:
+    """A callable ``sequence -> estimator`` for registry ``name`` with ``params``.
+
+    ``seed`` seeds the estimator's own ``np.random.Generator`` (particle methods), so a run is
+    reproducible and independent of the sequence's noise."""
+    s = spec(name)
+    params = dict(params or {})
+    try:
+        cls = _resolve(s.target)
+    except (ImportError, AttributeError) as exc:
+        raise ConfigError(f"estimator {name!r} is not available in this installation ({exc})") from None
+    module = importlib.import_module(s.target.split(":")[0])
+    noise_params = {k: params.pop(k) for k in NOISE_FIELDS if k in params}
+    config_cls = getattr(module, s.config, None) if s.config else None
+
+    def build(sequence: Sequence):
+        kwargs: dict[str, Any] = {}
+        if config_cls is not None:
+            kwargs["config"] = _config(config_cls, params, f"estimator {name!r}")
+        elif params:
+            kwargs.update(params)
+        if s.kind == "filter":
+            kwargs["noise"] = _noise(sequence, noise_params)
+        elif noise_params:
+            kwargs["noise"] = _noise(sequence, noise_params)
+        if s.random:
+            kwargs["rng"] = np.random.default_rng(seed)
+        if s.needs_landmark_map:
+            if not sequence.world_p_landmarks:
+                raise ConfigError(f"estimator {name!r} localises against a known landmark map, but "
+                                  f"sequence {sequence.name!r} has none")
+            return cls(sequence.world_p_landmarks, **kwargs)
+        if hasattr(cls, "from_sequence"):
+            return cls.from_sequence(sequence, **kwargs)
+        return cls(**kwargs)
+
+    build.estimator_name = name  # type: ignore[attr-defined]
+    build.kind = s.kind  # type: ignore[attr-defined]
+    return build
+
+
+def prior_of(sequence: Sequence, sigma_floor: float = 1e-6) -> Prior:
+    """The prior every estimator starts from: the sequence's initial pose (the true one for
+    simulated worlds and datasets with ground truth; the origin otherwise) and
+    ``metadata['initial_pose_sigma']`` (x, y, theta) as its standard deviations."""
+    if sequence.initial_pose_xytheta is not None:
+        pose = np.asarray(sequence.initial_pose_xytheta, dtype=float).reshape(3)
+    elif sequence.ground_truth is not None:
+        pose = sequence.ground_truth.xytheta()[0]
+    else:
+        pose = np.zeros(3)
+    sigma = np.asarray(sequence.metadata.get("initial_pose_sigma", (1e-3, 1e-3, 1e-3)), dtype=float)
+    sigma = np.maximum(sigma.reshape(3), sigma_floor)
+    return Prior(pose, np.diag(sigma**2))

@@ -1,0 +1,283 @@
+"""The runner: one ``Sequence`` feeds every configured estimator, and the scorer that turns each
+estimate into the metrics of ARCHITECTURE.md section 6.
+
+``run_estimators`` gives every online estimator (filters, iSAM2, fixed-lag) every event in time
+order and times each ``step`` with ``time.perf_counter``; batch estimators ``solve`` the whole
+sequence once and are timed in total. Observers that set ``wants_steps`` receive a
+:class:`~slamkit.experiments.observers.StepSnapshot` every ``step_every`` events (default 10);
+without such an observer the loop does nothing but step and time, so measured latencies are
+the estimators' own.
+
+``score`` compares an estimate with a reference trajectory (ground truth, or the batch solution
+for datasets without it):
+
+* ``ate_rmse_m``, ``ate_rot_rmse_rad``: absolute trajectory error after an SE(2) Umeyama
+  alignment (Sturm et al. IROS 2012; Zhang & Scaramuzza IROS 2018);
+* ``rpe_rmse_m``: relative pose error over 1 m of travelled path;
+* ``nees_mean``, ``nees_in_band_fraction``: pose NEES e^T P^-1 e (3 dof) with the *unaligned*
+  error -- the prior fixes the frame, and the covariance describes exactly that error -- and the
+  fraction of steps inside the single-sample chi-square(3) 95% band (about 0.95 when consistent;
+  Bar-Shalom, Li & Kirubarajan 2001, sec. 5.4). Filters are scored with the filtered covariance
+  of every step, smoothers with their final marginals;
+* ``nis_mean``: mean normalised innovation squared per measurement (filters that record it);
+* ``landmark_rmse_m``: RMS landmark position error after an SE(2) Umeyama alignment of the
+  estimated landmarks onto the true ones (SLAM estimators; localisation filters are handed the
+  true map and have none);
+* ``step_latency_median_ms``, ``step_latency_p99_ms`` (online estimators), ``total_time_s``.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable, Mapping
+
+import numpy as np
+
+from slamkit.data.estimate import Estimate, Prior
+from slamkit.data.sequence import RangeBearing, Sequence
+from slamkit.data.trajectory import Trajectory
+from slamkit.errors import DataError, SlamkitError
+from slamkit.experiments.observers import StepSnapshot
+from slamkit.geometry.angles import wrap_angle
+from slamkit.metrics.alignment import associate, umeyama
+from slamkit.metrics.ate import ate
+from slamkit.metrics.consistency import chi2_band, nees as nees_values
+from slamkit.metrics.rpe import rpe
+
+#: pose NEES degrees of freedom (x, y, theta)
+POSE_DOF = 3
+#: RPE segment length (m of travelled path)
+RPE_DELTA_M = 1.0
+#: at most this many particles go into a snapshot (drawing 10^4 points per step helps nobody)
+SNAPSHOT_MAX_PARTICLES = 500
+
+
+@dataclass(frozen=True)
+class EstimatorRun:
+    """One estimator on one sequence: its estimate and what it cost.
+
+    ``step_latency_s`` holds the wall time of every ``step`` (online) or the single ``solve``
+    (batch); ``failed`` holds the error message when the estimator raised a SlamkitError."""
+
+    name: str
+    kind: str
+    estimate: Estimate | None
+    step_latency_s: np.ndarray
+    total_time_s: float
+    failed: str | None = None
+
+    @property
+    def online(self) -> bool:
+        return self.kind != "batch"
+
+
+def _kind_of(factory: Callable, estimator: Any) -> str:
+    kind = getattr(factory, "kind", None)
+    if kind is not None:
+        return kind
+    return "batch" if hasattr(estimator, "solve") and not hasattr(estimator, "step") else "filter"
+
+
+def _live_state(estimator: Any, event: Any) -> dict[str, Any]:
+    """What an observer may draw after an event: pose, covariance, landmarks, particles and the
+    observation just processed (for association lines)."""
+    est = estimator.estimate()
+    state: dict[str, Any] = {"pose_xytheta": est.trajectory.xytheta()[-1]}
+    if est.pose_covariances is not None and len(est.pose_covariances):
+        state["covariance"] = np.asarray(est.pose_covariances[-1])
+    if est.world_p_landmarks:
+        ids = np.array(sorted(est.world_p_landmarks), dtype=np.int64)
+        state["landmark_ids"] = ids
+        state["world_p_landmarks"] = np.array([np.asarray(est.world_p_landmarks[i])[:2] for i in ids])
+    particles = getattr(estimator, "particles", None)
+    if isinstance(particles, np.ndarray) and particles.ndim == 2 and particles.shape[1] >= 3:
+        step = max(1, len(particles) // SNAPSHOT_MAX_PARTICLES)
+        state["particles"] = particles[::step, :3].copy()
+    if isinstance(event, RangeBearing):
+        state["observed_ids"] = np.asarray(event.landmark_ids)
+        state["range_m"] = np.asarray(event.range_m)
+        state["bearing_rad"] = np.asarray(event.bearing_rad)
+    return state
+
+
+def run_estimators(sequence: Sequence, estimators: Mapping[str, Callable[[Sequence], Any]],
+                   prior: Prior | None = None, observer: Any = None,
+                   kind: str = "filter_vs_smoother", run_label: str | None = None
+                   ) -> dict[str, EstimatorRun]:
+    """Feed ``sequence`` to every estimator built by ``estimators`` (name -> factory, see
+    ``slamkit.experiments.estimators.factory``); returns name -> :class:`EstimatorRun`.
+
+    ``prior`` defaults to ``estimators.prior_of(sequence)``. ``observer.on_step`` is called with
+    snapshots only when ``observer.wants_steps`` is true, every ``observer.step_every`` events."""
+    from slamkit.experiments.estimators import prior_of
+
+    prior = prior_of(sequence) if prior is None else prior
+    wants = observer is not None and bool(getattr(observer, "wants_steps", False))
+    every = max(1, int(getattr(observer, "step_every", 10))) if wants else 0
+    label = run_label or sequence.name
+    events = sequence.events
+    out: dict[str, EstimatorRun] = {}
+    for name, make in estimators.items():
+        estimator = make(sequence)
+        run_kind = _kind_of(make, estimator)
+        t_start = time.perf_counter()
+        try:
+            if run_kind == "batch":
+                estimate = estimator.solve(sequence)
+                total = time.perf_counter() - t_start
+                latency = np.array([total])
+            else:
+                latency = np.empty(len(events))
+                estimator.reset(prior)
+                step = estimator.step
+                clock = time.perf_counter
+                if not wants:
+                    for k, event in enumerate(events):
+                        t0 = clock()
+                        step(event)
+                        latency[k] = clock() - t0
+                else:
+                    for k, event in enumerate(events):
+                        t0 = clock()
+                        step(event)
+                        latency[k] = clock() - t0
+                        if k % every == 0 or k == len(events) - 1:
+                            observer.on_step(StepSnapshot(kind, f"{label}/{name}", k,
+                                                          float(event.stamp_s),
+                                                          {"estimator": name,
+                                                           **_live_state(estimator, event)}))
+                estimate = estimator.estimate()
+                total = time.perf_counter() - t_start
+        except (SlamkitError, np.linalg.LinAlgError) as exc:
+            out[name] = EstimatorRun(name, run_kind, None, np.zeros(0),
+                                     time.perf_counter() - t_start, failed=f"{type(exc).__name__}: {exc}")
+            continue
+        out[name] = EstimatorRun(name, run_kind, estimate, latency, total)
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# scoring
+
+
+@dataclass(frozen=True)
+class ErrorSeries:
+    """Per-pose errors of one estimate against its reference, in the world frame and unaligned:
+    ``error_xytheta`` (N, 3) = estimate - reference (heading wrapped), ``sigma_xytheta`` (N, 3)
+    the estimator's standard deviations, ``nees`` (N,) the pose NEES (NaN where undefined)."""
+
+    stamps_s: np.ndarray
+    error_xytheta: np.ndarray
+    sigma_xytheta: np.ndarray | None = None
+    nees: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class Scored:
+    metrics: dict[str, float]
+    series: ErrorSeries | None = None
+    notes: tuple[str, ...] = field(default=())
+
+
+def world_pose_covariances(estimate: Estimate) -> np.ndarray | None:
+    """Pose covariances in the world (x, y, theta) convention the filters use.
+
+    A smoother that reports GTSAM marginals in the body frame (tangent space of Pose2, where
+    x * Exp(xi) perturbs the pose) says so with ``extras['pose_covariance_frame'] == 'body'``;
+    to first order the world perturbation is blockdiag(R(theta), 1) xi, so P_world = J P J^T."""
+    P = estimate.pose_covariances
+    if P is None:
+        return None
+    P = np.asarray(P, dtype=float)
+    if P.shape[-2:] != (3, 3):
+        return None
+    if estimate.extras.get("pose_covariance_frame", "world") == "body":
+        theta = estimate.trajectory.xytheta()[:, 2]
+        J = np.zeros((len(theta), 3, 3))
+        c, s = np.cos(theta), np.sin(theta)
+        J[:, 0, 0], J[:, 0, 1], J[:, 1, 0], J[:, 1, 1], J[:, 2, 2] = c, -s, s, c, 1.0
+        P = J @ P @ np.swapaxes(J, -1, -2)
+    return P
+
+
+def landmark_rmse_m(estimated: Mapping[int, np.ndarray], truth: Mapping[int, np.ndarray]
+                    ) -> float:
+    """RMS error over the landmarks both maps contain after the SE(2) Umeyama fit of the
+    estimated positions onto the true ones (NaN with fewer than 2 common landmarks)."""
+    common = sorted(set(int(k) for k in estimated) & set(int(k) for k in truth))
+    if len(common) < 2:
+        return float("nan")
+    est = np.array([np.asarray(estimated[k], dtype=float).reshape(-1)[:2] for k in common])
+    ref = np.array([np.asarray(truth[k], dtype=float).reshape(-1)[:2] for k in common])
+    try:
+        R, t, _ = umeyama(est, ref)
+    except DataError:
+        return float("nan")
+    return float(np.sqrt(np.mean(np.sum((est @ R.T + t - ref) ** 2, axis=1))))
+
+
+def score(run: EstimatorRun, reference: Trajectory | None,
+          world_p_landmarks: Mapping[int, np.ndarray] | None = None,
+          reference_is_truth: bool = True, max_diff_s: float = 1e-6) -> Scored:
+    """The metrics of one run (see the module docstring); NEES only against ground truth."""
+    metrics: dict[str, float] = {"total_time_s": float(run.total_time_s)}
+    if run.online and len(run.step_latency_s):
+        metrics["step_latency_median_ms"] = float(np.median(run.step_latency_s) * 1e3)
+        metrics["step_latency_p99_ms"] = float(np.percentile(run.step_latency_s, 99) * 1e3)
+    if run.estimate is None:
+        return Scored(metrics, notes=(f"{run.name} failed: {run.failed}",))
+    est = run.estimate
+    notes: list[str] = []
+    if est.nis is not None and len(est.nis):
+        metrics["nis_mean"] = float(np.mean(est.nis))
+    if world_p_landmarks and est.world_p_landmarks:
+        metrics["landmark_rmse_m"] = landmark_rmse_m(est.world_p_landmarks, world_p_landmarks)
+    if reference is None:
+        return Scored(metrics, notes=tuple(notes))
+    try:
+        pairs = associate(reference, est.trajectory, max_diff_s=max_diff_s)
+    except DataError as exc:
+        return Scored(metrics, notes=(f"{run.name}: {exc}",))
+    result = ate(pairs.ref, pairs.est, "se2")
+    metrics["ate_rmse_m"] = result.translation_m.rmse
+    metrics["ate_rot_rmse_rad"] = result.rotation_rad.rmse
+    try:
+        metrics["rpe_rmse_m"] = rpe(pairs.ref, pairs.est, RPE_DELTA_M, "m",
+                                    pairs_from_reference=True).translation_m.rmse
+    except DataError:
+        notes.append(f"{run.name}: path shorter than {RPE_DELTA_M} m, no RPE")
+    ref_xyt, est_xyt = pairs.ref.xytheta(), pairs.est.xytheta()
+    err = est_xyt - ref_xyt
+    err[:, 2] = wrap_angle(err[:, 2])
+    sigma = nees = None
+    P = world_pose_covariances(est)
+    if P is not None and len(P) == len(est.trajectory):
+        P = P[pairs.est_index]
+        sigma = np.sqrt(np.clip(np.diagonal(P, axis1=1, axis2=2), 0.0, None))
+        if reference_is_truth:
+            nees = np.full(len(err), np.nan)
+            ok = np.linalg.det(P) > 0
+            if ok.any():
+                nees[ok] = nees_values(err[ok], P[ok])
+            finite = np.isfinite(nees)
+            if finite.any():
+                band = chi2_band(POSE_DOF, 1, 0.95)
+                v = nees[finite]
+                metrics["nees_mean"] = float(np.mean(v))
+                metrics["nees_in_band_fraction"] = float(np.mean((v >= band.lower) & (v <= band.upper)))
+    series = ErrorSeries(pairs.ref.stamps_s, err, sigma, nees)
+    return Scored(metrics, series, tuple(notes))
+
+
+def monte_carlo_nees(series: list[ErrorSeries], p: float = 0.95
+                     ) -> tuple[np.ndarray, np.ndarray, tuple[float, float]]:
+    """Average NEES over M runs at every common step (Bar-Shalom et al. sec. 5.4.2): returns
+    (stamps, ANEES (K,), band) with the two-sided ``p`` band of chi2(3 M) / M."""
+    usable = [s for s in series if s.nees is not None]
+    if not usable:
+        raise DataError("no run has a NEES series")
+    n = min(len(s.nees) for s in usable)
+    stack = np.stack([s.nees[:n] for s in usable])
+    band = chi2_band(POSE_DOF, len(usable), p)
+    return usable[0].stamps_s[:n], np.nanmean(stack, axis=0), (band.lower, band.upper)

@@ -1,0 +1,249 @@
+"""Rerun recordings of filters against smoothers: every estimate over the same ground truth.
+
+Entity tree of one scenario (the pipeline prefixes it with ``<scenario>/``; static data logged
+once, time on the ``time`` timeline in seconds):
+
+    world/landmarks                       true landmarks with their ids (static)
+    world/ground_truth                    the true path (static)
+    world/estimate/<name>                 the estimator's final trajectory (static)
+    world/estimate/<name>/covariance      3-sigma position ellipses along it (static, every k-th pose)
+    world/estimate/<name>/pose            the estimate at each snapshot (time)
+    world/estimate/<name>/ellipse         its 3-sigma position ellipse (time)
+    world/estimate/<name>/particles       particles of particle methods (time)
+    world/estimate/<name>/landmarks       landmarks a SLAM estimator holds (time)
+    world/estimate/<name>/associations    pose -> landmark lines for the observations just used (time)
+    plots/error/<name>                    position error (m) of every pose (send_columns)
+    plots/nees/<name>                     pose NEES, or its Monte-Carlo average (send_columns)
+    plots/nees/band_lower, band_upper     its 95% chi-square band
+
+``FilterVsSmootherObserver`` is the pipeline's recorder (``slamkit.viz.pipelines``): it keeps the
+snapshots the runner sends for the first seed of every scenario and writes the recording when
+the pipeline's output arrives.
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from pathlib import Path
+from typing import Any, Iterable, Mapping
+
+import numpy as np
+import rerun as rr
+import rerun.blueprint as rrb
+
+from slamkit.viz.recording import open_recording
+
+TIMELINE = "time"
+COLOR_GROUND_TRUTH = (40, 200, 80)
+COLOR_LANDMARK = (230, 60, 60)
+COLOR_ASSOCIATION = (255, 140, 0)
+PALETTE = [(30, 120, 255), (255, 127, 14), (148, 103, 189), (214, 39, 40), (23, 190, 207),
+           (188, 189, 34), (227, 119, 194), (140, 86, 75), (127, 127, 127)]
+#: a covariance ellipse every this many poses along a final trajectory
+ELLIPSE_EVERY = 25
+#: points per ellipse outline
+ELLIPSE_POINTS = 32
+
+
+def color_of(k: int) -> tuple[int, int, int]:
+    return PALETTE[k % len(PALETTE)]
+
+
+def _xyz(xy: np.ndarray) -> np.ndarray:
+    xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+    return np.column_stack([xy, np.zeros(len(xy))])
+
+
+def ellipse_outlines(centres_xy: np.ndarray, covariances_xy: np.ndarray, n_sigma: float = 3.0,
+                     n_points: int = ELLIPSE_POINTS) -> np.ndarray:
+    """(K, n_points + 1, 3) closed outlines of the n-sigma ellipses of 2x2 covariances: the
+    points c + n_sigma L (cos t, sin t) with L L^T = P (eigen-decomposition, clipped at 0)."""
+    P = np.asarray(covariances_xy, dtype=float).reshape(-1, 2, 2)
+    w, V = np.linalg.eigh(0.5 * (P + np.swapaxes(P, -1, -2)))
+    L = V * np.sqrt(np.clip(w, 0.0, None))[:, None, :]
+    t = np.linspace(0.0, 2.0 * np.pi, n_points + 1)
+    circle = np.stack([np.cos(t), np.sin(t)])  # (2, n+1)
+    pts = np.asarray(centres_xy, dtype=float).reshape(-1, 2)[:, :, None] + n_sigma * (L @ circle)
+    pts = np.swapaxes(pts, 1, 2)
+    return np.concatenate([pts, np.zeros(pts.shape[:2] + (1,))], axis=2)
+
+
+def blueprint(prefixes: Iterable[str] = ("",)) -> rrb.Blueprint:
+    """One spatial view per scenario over an error and a NEES plot."""
+    prefixes = list(prefixes)
+
+    def p(path: str, prefix: str) -> str:
+        return f"{prefix}/{path}" if prefix else path
+
+    views = [rrb.Spatial3DView(origin=p("world", x), name=x or "world") for x in prefixes]
+    errors = [rrb.TimeSeriesView(origin=p("plots/error", x), name=f"{x} position error (m)".strip())
+              for x in prefixes]
+    nees = [rrb.TimeSeriesView(origin=p("plots/nees", x), name=f"{x} NEES".strip()) for x in prefixes]
+    return rrb.Blueprint(
+        rrb.Horizontal(rrb.Grid(*views), rrb.Vertical(rrb.Grid(*errors), rrb.Grid(*nees)),
+                       column_shares=[3, 2]),
+        collapse_panels=True,
+    )
+
+
+class _Prefixed:
+    def __init__(self, stream: rr.RecordingStream, prefix: str):
+        self._stream, self._prefix = stream, prefix
+
+    def _p(self, path: str) -> str:
+        return f"{self._prefix}/{path}" if self._prefix else path
+
+    def log(self, path: str, *args, **kwargs):
+        return self._stream.log(self._p(path), *args, **kwargs)
+
+    def send_columns(self, path: str, *args, **kwargs):
+        return self._stream.send_columns(self._p(path), *args, **kwargs)
+
+    def set_time(self, *args, **kwargs):
+        return self._stream.set_time(*args, **kwargs)
+
+
+def log_comparison(stream, sequence, runs: Mapping[str, Any], series: Mapping[str, Any] | None = None,
+                   anees: Mapping[str, Any] | None = None, snapshots: Iterable[Any] = ()) -> None:
+    """Log one scenario: ground truth, landmarks, every run's estimate (``EstimatorRun``), its
+    error and NEES series (``ErrorSeries`` by name), Monte-Carlo NEES curves
+    (name -> (stamps, anees, band, M)) and live snapshots (``StepSnapshot``)."""
+    series = series or {}
+    anees = anees or {}
+    colors = {name: color_of(k) for k, name in enumerate(runs)}
+    lms = sequence.world_p_landmarks
+    true_lm: dict[int, np.ndarray] = {}
+    if lms:
+        ids = sorted(lms)
+        true_lm = {int(i): np.asarray(lms[i], float)[:2] for i in ids}
+        stream.log("world/landmarks", rr.Points3D(_xyz(np.array(list(true_lm.values()))), radii=[0.12],
+                                                  colors=[COLOR_LANDMARK], labels=[str(i) for i in ids]),
+                   static=True)
+    if sequence.ground_truth is not None and len(sequence.ground_truth):
+        stream.log("world/ground_truth", rr.LineStrips3D([sequence.ground_truth.world_t_body],
+                                                         radii=[0.03], colors=[COLOR_GROUND_TRUTH]),
+                   static=True)
+    for name, run in runs.items():
+        est = getattr(run, "estimate", None)
+        if est is None:
+            continue
+        base = f"world/estimate/{name}"
+        xyt = est.trajectory.xytheta()
+        stream.log(base, rr.LineStrips3D([_xyz(xyt[:, :2])], radii=[0.025], colors=[colors[name]]),
+                   static=True)
+        if est.pose_covariances is not None and len(est.pose_covariances) == len(xyt):
+            idx = np.arange(0, len(xyt), ELLIPSE_EVERY)
+            outlines = ellipse_outlines(xyt[idx, :2], np.asarray(est.pose_covariances)[idx, :2, :2])
+            stream.log(f"{base}/covariance", rr.LineStrips3D(outlines, radii=[0.01], colors=[colors[name]]),
+                       static=True)
+        if est.world_p_landmarks:
+            lid = sorted(est.world_p_landmarks)
+            stream.log(f"{base}/map", rr.Points3D(
+                _xyz(np.array([np.asarray(est.world_p_landmarks[i], float)[:2] for i in lid])),
+                radii=[0.08], colors=[colors[name]], labels=[str(i) for i in lid]), static=True)
+    for name, s in series.items():
+        index = [rr.TimeColumn(TIMELINE, duration=np.asarray(s.stamps_s))]
+        stream.send_columns(f"plots/error/{name}", indexes=index,
+                            columns=rr.Scalars.columns(scalars=np.linalg.norm(s.error_xytheta[:, :2], axis=1)))
+        if s.nees is not None and name not in anees:
+            ok = np.isfinite(s.nees)
+            if ok.any():
+                stream.send_columns(f"plots/nees/{name}",
+                                    indexes=[rr.TimeColumn(TIMELINE, duration=np.asarray(s.stamps_s)[ok])],
+                                    columns=rr.Scalars.columns(scalars=s.nees[ok]))
+    band = None
+    for name, (stamps, values, b, _m) in anees.items():
+        ok = np.isfinite(values)
+        if ok.any():
+            stream.send_columns(f"plots/nees/{name}", indexes=[rr.TimeColumn(TIMELINE, duration=stamps[ok])],
+                                columns=rr.Scalars.columns(scalars=values[ok]))
+            band = (stamps[ok], b)
+    if band is None and any(s.nees is not None for s in series.values()):
+        from slamkit.metrics.consistency import chi2_band
+
+        s0 = next(s for s in series.values() if s.nees is not None)
+        b = chi2_band(3, 1, 0.95)
+        band = (np.asarray(s0.stamps_s), (b.lower, b.upper))
+    if band is not None:
+        stamps, (lo, hi) = band
+        index = [rr.TimeColumn(TIMELINE, duration=stamps)]
+        stream.send_columns("plots/nees/band_lower", indexes=index,
+                            columns=rr.Scalars.columns(scalars=np.full(len(stamps), lo)))
+        stream.send_columns("plots/nees/band_upper", indexes=index,
+                            columns=rr.Scalars.columns(scalars=np.full(len(stamps), hi)))
+    for snap in snapshots:
+        log_snapshot(stream, snap, colors.get(snap.state.get("estimator"), PALETTE[0]), true_lm)
+
+
+def log_snapshot(stream, snapshot, color: tuple[int, int, int], true_landmarks: Mapping[int, np.ndarray]
+                 ) -> None:
+    """The live state of one estimator after one event (see ``runner._live_state``)."""
+    s = snapshot.state
+    name = s.get("estimator", snapshot.run.rsplit("/", 1)[-1])
+    base = f"world/estimate/{name}"
+    stream.set_time(TIMELINE, duration=float(snapshot.stamp_s))
+    pose = np.asarray(s["pose_xytheta"], dtype=float)
+    stream.log(f"{base}/pose", rr.Points3D(_xyz(pose[:2]), radii=[0.15], colors=[color]))
+    if "covariance" in s:
+        stream.log(f"{base}/ellipse", rr.LineStrips3D(
+            ellipse_outlines(pose[None, :2], np.asarray(s["covariance"])[None, :2, :2]),
+            radii=[0.015], colors=[color]))
+    if "particles" in s:
+        stream.log(f"{base}/particles", rr.Points3D(_xyz(np.asarray(s["particles"])[:, :2]),
+                                                    radii=[0.03], colors=[color]))
+    held: dict[int, np.ndarray] = {}
+    if "landmark_ids" in s:
+        held = {int(i): p for i, p in zip(s["landmark_ids"], s["world_p_landmarks"])}
+        stream.log(f"{base}/landmarks", rr.Points3D(_xyz(np.asarray(s["world_p_landmarks"])),
+                                                    radii=[0.1], colors=[color]))
+    if "observed_ids" in s:
+        ids = np.asarray(s["observed_ids"], dtype=np.int64)
+        r, b = np.asarray(s["range_m"], float), np.asarray(s["bearing_rad"], float)
+        # a known id goes to the landmark the estimator holds (else the true one); an unknown id
+        # (-1) is drawn as the measured ray from the estimated pose
+        ends = pose[:2] + np.column_stack([r * np.cos(pose[2] + b), r * np.sin(pose[2] + b)])
+        for k, i in enumerate(ids):
+            if int(i) in held:
+                ends[k] = held[int(i)]
+            elif int(i) in true_landmarks:
+                ends[k] = true_landmarks[int(i)]
+        segments = np.stack([np.repeat(_xyz(pose[:2]), len(ends), axis=0), _xyz(ends)], axis=1)
+        stream.log(f"{base}/associations", rr.LineStrips3D(segments, radii=[0.01],
+                                                           colors=[COLOR_ASSOCIATION]))
+
+
+def record_comparison(path: str | Path | None, sequence, runs: Mapping[str, Any],
+                      series: Mapping[str, Any] | None = None, snapshots: Iterable[Any] = (),
+                      spawn: bool = False) -> Path | None:
+    """Record one sequence and its runs (a notebook's ``slamkit.experiments.runner`` output)."""
+    with open_recording("slamkit_filter_vs_smoother", path, spawn, blueprint()) as rec:
+        log_comparison(rec.stream, sequence, runs, series, None, snapshots)
+    return None if path is None else Path(path)
+
+
+class FilterVsSmootherObserver:
+    """Records the ``filter_vs_smoother`` pipeline: ``<scenario>/world/...`` and
+    ``<scenario>/plots/...`` for the first seed of every scenario, Monte-Carlo NEES curves."""
+
+    wants_steps = True
+    step_every = 10
+
+    def __init__(self, path, spawn: bool = False):
+        self.path, self.spawn = path, spawn
+        self._snapshots: dict[str, list] = defaultdict(list)
+
+    def on_step(self, snapshot) -> None:
+        self._snapshots[snapshot.run.split("/", 1)[0]].append(snapshot)
+
+    def on_output(self, output) -> None:
+        payload = getattr(output, "payload", None)
+        if payload is None or not payload.scenarios:
+            return
+        prefixes = [o.name for o in payload.scenarios]
+        with open_recording("slamkit_filter_vs_smoother", self.path, self.spawn, blueprint(prefixes)) as rec:
+            for o in payload.scenarios:
+                log_comparison(_Prefixed(rec.stream, o.name), o.sequence, o.runs, o.series, o.anees,
+                               self._snapshots.get(o.name, ()))
+
+    def close(self) -> None:
+        self._snapshots.clear()
