@@ -259,3 +259,15 @@ def test_ground_truth_empty_and_unknown_format(tmp_path):
         read_x_y_theta(path)
     with pytest.raises(DataError, match="unknown ground-truth format"):
         read_ground_truth(path, "tum")
+
+
+def test_registry_and_readers_do_not_import_gtsam():
+    """slamkit.data finds the wheel's Data folder with importlib.util.find_spec, never by import."""
+    import subprocess
+    import sys
+
+    code = ("import sys; from slamkit.data import registry; registry.available(); "
+            "registry.load_pose_graph_source('w100'); print('gtsam' in sys.modules)")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "False"
