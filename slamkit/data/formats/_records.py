@@ -1,9 +1,9 @@
 """Shared machinery of the pose-graph text readers (g2o, TORO, iSAM).
 
 All three formats are "one record per line, first token is a tag". The readers here split the
-file once, group lines by tag and convert each group with one numpy call (fast: numpy's C
-``loadtxt`` parser; city10000's 20k edges parse in tens of milliseconds); only when a bulk conversion fails do we walk that group
-line by line to name the one-based line and token at fault.
+file once, group lines by tag and convert each group with one numpy call (numpy's C ``loadtxt``
+parser; city10000's 20k edges parse in tens of milliseconds); only when a bulk conversion fails
+do we walk that group line by line to name the one-based line and token at fault.
 
 The assembly step (:func:`assemble`) is where the documented bad-input outcomes live, so every
 reader behaves the same:
@@ -17,9 +17,11 @@ reader behaves the same:
   unseen -> first * measurement) and ``has_initial`` is False;
 * no edges and no vertices -> ``DataError`` ("empty graph");
 * information that is not positive definite (smallest eigenvalue <= 0) -> ``policy`` decides:
-  ``'keep'`` (default; GTSAM uses information as given) records the count in ``notes``,
-  ``'repair'`` clips eigenvalues to ``1e-9 * max(largest |eigenvalue|, 1)`` (the nearest PD matrix in Frobenius norm up
-  to that floor) and records the count, ``'reject'`` raises ``DataError`` naming the first line;
+  ``'keep'`` (default) passes the matrix on unchanged and records the count in ``notes`` --
+  gtsam.readG2o does the same (its ``Gaussian::Information`` factors it with an unchecked
+  Cholesky); ``'repair'`` clips eigenvalues to ``1e-9 * max(largest |eigenvalue|, 1)`` (the
+  nearest PD matrix in Frobenius norm up to that floor) and records the count; ``'reject'``
+  raises ``DataError`` naming the first offending line;
 * more than one connected component -> recorded in ``notes`` (the back-end needs a prior per
   component); see :func:`connected_components`.
 
@@ -38,6 +40,7 @@ from typing import Literal
 import numpy as np
 
 from slamkit.data.pose_graph import PoseGraph
+from slamkit.geometry import so3
 from slamkit.errors import DataError
 
 InformationPolicy = Literal["keep", "repair", "reject"]
@@ -193,9 +196,6 @@ def upper_from_symmetric(matrices: np.ndarray) -> np.ndarray:
     return matrices[:, rows, cols]
 
 
-# --- small rotation helpers, kept local so the readers depend on numpy only
-
-
 def normalize_quats_wxyz(q: np.ndarray, path, lines: np.ndarray, tag: str) -> np.ndarray:
     norms = np.linalg.norm(q, axis=1)
     bad = norms < 1e-12
@@ -205,15 +205,10 @@ def normalize_quats_wxyz(q: np.ndarray, path, lines: np.ndarray, tag: str) -> np
 
 
 def rpy_to_quat_wxyz(rpy: np.ndarray) -> np.ndarray:
-    """(K, 3) roll, pitch, yaw (ZYX convention: R = Rz(yaw) Ry(pitch) Rx(roll)) -> (K, 4) wxyz."""
-    r, p, y = (0.5 * rpy[:, 0], 0.5 * rpy[:, 1], 0.5 * rpy[:, 2])
-    cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
-    return np.column_stack([
-        cr * cp * cy + sr * sp * sy,
-        sr * cp * cy - cr * sp * sy,
-        cr * sp * cy + sr * cp * sy,
-        cr * cp * sy - sr * sp * cy,
-    ])
+    """(K, 3) roll, pitch, yaw (ZYX: R = Rz(yaw) Ry(pitch) Rx(roll), as iSAM's Pose3d and gtsam's
+    Rot3::RzRyRx) -> (K, 4) unit wxyz quaternions with w >= 0."""
+    rpy = np.asarray(rpy, dtype=float).reshape(-1, 3)
+    return so3.to_quat_wxyz(so3.from_euler_zyx(rpy[:, 2], rpy[:, 1], rpy[:, 0]))
 
 
 def chain_initial(dim: int, edge_from: np.ndarray, edge_to: np.ndarray,
