@@ -1,0 +1,250 @@
+"""What every planar filter shares: noise parameters read from a Sequence, the bookkeeping that
+turns a stream of ``step`` calls into an :class:`~slamkit.data.estimate.Estimate`, and small
+numeric helpers (circular weighted statistics, Gaussian log-densities, chi-square gates).
+
+The filters themselves live one per module (``kalman``, ``ekf``, ``ukf``, ``histogram_filter``,
+``particle_filter``, ``mcl``, ``ekf_slam``, ``fastslam``).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+import numpy as np
+from scipy.stats import chi2
+
+from slamkit.data.estimate import Estimate, Prior
+from slamkit.data.sequence import Event, Gps, Odometry, RangeBearing
+from slamkit.data.trajectory import Trajectory
+from slamkit.errors import ConfigError, EstimationError
+from slamkit.geometry.angles import wrap_angle
+
+
+# --------------------------------------------------------------------------------------------
+# noise
+# --------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class NoiseParams:
+    """Standard deviations the filters assume (SI units).
+
+    Odometry noise is on the body-frame velocities (v, omega) held over ``dt_s``, so the pose
+    noise of one step is ``L diag(sigma_v^2, sigma_omega^2) L^T`` with ``L`` the motion Jacobian
+    with respect to the control (Thrun, Probabilistic Robotics, eq. 7.11 and Table 7.1).
+    """
+
+    sigma_v_mps: float = 0.1
+    sigma_omega_radps: float = 0.05
+    sigma_range_m: float = 0.1
+    sigma_bearing_rad: float = 0.02
+
+    def __post_init__(self) -> None:
+        for name in ("sigma_v_mps", "sigma_omega_radps", "sigma_range_m", "sigma_bearing_rad"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0):
+                raise ConfigError(f"NoiseParams.{name} must be positive and finite, got {value}")
+
+    @property
+    def control_cov(self) -> np.ndarray:
+        """(2, 2) covariance of (v, omega)."""
+        return np.diag([self.sigma_v_mps**2, self.sigma_omega_radps**2])
+
+    @property
+    def range_bearing_cov(self) -> np.ndarray:
+        """(2, 2) covariance of one (range, bearing) measurement."""
+        return np.diag([self.sigma_range_m**2, self.sigma_bearing_rad**2])
+
+    @classmethod
+    def from_metadata(cls, metadata: Mapping[str, Any], **overrides: float) -> "NoiseParams":
+        """Read a Sequence's ``metadata``.
+
+        Accepted keys: ``odometry_sigma`` = (sigma_v_mps, sigma_omega_radps) and
+        ``range_bearing_sigma`` = (sigma_range_m, sigma_bearing_rad), or the four field names
+        of this class directly. Missing keys keep the defaults; ``overrides`` win over both.
+        """
+        values: dict[str, float] = {}
+        odo = metadata.get("odometry_sigma")
+        if odo is not None:
+            odo = np.asarray(odo, dtype=float).reshape(-1)
+            if odo.size != 2:
+                raise ConfigError(f"metadata field odometry_sigma must have 2 values, got {odo.size}")
+            values["sigma_v_mps"], values["sigma_omega_radps"] = float(odo[0]), float(odo[1])
+        rb = metadata.get("range_bearing_sigma")
+        if rb is not None:
+            rb = np.asarray(rb, dtype=float).reshape(-1)
+            if rb.size != 2:
+                raise ConfigError(
+                    f"metadata field range_bearing_sigma must have 2 values, got {rb.size}")
+            values["sigma_range_m"], values["sigma_bearing_rad"] = float(rb[0]), float(rb[1])
+        for name in ("sigma_v_mps", "sigma_omega_radps", "sigma_range_m", "sigma_bearing_rad"):
+            if name in metadata:
+                values[name] = float(metadata[name])
+        values.update(overrides)
+        return cls(**values)
+
+
+def landmark_array(world_p_landmarks: Mapping[int, np.ndarray] | None) -> tuple[np.ndarray, np.ndarray]:
+    """Map ``{id: (x, y)}`` -> (ids (L,), positions (L, 2)), sorted by id."""
+    if not world_p_landmarks:
+        return np.zeros(0, dtype=np.int64), np.zeros((0, 2))
+    ids = np.array(sorted(int(k) for k in world_p_landmarks), dtype=np.int64)
+    pos = np.array([np.asarray(world_p_landmarks[int(i)], dtype=float).reshape(-1)[:2] for i in ids])
+    return ids, pos.reshape(-1, 2)
+
+
+def observation_rows(event: RangeBearing) -> tuple[np.ndarray, np.ndarray]:
+    """(ids (m,), z (m, 2)) from a RangeBearing event."""
+    ids = np.asarray(event.landmark_ids, dtype=np.int64).reshape(-1)
+    z = np.column_stack([np.asarray(event.range_m, dtype=float).reshape(-1),
+                         np.asarray(event.bearing_rad, dtype=float).reshape(-1)])
+    if len(ids) != len(z):
+        raise EstimationError(
+            f"RangeBearing at t={event.stamp_s}: {len(ids)} landmark_ids but {len(z)} ranges")
+    return ids, z
+
+
+def range_bearing_residual(z: np.ndarray, z_hat: np.ndarray) -> np.ndarray:
+    """z - z_hat with the bearing (last axis, index 1) wrapped to [-pi, pi)."""
+    nu = np.asarray(z, dtype=float) - np.asarray(z_hat, dtype=float)
+    nu[..., 1] = wrap_angle(nu[..., 1])
+    return nu
+
+
+def chi2_gate(probability: float, dof: int) -> float:
+    """Squared Mahalanobis distance below which ``probability`` of true associations fall."""
+    return float(chi2.ppf(probability, dof))
+
+
+# --------------------------------------------------------------------------------------------
+# weighted statistics with angles
+# --------------------------------------------------------------------------------------------
+def weighted_pose_mean_cov(poses: np.ndarray, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and covariance of weighted planar poses (N, 3); the heading mean is the circular
+    mean atan2(sum w sin, sum w cos) and heading residuals are wrapped before squaring."""
+    w = np.asarray(weights, dtype=float)
+    w = w / np.sum(w)
+    mean = np.empty(3)
+    mean[:2] = w @ poses[:, :2]
+    mean[2] = np.arctan2(w @ np.sin(poses[:, 2]), w @ np.cos(poses[:, 2]))
+    d = poses - mean
+    d[:, 2] = wrap_angle(d[:, 2])
+    cov = (d * w[:, None]).T @ d
+    return mean, 0.5 * (cov + cov.T)
+
+
+def gaussian_logpdf_2d(nu: np.ndarray, cov_inv: np.ndarray, log_det: float | np.ndarray) -> np.ndarray:
+    """log N(nu; 0, S) for residuals (..., 2) given S^-1 (..., 2, 2) and log|S|."""
+    maha = np.einsum("...i,...ij,...j->...", nu, cov_inv, nu)
+    return -0.5 * maha - 0.5 * log_det - np.log(2.0 * np.pi)
+
+
+def symmetrize(P: np.ndarray) -> np.ndarray:
+    return 0.5 * (P + np.swapaxes(P, -1, -2))
+
+
+# --------------------------------------------------------------------------------------------
+# bookkeeping shared by every filter
+# --------------------------------------------------------------------------------------------
+class FilterBase:
+    """Implements the Estimator protocol's plumbing; subclasses implement the maths.
+
+    Subclasses override ``_reset(prior)``, ``_predict(odometry)``, ``_update(range_bearing)``
+    (and optionally ``_update_gps``) and ``_pose_and_covariance()``. One trajectory row is kept
+    per distinct event stamp (the posterior after the last event at that stamp), so the
+    trajectory lines up with the ground truth's stamps.
+    """
+
+    name: str = "filter"
+
+    def __init__(self) -> None:
+        self._ready = False
+
+    # -- protocol ------------------------------------------------------------------------
+    def reset(self, prior: Prior) -> None:
+        mean = np.asarray(prior.pose_xytheta, dtype=float).reshape(3)
+        cov = np.asarray(prior.covariance, dtype=float).reshape(3, 3)
+        if not (np.all(np.isfinite(mean)) and np.all(np.isfinite(cov))):
+            raise EstimationError(f"{self.name}: prior contains NaN or infinite values")
+        self._stamps: list[float] = []
+        self._poses: list[np.ndarray] = []
+        self._covs: list[np.ndarray] = []
+        self._nis: list[float] = []
+        self._nis_dof: list[int] = []
+        self._latency: list[float] = []
+        self._ignored = 0
+        self._reset(Prior(mean, cov))
+        self._ready = True
+
+    def step(self, event: Event) -> None:
+        if not self._ready:
+            raise EstimationError(f"{self.name}: step() called before reset(prior)")
+        t0 = time.perf_counter()
+        if isinstance(event, Odometry):
+            if not (event.dt_s >= 0 and np.isfinite(event.dt_s)):
+                raise EstimationError(f"{self.name}: Odometry at t={event.stamp_s} has dt_s={event.dt_s}")
+            self._predict(event)
+        elif isinstance(event, RangeBearing):
+            self._update(event)
+        elif isinstance(event, Gps):
+            self._update_gps(event)
+        else:
+            self._ignored += 1
+        mean, cov = self._pose_and_covariance()
+        stamp = float(event.stamp_s)
+        if self._stamps and self._stamps[-1] == stamp:
+            self._poses[-1], self._covs[-1] = mean, cov
+        else:
+            self._stamps.append(stamp)
+            self._poses.append(mean)
+            self._covs.append(cov)
+        self._latency.append(time.perf_counter() - t0)
+
+    def estimate(self) -> Estimate:
+        if not self._ready:
+            raise EstimationError(f"{self.name}: estimate() called before reset(prior)")
+        poses = np.array(self._poses).reshape(-1, 3)
+        lm, lm_cov = self._landmarks()
+        return Estimate(
+            trajectory=Trajectory.from_se2(np.array(self._stamps), poses),
+            pose_covariances=np.array(self._covs).reshape(-1, 3, 3),
+            world_p_landmarks=lm,
+            landmark_covariances=lm_cov,
+            nis=np.array(self._nis, dtype=float),
+            nis_dof=np.array(self._nis_dof, dtype=np.int64),
+            step_latency_s=np.array(self._latency),
+            extras={"ignored_events": self._ignored, **self._extras()},
+        )
+
+    # -- hooks -----------------------------------------------------------------------------
+    def _reset(self, prior: Prior) -> None:
+        raise NotImplementedError
+
+    def _predict(self, odometry: Odometry) -> None:
+        raise NotImplementedError
+
+    def _update(self, observation: RangeBearing) -> None:
+        raise NotImplementedError
+
+    def _update_gps(self, gps: Gps) -> None:
+        # Filters that cannot use GPS count it as ignored rather than failing the run.
+        self._ignored += 1
+
+    def _pose_and_covariance(self) -> tuple[np.ndarray, np.ndarray]:
+        raise NotImplementedError
+
+    def _landmarks(self) -> tuple[dict[int, np.ndarray], dict[int, np.ndarray]]:
+        return {}, {}
+
+    def _extras(self) -> dict[str, Any]:
+        return {}
+
+    def _record_nis(self, nu: np.ndarray, S: np.ndarray) -> None:
+        """Record nu^T S^-1 nu for one (or a stack of) innovation(s) of dimension d."""
+        nu = np.asarray(nu, dtype=float)
+        S = np.asarray(S, dtype=float)
+        if nu.ndim == 1:
+            nu, S = nu[None], S[None]
+        values = np.einsum("ni,ni->n", nu, np.linalg.solve(S, nu[..., None])[..., 0])
+        self._nis.extend(values.tolist())
+        self._nis_dof.extend([nu.shape[-1]] * len(values))

@@ -1,0 +1,306 @@
+"""Particle filter: log weights, four resampling schemes, adaptive resampling on the effective
+sample size, and particle-filter localization on a landmark map -- vectorised over particles.
+
+* Gordon, Salmond & Smith (1993), "Novel approach to nonlinear/non-Gaussian Bayesian state
+  estimation" (bootstrap filter); Thrun et al., *Probabilistic Robotics*, Table 4.3.
+* Resampling: Douc, Cappe & Moulines (2005), "Comparison of resampling schemes for particle
+  filtering" -- multinomial, stratified (one uniform per stratum), systematic (one uniform for
+  all strata, Table 4.4 of Probabilistic Robotics) and residual (Liu & Chen 1998: floor(N w)
+  deterministic copies, the remainder drawn multinomially from the residual weights).
+* Adaptive resampling: resample only when N_eff = 1 / sum w_i^2 drops below a fraction of N
+  (Liu & Chen 1995; Doucet, Godsill & Andrieu 2000).
+
+Weights are kept as log weights normalised with log-sum-exp, so many landmarks or a kidnapped
+robot underflow nothing. No per-particle Python: motion sampling, likelihoods, statistics and
+resampling are all array operations over the particle axis.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable, Mapping
+
+import numpy as np
+from scipy.special import logsumexp
+
+from slamkit.data.estimate import Prior
+from slamkit.data.sequence import Gps, Odometry, RangeBearing
+from slamkit.errors import ConfigError
+from slamkit.estimation._common import (
+    FilterBase,
+    NoiseParams,
+    landmark_array,
+    observation_rows,
+    weighted_pose_mean_cov,
+)
+from slamkit.geometry.angles import wrap_angle
+from slamkit.models import diff_drive, range_bearing
+
+
+# --------------------------------------------------------------------------------------------
+# weights
+# --------------------------------------------------------------------------------------------
+def normalize_log_weights(log_w: np.ndarray) -> np.ndarray:
+    """Shift log weights so that sum(exp(log_w)) == 1."""
+    return log_w - logsumexp(log_w)
+
+
+def effective_sample_size(weights: np.ndarray) -> float:
+    """N_eff = 1 / sum w_i^2 for normalised weights."""
+    w = np.asarray(weights, dtype=float)
+    w = w / w.sum()
+    return float(1.0 / np.sum(w * w))
+
+
+# --------------------------------------------------------------------------------------------
+# resampling: every function returns (n,) indices into the weighted set
+# --------------------------------------------------------------------------------------------
+def _cumulative(weights: np.ndarray) -> np.ndarray:
+    c = np.cumsum(np.asarray(weights, dtype=float))
+    c /= c[-1]
+    c[-1] = 1.0  # no index beyond the last particle through round-off
+    return c
+
+
+def _pick(cumulative: np.ndarray, positions: np.ndarray) -> np.ndarray:
+    # index i with c[i-1] <= u < c[i]
+    return np.minimum(np.searchsorted(cumulative, positions, side="right"), len(cumulative) - 1)
+
+
+def multinomial_resample(weights: np.ndarray, rng: np.random.Generator, n: int | None = None) -> np.ndarray:
+    """n i.i.d. draws from the categorical distribution of ``weights``."""
+    n = len(weights) if n is None else n
+    return _pick(_cumulative(weights), rng.random(n))
+
+
+def stratified_resample(weights: np.ndarray, rng: np.random.Generator, n: int | None = None) -> np.ndarray:
+    """One uniform draw in each stratum [i/n, (i+1)/n)."""
+    n = len(weights) if n is None else n
+    return _pick(_cumulative(weights), (np.arange(n) + rng.random(n)) / n)
+
+
+def systematic_resample(weights: np.ndarray, rng: np.random.Generator | None = None,
+                        n: int | None = None, offset: float | None = None) -> np.ndarray:
+    """Positions offset + i/n with a single offset ~ U[0, 1/n) (low-variance sampler, Probabilistic
+    Robotics Table 4.4). ``offset`` fixes it (it must lie in [0, 1/n))."""
+    n = len(weights) if n is None else n
+    if offset is None:
+        if rng is None:
+            raise ConfigError("systematic_resample needs rng or offset")
+        offset = rng.random() / n
+    if not 0.0 <= offset < 1.0 / n:
+        raise ConfigError(f"systematic_resample offset must lie in [0, 1/n) = [0, {1.0 / n}), got {offset}")
+    return _pick(_cumulative(weights), offset + np.arange(n) / n)
+
+
+def residual_resample(weights: np.ndarray, rng: np.random.Generator, n: int | None = None) -> np.ndarray:
+    """floor(n w_i) copies of particle i, the remaining draws multinomial on the residuals."""
+    w = np.asarray(weights, dtype=float)
+    w = w / w.sum()
+    n = len(w) if n is None else n
+    counts = np.floor(n * w).astype(np.int64)
+    kept = np.repeat(np.arange(len(w)), counts)
+    rest = n - len(kept)
+    if rest == 0:
+        return kept
+    residual = n * w - counts
+    return np.concatenate([kept, _pick(_cumulative(residual), rng.random(rest))])
+
+
+RESAMPLERS: dict[str, Callable[..., np.ndarray]] = {
+    "multinomial": multinomial_resample,
+    "stratified": stratified_resample,
+    "systematic": systematic_resample,
+    "residual": residual_resample,
+}
+
+
+def resample(scheme: str, weights: np.ndarray, rng: np.random.Generator, n: int | None = None) -> np.ndarray:
+    try:
+        fn = RESAMPLERS[scheme]
+    except KeyError:
+        raise ConfigError(f"unknown resampling scheme {scheme!r}; choose from {sorted(RESAMPLERS)}") from None
+    return fn(weights, rng, n)
+
+
+def roughen(particles: np.ndarray, k: float, rng: np.random.Generator,
+            angle_mask: np.ndarray | None = None) -> np.ndarray:
+    """Roughening (Gordon, Salmond & Smith 1993, section 4.1): jitter resampled particles with
+    zero-mean Gaussian noise of standard deviation K E N^(-1/d) per dimension, E the spread
+    (max - min) of that dimension. It counters sample impoverishment when the process noise is
+    small compared with the likelihood's width."""
+    n, d = particles.shape
+    if k <= 0 or n < 2:
+        return particles
+    spread = particles.max(axis=0) - particles.min(axis=0)
+    if angle_mask is not None and np.any(angle_mask):
+        spread[angle_mask] = np.minimum(spread[angle_mask], np.pi)
+    out = particles + rng.standard_normal((n, d)) * (k * spread * n ** (-1.0 / d))
+    if angle_mask is not None and np.any(angle_mask):
+        out[:, angle_mask] = wrap_angle(out[:, angle_mask])
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# planar robot helpers shared with MCL
+# --------------------------------------------------------------------------------------------
+def sample_motion(particles: np.ndarray, u: np.ndarray, dt_s: float, control_cov: np.ndarray,
+                  rng: np.random.Generator) -> np.ndarray:
+    """Propagate (N, 3) particles through the exact-arc model with per-particle noisy (v, omega)
+    (Probabilistic Robotics, Table 5.3, with the Gaussian velocity noise of the sequence)."""
+    n = len(particles)
+    noisy_u = u + rng.standard_normal((n, 2)) * np.sqrt(np.diag(control_cov))
+    return np.asarray(diff_drive.motion(particles, noisy_u, dt_s), dtype=float)
+
+
+def sample_gaussian_poses(mean: np.ndarray, cov: np.ndarray, n: int, rng: np.random.Generator) -> np.ndarray:
+    """(n, 3) poses from N(mean, cov); tolerates a singular covariance (eigen square root)."""
+    vals, vecs = np.linalg.eigh(0.5 * (cov + cov.T))
+    root = vecs * np.sqrt(np.clip(vals, 0.0, None))
+    poses = mean + rng.standard_normal((n, 3)) @ root.T
+    poses[:, 2] = wrap_angle(poses[:, 2])
+    return poses
+
+
+def range_bearing_log_likelihood(particles: np.ndarray, landmarks: np.ndarray, z: np.ndarray,
+                                 R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Log-likelihood (N,) of m measurements z (m, 2) of known landmarks (m, 2) for every particle,
+    and the predicted measurements (N, m, 2)."""
+    n, m = len(particles), len(landmarks)
+    z_hat = np.asarray(range_bearing.observe(np.broadcast_to(particles[:, None, :], (n, m, 3)),
+                                             np.broadcast_to(landmarks[None], (n, m, 2))), dtype=float)
+    nu = z[None] - z_hat
+    nu[..., 1] = wrap_angle(nu[..., 1])
+    R_inv = np.linalg.inv(R)
+    maha = np.einsum("nmi,ij,nmj->n", nu, R_inv, nu)
+    const = m * (np.log(2.0 * np.pi) + 0.5 * np.log(np.linalg.det(R)))
+    return -0.5 * maha - const, z_hat
+
+
+def range_bearing_log_likelihood_ml(particles: np.ndarray, landmarks: np.ndarray, z: np.ndarray,
+                                    R: np.ndarray) -> np.ndarray:
+    """Log-likelihood (N,) of measurements with unknown correspondence: for each particle and
+    measurement the most likely map landmark is used (maximum-likelihood association)."""
+    n, L = len(particles), len(landmarks)
+    z_hat = np.asarray(range_bearing.observe(np.broadcast_to(particles[:, None, :], (n, L, 3)),
+                                             np.broadcast_to(landmarks[None], (n, L, 2))), dtype=float)
+    nu = z[None, :, None, :] - z_hat[:, None, :, :]  # (N, m, L, 2)
+    nu[..., 1] = wrap_angle(nu[..., 1])
+    maha = np.einsum("nmli,ij,nmlj->nml", nu, np.linalg.inv(R), nu)
+    const = np.log(2.0 * np.pi) + 0.5 * np.log(np.linalg.det(R))
+    return np.sum(-0.5 * maha.min(axis=2) - const, axis=1)
+
+
+def predictive_innovations(z: np.ndarray, z_hat: np.ndarray, weights: np.ndarray,
+                           R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Innovation nu (m, 2) and covariance S (m, 2, 2) of the particle predictive distribution of
+    each measurement (weighted moments of z_hat (N, m, 2), circular on the bearing, plus R)."""
+    mean = np.empty(z.shape)
+    mean[:, 0] = weights @ z_hat[..., 0]
+    mean[:, 1] = np.arctan2(weights @ np.sin(z_hat[..., 1]), weights @ np.cos(z_hat[..., 1]))
+    d = z_hat - mean[None]
+    d[..., 1] = wrap_angle(d[..., 1])
+    S = np.einsum("n,nmi,nmj->mij", weights, d, d) + R
+    nu = z - mean
+    nu[:, 1] = wrap_angle(nu[:, 1])
+    return nu, S
+
+
+_POSE_ANGLES = np.array([False, False, True])
+
+
+# --------------------------------------------------------------------------------------------
+# the estimator
+# --------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class ParticleFilterConfig:
+    n_particles: int = 1000
+    resampling: str = "systematic"
+    #: resample when N_eff < ess_threshold * N (1.0 resamples after every update)
+    ess_threshold: float = 0.5
+    #: roughening constant K after resampling (0 disables; Gordon et al. use 0.2)
+    roughening_k: float = 0.0
+
+    def __post_init__(self) -> None:
+        if self.n_particles < 1:
+            raise ConfigError(f"n_particles must be >= 1, got {self.n_particles}")
+        if self.resampling not in RESAMPLERS:
+            raise ConfigError(f"unknown resampling {self.resampling!r}; choose from {sorted(RESAMPLERS)}")
+        if not 0.0 <= self.ess_threshold <= 1.0:
+            raise ConfigError(f"ess_threshold must lie in [0, 1], got {self.ess_threshold}")
+
+
+class ParticleFilterLocalization(FilterBase):
+    """Bootstrap particle filter localization (registry name ``pf``) on a known landmark map.
+
+    Measurements with an id use that landmark; id -1 uses per-particle maximum-likelihood
+    association over the whole map."""
+
+    name = "pf"
+
+    def __init__(self, world_p_landmarks: Mapping[int, np.ndarray], noise: NoiseParams = NoiseParams(),
+                 config: ParticleFilterConfig = ParticleFilterConfig(),
+                 rng: np.random.Generator | None = None) -> None:
+        super().__init__()
+        self.landmark_ids, self.landmarks = landmark_array(world_p_landmarks)
+        if len(self.landmark_ids) == 0:
+            raise ConfigError(f"{self.name} needs a non-empty landmark map")
+        self._index = {int(i): k for k, i in enumerate(self.landmark_ids)}
+        self.noise, self.config = noise, config
+        self.rng = rng if rng is not None else np.random.default_rng(0)
+
+    # -- filter steps ------------------------------------------------------------------------
+    def _reset(self, prior: Prior) -> None:
+        n = self.config.n_particles
+        self.particles = sample_gaussian_poses(prior.pose_xytheta, prior.covariance, n, self.rng)
+        self.log_w = np.full(n, -np.log(n))
+        self.n_resamples = 0
+
+    def _predict(self, odometry: Odometry) -> None:
+        u = np.array([odometry.v_mps, odometry.omega_radps])
+        self.particles = sample_motion(self.particles, u, odometry.dt_s, self.noise.control_cov, self.rng)
+
+    def _measurement_log_likelihood(self, observation: RangeBearing) -> tuple[np.ndarray, int] | None:
+        """(log-likelihood (N,), number of measurements used), recording NIS on the way."""
+        ids, zs = observation_rows(observation)
+        R = self.noise.range_bearing_cov
+        known = np.array([int(i) in self._index for i in ids], dtype=bool)
+        unknown = ids < 0
+        loglik = np.zeros(len(self.particles))
+        if known.any():
+            lm = self.landmarks[[self._index[int(i)] for i in ids[known]]]
+            ll, z_hat = range_bearing_log_likelihood(self.particles, lm, zs[known], R)
+            loglik += ll
+            nu, S = predictive_innovations(zs[known], z_hat, np.exp(self.log_w), R)
+            self._record_nis(nu, S)
+        if unknown.any():
+            loglik += range_bearing_log_likelihood_ml(self.particles, self.landmarks, zs[unknown], R)
+        used = int(known.sum() + unknown.sum())
+        return (loglik, used) if used else None
+
+    def _update(self, observation: RangeBearing) -> None:
+        result = self._measurement_log_likelihood(observation)
+        if result is None:
+            return
+        self._weigh_and_resample(*result)
+
+    def _update_gps(self, gps: Gps) -> None:
+        z = np.asarray(gps.world_p_body, dtype=float).reshape(-1)[:2]
+        d = self.particles[:, :2] - z
+        loglik = -0.5 * np.sum(d * d, axis=1) / gps.sigma_m**2 - np.log(2 * np.pi * gps.sigma_m**2)
+        self._weigh_and_resample(loglik, 1)
+
+    def _weigh_and_resample(self, loglik: np.ndarray, n_measurements: int) -> None:
+        self.log_w = normalize_log_weights(self.log_w + loglik)
+        w = np.exp(self.log_w)
+        if effective_sample_size(w) < self.config.ess_threshold * len(w):
+            idx = resample(self.config.resampling, w, self.rng)
+            self.particles = roughen(self.particles[idx], self.config.roughening_k, self.rng, _POSE_ANGLES)
+            self.log_w = np.full(len(idx), -np.log(len(idx)))
+            self.n_resamples += 1
+
+    def _pose_and_covariance(self) -> tuple[np.ndarray, np.ndarray]:
+        return weighted_pose_mean_cov(self.particles, np.exp(self.log_w))
+
+    def _extras(self) -> dict:
+        return {"n_resamples": self.n_resamples, "n_particles_final": len(self.particles)}
