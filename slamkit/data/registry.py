@@ -340,20 +340,14 @@ def ground_truth(name: str) -> Trajectory | None:
 
 
 def load_pose_graph_entry(entry: DatasetEntry, policy: str = "keep") -> PoseGraph:
-    from slamkit.data.formats import read_g2o, read_isam, read_toro
+    """Read a registry pose graph with the format the registry records for it."""
+    from slamkit.data.formats import POSE_GRAPH_FORMATS, load_pose_graph
 
     if entry.kind not in POSE_GRAPH_KINDS:
         raise DataError(f"dataset {entry.name!r} is a {entry.kind} dataset, not a pose graph")
-    path = path_of(entry.name)
-    readers = {
-        "g2o": lambda: read_g2o(path, policy=policy, name=entry.name),
-        "toro": lambda: read_toro(path, policy=policy, name=entry.name),
-        "toro_g2o_order": lambda: read_toro(path, policy=policy, name=entry.name, information_order="g2o"),
-        "isam": lambda: read_isam(path, policy=policy, name=entry.name),
-    }
-    if entry.format not in readers:
+    if entry.format not in POSE_GRAPH_FORMATS:
         raise DataError(f"dataset {entry.name!r} has format {entry.format!r}, which no pose-graph reader reads")
-    return readers[entry.format]()
+    return load_pose_graph(path_of(entry.name), format=entry.format, policy=policy, name=entry.name)
 
 
 def load_pose_graph_source(name_or_path: str | Path, policy: str = "keep") -> tuple[PoseGraph, DatasetEntry | None]:

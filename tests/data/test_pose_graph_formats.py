@@ -126,6 +126,10 @@ def test_format_detection(tmp_path):
     assert g.information[0, 0, 0] == 4.0  # read as iSAM (square root)
     with pytest.raises(DataError, match="cannot tell"):
         detect_pose_graph_format(write(tmp_path, "HELLO 1 2\n", "d.dat"))
+    # TORO tags in a .g2o file: g2o's information order (gtsam's w100_30.g2o)
+    g2o_ordered = write(tmp_path, "VERTEX2 0 0 0 0\nVERTEX2 1 1 0 0\nEDGE2 0 1 1 0 0 1 2 3 4 5 6\n", "e.g2o")
+    assert detect_pose_graph_format(g2o_ordered) == "toro_g2o_order"
+    assert load_pose_graph(g2o_ordered).information[0].tolist() == [[1, 2, 3], [2, 4, 5], [3, 5, 6]]
 
 
 # --- bad input: each documented outcome ----------------------------------------------------
