@@ -83,34 +83,41 @@ def build_graph(graph: PoseGraph, robust_kind: RobustKind = "none", robust_k: fl
     if not np.isfinite(prior_sigma) or prior_sigma <= 0:
         raise ConfigError(f"prior_sigma must be a positive number, got {prior_sigma!r}")
     check_vertex_ids(graph.vertex_ids)
-    key_of = {int(v): pose_key(v) for v in graph.vertex_ids.tolist()}
     src = graph.source or graph.name
-    missing = set(graph.edge_from.tolist()) | set(graph.edge_to.tolist())
-    missing.difference_update(key_of)
-    if missing:
-        raise BackendError(f"{src}: edges refer to unknown vertex ids {sorted(missing)[:5]}")
+    known = np.isin(graph.edge_from, graph.vertex_ids) & np.isin(graph.edge_to, graph.vertex_ids)
+    if not known.all():
+        bad = np.union1d(graph.edge_from[~known], graph.edge_to[~known])
+        bad = bad[~np.isin(bad, graph.vertex_ids)]
+        raise BackendError(f"{src}: edges refer to unknown vertex ids {bad[:5].tolist()}")
     if not (np.all(np.isfinite(graph.measurements)) and np.all(np.isfinite(graph.information))):
         raise BackendError(f"{src}: measurements or information contain NaN/inf")
+    # X(id) is ('x' << 56) | id: compute every key at once instead of one Symbol per edge
+    base = pose_key(0)
+    key_of = dict(zip(graph.vertex_ids.tolist(), (base + graph.vertex_ids).tolist()))
+    keys_from = (base + graph.edge_from).tolist()
+    keys_to = (base + graph.edge_to).tolist()
 
     info = graph.information if graph.dim == 2 else permute_information(graph.information)
     # Many datasets share one information matrix across edges (w10000: all identity): build one
     # noise model per distinct matrix instead of re-factorising the same matrix M times.
-    width = info.shape[1]
-    unique, which = np.unique(info.reshape(len(info), width * width), axis=0, return_inverse=True)
+    m, width = len(info), info.shape[1] if info.ndim == 3 else (3 if graph.dim == 2 else 6)
+    flat = info.reshape(m, width * width)
+    if m and np.all(flat == flat[0]):
+        unique, which = flat[:1], np.zeros(m, dtype=np.int64)
+    else:
+        unique, which = np.unique(flat, axis=0, return_inverse=True)
     models = [robust(gaussian_from_information(u.reshape(width, width)), robust_kind, robust_k)
               for u in unique]
-    which = which.reshape(-1).tolist()
+    model_of = [models[w] for w in which.reshape(-1).tolist()]
     fg = gtsam.NonlinearFactorGraph()
     add = fg.add
     if graph.dim == 2:
         Between, Pose = gtsam.BetweenFactorPose2, gtsam.Pose2
-        for i, j, z, m in zip(graph.edge_from.tolist(), graph.edge_to.tolist(),
-                              graph.measurements.tolist(), which):
-            add(Between(key_of[i], key_of[j], Pose(z[0], z[1], z[2]), models[m]))
+        for i, j, (x, y, th), model in zip(keys_from, keys_to, graph.measurements.tolist(), model_of):
+            add(Between(i, j, Pose(x, y, th), model))
     else:
-        for k, (i, j, m) in enumerate(zip(graph.edge_from.tolist(), graph.edge_to.tolist(), which)):
-            add(gtsam.BetweenFactorPose3(key_of[i], key_of[j], to_pose(3, graph.measurements[k]),
-                                         models[m]))
+        for k, (i, j, model) in enumerate(zip(keys_from, keys_to, model_of)):
+            add(gtsam.BetweenFactorPose3(i, j, to_pose(3, graph.measurements[k]), model))
     if with_prior:
         fg.add(gauge_prior(graph.dim, int(graph.vertex_ids[0]), graph.poses[0], prior_sigma))
     return fg, key_of
