@@ -96,11 +96,17 @@ class MPCConfig:
     r_u: tuple[float, float] = (0.05, 0.05)
     r_du: tuple[float, float] = (0.5, 0.2)
     robot_radius_m: float = 0.2
-    safety_margin_m: float = 0.05
+    safety_margin_m: float = 0.1
     #: obstacle slots in the NLP; the nearest ``max_circles`` circles are constrained
     max_circles: int = 6
     #: circles farther than this from the robot are not constrained (saves slots)
     circle_range_m: float = 5.0
+    #: obstacle rows get one slack per stage (metres, >= 0) with an exact L1 penalty, so a
+    #: moving obstacle that cannot be avoided any more yields the least-violating plan (measured:
+    #: with hard constraints the QP/NLP went infeasible, the robot braked and was hit from the
+    #: side); False makes them hard (then infeasibility -> FALLBACK_BRAKE)
+    soft_obstacles: bool = True
+    slack_weight: float = 1e3
     #: reference points inside an inflated circle are pushed this far beyond its border
     reference_clearance_m: float = 0.15
     use_distance_field: bool = True
@@ -176,73 +182,63 @@ class _Problem:
         return p
 
 
-def build_nlp(config: MPCConfig, stagewise: bool = False) -> dict[str, Any]:
-    """The parametric NLP {x, p, f, g} with its constraint bounds and the index maps.
-
-    ``stagewise`` orders variables (x_0, u_0, x_1, u_1, ..., x_N) and constraints stage by stage
-    (the order structure-exploiting solvers want); otherwise all states then all inputs."""
+def build_nlp(config: MPCConfig) -> dict[str, Any]:
+    """The parametric NLP {x, p, f, g} with its constraint bounds and the index maps from the
+    flat variable vector w = (x_0 .. x_N, u_0 .. u_{N-1}, s_1 .. s_N) to states, inputs, slacks."""
     n, k = config.horizon, config.max_circles
     lay = _Layout(n, k)
     f = discrete_dynamics(config)
     X = [ca.SX.sym(f"x{i}", 3) for i in range(n + 1)]
     U = [ca.SX.sym(f"u{i}", 2) for i in range(n)]
+    S = ca.SX.sym("s", n)
     P = ca.SX.sym("p", lay.size)
-    s = lay.slices
-    x0 = P[s["x0"]]
-    u_prev = P[s["u_prev"]]
-    ref = ca.reshape(P[s["ref"]], 3, n)
-    obs = ca.reshape(P[s["obs_xy"]], 2, n * k)
-    obs_r = P[s["obs_r"]]
-    dist_g = ca.reshape(P[s["dist_g"]], 2, n)
-    dist_b = P[s["dist_b"]]
+    sl = lay.slices
+    x0 = P[sl["x0"]]
+    u_prev = P[sl["u_prev"]]
+    ref = ca.reshape(P[sl["ref"]], 3, n)
+    obs = ca.reshape(P[sl["obs_xy"]], 2, n * k)
+    obs_r = P[sl["obs_r"]]
+    dist_g = ca.reshape(P[sl["dist_g"]], 2, n)
+    dist_b = P[sl["dist_b"]]
     du = np.asarray(config.du_max_per_s) * config.dt_s
     r_u, r_du = np.asarray(config.r_u), np.asarray(config.r_du)
 
     cost = 0
-    stage_g: list[list[tuple[ca.SX, np.ndarray, np.ndarray]]] = [[] for _ in range(n + 1)]
-    stage_g[0].append((X[0] - x0, np.zeros(3), np.zeros(3)))
+    g, lbg, ubg = [X[0] - x0], [np.zeros(3)], [np.zeros(3)]
     for i in range(n):
-        stage_g[i].append((X[i + 1] - f(X[i], U[i]), np.zeros(3), np.zeros(3)))
+        g.append(X[i + 1] - f(X[i], U[i]))
+        lbg.append(np.zeros(3))
+        ubg.append(np.zeros(3))
         prev = u_prev if i == 0 else U[i - 1]
-        if i > 0:
-            stage_g[i].append((U[i] - prev, -du, du))
+        if i > 0:  # u_0's rate limit is a variable bound (see MPCController._bounds)
+            g.append(U[i] - prev)
+            lbg.append(-du)
+            ubg.append(du)
         cost += ca.sumsqr(np.sqrt(r_u) * U[i]) + ca.sumsqr(np.sqrt(r_du) * (U[i] - prev))
         xk = X[i + 1]
         e = xk - ref[:, i]
         last = i == n - 1
         cost += (config.q_xy_terminal if last else config.q_xy) * ca.sumsqr(e[:2])
         cost += (config.q_theta_terminal if last else config.q_theta) * e[2] ** 2
+        # exact L1 penalty (plus a small quadratic for a unique minimiser) on the stage's slack
+        cost += config.slack_weight * S[i] + config.slack_weight * S[i] ** 2
         for j in range(k):
             d = xk[:2] - obs[:, i * k + j]
-            stage_g[i + 1].append((ca.sumsqr(d) - obs_r[j] ** 2, np.zeros(1), np.full(1, np.inf)))
+            # distance (not squared) so the slack is in metres like the distance-field row
+            g.append(ca.sqrt(ca.sumsqr(d) + 1e-9) - obs_r[j] + S[i])
+            lbg.append(np.zeros(1))
+            ubg.append(np.full(1, np.inf))
         if config.use_distance_field:
-            stage_g[i + 1].append((ca.dot(dist_g[:, i], xk[:2]) - dist_b[i], np.zeros(1),
-                                   np.full(1, np.inf)))
-    if stagewise:
-        w = []
-        for i in range(n):
-            w += [X[i], U[i]]
-        w.append(X[n])
-    else:
-        w = X + U
-    g, lbg, ubg = [], [], []
-    for items in stage_g:
-        for expr, lo, hi in items:
-            g.append(expr)
-            lbg.append(lo)
-            ubg.append(hi)
-    wv = ca.vertcat(*w)
-    # index maps from the flat variable vector to (N+1, 3) states and (N, 2) inputs
+            g.append(ca.dot(dist_g[:, i], xk[:2]) - dist_b[i] + S[i])
+            lbg.append(np.zeros(1))
+            ubg.append(np.full(1, np.inf))
+    wv = ca.vertcat(*X, *U, S)
+    nx = 3 * (n + 1)
     idx = np.arange(wv.shape[0])
-    if stagewise:
-        xi = np.array([idx[5 * i:5 * i + 3] for i in range(n + 1)])
-        ui = np.array([idx[5 * i + 3:5 * i + 5] for i in range(n)])
-    else:
-        xi = idx[:3 * (n + 1)].reshape(n + 1, 3)
-        ui = idx[3 * (n + 1):].reshape(n, 2)
     return {"nlp": {"x": wv, "p": P, "f": cost, "g": ca.vertcat(*g)},
-            "lbg": np.concatenate(lbg), "ubg": np.concatenate(ubg), "x_index": xi, "u_index": ui,
-            "layout": lay}
+            "lbg": np.concatenate(lbg), "ubg": np.concatenate(ubg),
+            "x_index": idx[:nx].reshape(n + 1, 3), "u_index": idx[nx:nx + 2 * n].reshape(n, 2),
+            "s_index": idx[nx + 2 * n:], "layout": lay}
 
 
 class MPCController:
@@ -261,7 +257,7 @@ class MPCController:
             built = build_nlp(config)
             self._layout = built["layout"]
             self._lbg, self._ubg = built["lbg"], built["ubg"]
-            self._xi, self._ui = built["x_index"], built["u_index"]
+            self._xi, self._ui, self._si = built["x_index"], built["u_index"], built["s_index"]
             self._nw = built["nlp"]["x"].shape[0]
             opts = {"ipopt": dict(config.ipopt_options), "print_time": False}
             self._solver = ca.nlpsol("mpc", "ipopt", built["nlp"], opts)
@@ -391,6 +387,8 @@ class MPCController:
         ubx[self._ui] = self._umax
         lbx[self._ui[0]] = prob.u_lo0
         ubx[self._ui[0]] = prob.u_hi0
+        lbx[self._si] = 0.0
+        ubx[self._si] = np.inf if self.config.soft_obstacles else 0.0
         return lbx, ubx
 
     def _solve_nlp(self, prob: _Problem) -> tuple[bool, np.ndarray, np.ndarray, dict]:
@@ -410,7 +408,7 @@ class MPCController:
         ok = bool(stats.get("success", False)) or status in ("Solve_Succeeded",
                                                              "Solved_To_Acceptable_Level")
         info = {"solver_status": status, "iterations": int(stats.get("iter_count", -1)),
-                "cost": float(sol["f"])}
+                "cost": float(sol["f"]), "max_slack_m": float(w[self._si].max())}
         if ok:
             self._lam_x = np.asarray(sol["lam_x"]).ravel()
             self._lam_g = np.asarray(sol["lam_g"]).ravel()
@@ -418,11 +416,12 @@ class MPCController:
 
     # ------------------------------------------------------------------ QP fast path (osqp)
     def _build_qp(self) -> None:
-        """Fixed sparsity of the linearised OCP; z = (x_0 .. x_N, u_0 .. u_{N-1})."""
+        """Fixed sparsity of the linearised OCP; z = (x_0 .. x_N, u_0 .. u_{N-1}, s_1 .. s_N)."""
         c = self.config
         n, k = c.horizon, c.max_circles
         nx = 3 * (n + 1)
-        self._nz = nx + 2 * n
+        self._nz = nx + 3 * n
+        scol = lambda i: nx + 2 * n + i - 1  # noqa: E731  slack of stage i >= 1
         xcol = lambda i, j: 3 * i + j  # noqa: E731
         ucol = lambda i, j: nx + 2 * i + j  # noqa: E731
         # cost: diagonal state weights + R + R_d (tridiagonal in u)
@@ -434,7 +433,8 @@ class MPCController:
         r_u, r_du = np.asarray(c.r_u), np.asarray(c.r_du)
         D = sp.eye(2 * n, format="csc") - sp.eye(2 * n, k=-2, format="csc")  # u_k - u_{k-1}
         Pu = sp.diags(np.tile(r_u, n)) + D.T @ sp.diags(np.tile(r_du, n)) @ D
-        self._P = sp.triu(2.0 * sp.block_diag([sp.diags(wx), Pu]), format="csc")
+        Ps = sp.diags(np.full(n, c.slack_weight))
+        self._P = sp.triu(2.0 * sp.block_diag([sp.diags(wx), Pu, Ps]), format="csc")
         self._wx, self._r_du = wx, r_du
         rows, cols = [], []
         r = 0
@@ -462,11 +462,14 @@ class MPCController:
         for i in range(1, n):
             for j in range(2):
                 rows += [r, r]; cols += [ucol(i, j), ucol(i - 1, j)]; r += 1  # noqa: E702
-        # obstacles: one half-plane per stage and circle slot, one per stage for the field
+        # obstacles: one half-plane per stage and circle slot, one per stage for the field, each
+        # relaxed by the stage's slack; then the slack bounds
         self._obs_row0 = r
         for i in range(1, n + 1):
             for _j in range(k + 1):
-                rows += [r, r]; cols += [xcol(i, 0), xcol(i, 1)]; r += 1  # noqa: E702
+                rows += [r, r, r]; cols += [xcol(i, 0), xcol(i, 1), scol(i)]; r += 1  # noqa: E702
+        for i in range(1, n + 1):
+            rows.append(r); cols.append(scol(i)); r += 1  # noqa: E702
         self._m = r
         rows_a, cols_a = np.asarray(rows), np.asarray(cols)
         order = np.lexsort((rows_a, cols_a))
@@ -496,13 +499,16 @@ class MPCController:
         lo_c = np.einsum("nkj,nkj->nk", normal, prob.obs_xy) + prob.obs_r
         lo_c = np.where(prob.obs_r[None, :] > 0, lo_c, -np.inf)
         obs_coef = np.concatenate([normal, prob.dist_g[:, None, :]], axis=1)  # (N, K+1, 2)
-        data.append(obs_coef.reshape(-1))
+        data.append(np.concatenate([obs_coef, np.ones((n, k + 1, 1))], axis=2).reshape(-1))
+        data.append(np.ones(n))
         Ax = np.concatenate(data)[self._A_order]
         lo = np.concatenate([prob.x0, cvec.ravel(), np.tile(self._umin, n),
                              np.tile(-self._du, n - 1),
-                             np.concatenate([lo_c, prob.dist_b[:, None]], axis=1).ravel()])
+                             np.concatenate([lo_c, prob.dist_b[:, None]], axis=1).ravel(),
+                             np.zeros(n)])
         hi = np.concatenate([prob.x0, cvec.ravel(), np.tile(self._umax, n),
-                             np.tile(self._du, n - 1), np.full(n * (k + 1), np.inf)])
+                             np.tile(self._du, n - 1), np.full(n * (k + 1), np.inf),
+                             np.full(n, np.inf if c.soft_obstacles else 0.0)])
         lo[self._box_row0:self._box_row0 + 2] = prob.u_lo0
         hi[self._box_row0:self._box_row0 + 2] = prob.u_hi0
         # linear cost: -2 W ref for states, -2 R_d u_prev for u_0
@@ -510,6 +516,7 @@ class MPCController:
         ref_full = np.vstack([prob.x0, prob.ref]).ravel()
         q[:3 * (n + 1)] = -2.0 * self._wx * ref_full
         q[3 * (n + 1):3 * (n + 1) + 2] = -2.0 * self._r_du * prob.u_prev
+        q[3 * (n + 1) + 2 * n:] = c.slack_weight
         return Ax, q, lo, hi
 
     def _solve_qp(self, prob: _Problem) -> tuple[bool, np.ndarray, np.ndarray, dict]:
@@ -526,7 +533,7 @@ class MPCController:
                                check_termination=10, adaptive_rho=True)
             else:
                 self._qp.update(q=q, l=lo, u=hi, Ax=Ax)
-            z0 = np.concatenate([Xl.ravel(), Ul.ravel()])
+            z0 = np.concatenate([Xl.ravel(), Ul.ravel(), np.zeros(c.horizon)])
             self._qp.warm_start(x=z0)
             res = self._qp.solve(raise_error=False)
             info = {"solver_status": res.info.status, "iterations": int(res.info.iter)}
@@ -534,5 +541,6 @@ class MPCController:
                 return False, None, None, info
             z = res.x
             Xl = z[:3 * (c.horizon + 1)].reshape(-1, 3)
-            Ul = z[3 * (c.horizon + 1):].reshape(-1, 2)
+            Ul = z[3 * (c.horizon + 1):3 * (c.horizon + 1) + 2 * c.horizon].reshape(-1, 2)
+            info["max_slack_m"] = float(z[3 * (c.horizon + 1) + 2 * c.horizon:].max())
         return True, Xl, Ul, info

@@ -27,6 +27,31 @@ def project_on_path(path_xy_m: np.ndarray, xy_m: np.ndarray) -> float:
     return float(s[i] + t[i] * np.sqrt(den[i]))
 
 
+def project_many(path_xy_m: np.ndarray, xy_m: np.ndarray) -> np.ndarray:
+    """Arc lengths (K,) of the projections of (K, 2) points, vectorised over points x segments."""
+    path = np.asarray(path_xy_m, dtype=float)
+    pts = np.asarray(xy_m, dtype=float).reshape(-1, 2)
+    if len(path) == 1:
+        return np.zeros(len(pts))
+    a, ab = path[:-1], np.diff(path, axis=0)
+    den = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-12)
+    t = np.clip(np.einsum("kij,ij->ki", pts[:, None, :] - a, ab) / den, 0.0, 1.0)  # (K, S)
+    proj = a + t[..., None] * ab
+    i = np.argmin(np.linalg.norm(proj - pts[:, None, :], axis=2), axis=1)
+    s = _arc_length(path)
+    return s[i] + t[np.arange(len(pts)), i] * np.sqrt(den[i])
+
+
+def crop(path_xy_m: np.ndarray, s_lo_m: float, s_hi_m: float) -> np.ndarray:
+    """The vertices of the polyline spanning arc lengths [s_lo, s_hi] (one extra vertex each
+    side), so per-candidate projections only look at the nearby part of a long path."""
+    path = np.asarray(path_xy_m, dtype=float)
+    s = _arc_length(path)
+    lo = max(int(np.searchsorted(s, s_lo_m, side="right")) - 1, 0)
+    hi = min(int(np.searchsorted(s, s_hi_m, side="left")) + 1, len(path))
+    return path[lo:max(hi, lo + 1)]
+
+
 def point_at(path_xy_m: np.ndarray, s_m: np.ndarray) -> np.ndarray:
     """Points at arc lengths ``s_m`` (...,) (clamped to the path) -> (..., 2)."""
     path = np.asarray(path_xy_m, dtype=float)

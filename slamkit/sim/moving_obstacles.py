@@ -92,14 +92,16 @@ def crossing_obstacles(path_xy_m: np.ndarray, n: int, rng: np.random.Generator,
                        radius_m: tuple[float, float] = (0.2, 0.4),
                        half_length_m: tuple[float, float] = (1.5, 3.0),
                        along_path: tuple[float, float] = (0.2, 0.8),
-                       timing_jitter_s: float = 1.0, min_separation_m: float = 1.5) -> MovingObstacles:
+                       timing_jitter_s: float = 1.0, min_separation_m: float = 1.5,
+                       min_side_m: float = 0.5) -> MovingObstacles:
     """``n`` obstacles shuttling across ``path_xy_m`` (M, 2), seeded by ``rng``.
 
     Crossing points are drawn at arc-length fractions ``along_path`` of the path, at least
     ``min_separation_m`` apart along it; each segment is perpendicular to the local path direction,
     centred on it, with a random half length, and shortened until a disc of the obstacle's radius
-    stays in free space of ``grid`` along it (points whose crossing cannot be made >= 0.5 m long
-    are skipped, so fewer than ``n`` obstacles may come back in cluttered maps). The phase puts the
+    stays in free space of ``grid`` along it (points where either side of the crossing would be
+    shorter than ``min_side_m`` -- doorways, narrow gaps, where no robot could get out of the way
+    -- are skipped, so fewer than ``n`` obstacles may come back in cluttered maps). The phase puts the
     obstacle on the path when a robot moving at ``nominal_speed_mps`` arrives, +- jitter."""
     path = np.asarray(path_xy_m, dtype=float).reshape(-1, 2)
     if len(path) < 2:
@@ -134,7 +136,7 @@ def crossing_obstacles(path_xy_m: np.ndarray, n: int, rng: np.random.Generator,
                 if not ok[0]:
                     free_len = 0.0
                 sides.append(max(free_len - 0.05, 0.0))
-            if sides[0] + sides[1] < 0.5:
+            if min(sides) < min_side_m:
                 continue
             a, b = centre - sides[1] * normal, centre + sides[0] * normal
         else:

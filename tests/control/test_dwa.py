@@ -24,7 +24,7 @@ def test_worked_example_window():
 
 
 def test_window_clipped_by_velocity_limits():
-    cfg = DWAConfig(v_max_mps=0.8, omega_max_radps=1.5)
+    cfg = DWAConfig(v_max_mps=0.8, omega_max_radps=1.5, accel_max_mps2=0.5, alpha_max_radps2=1.0)
     (v_lo, v_hi), (w_lo, w_hi) = dynamic_window(0.78, 1.45, cfg)
     assert (v_lo, v_hi) == pytest.approx((0.73, 0.8))
     assert (w_lo, w_hi) == pytest.approx((1.35, 1.5))
@@ -68,7 +68,8 @@ def test_brakes_when_nothing_is_admissible():
     safe distance 4 * 0.045 = 0.18 m, sqrt(2 * 0.18 * 0.5) = 0.42 < 0.45: nothing is admissible,
     so the command is the brake within the window, (0.45, 0)."""
     world = LocalWorld(circle_xy_m=[[0.7, 0.0]], circle_radius_m=[0.3])
-    cfg = DWAConfig(robot_radius_m=0.2, safety_margin_m=0.0)
+    cfg = DWAConfig(robot_radius_m=0.2, safety_margin_m=0.0, accel_max_mps2=0.5, alpha_max_radps2=1.0,
+                    brake_decel_mps2=0.5)
     out = DWAController(cfg).compute(RobotState([0, 0, 0], command=[0.5, 0.0]),
                                      Reference([[0.0, 0.0], [5.0, 0.0]]), world)
     assert out.status is ControlStatus.FALLBACK_BRAKE
@@ -78,18 +79,19 @@ def test_brakes_when_nothing_is_admissible():
 
 def test_prefers_turning_away_from_an_obstacle_on_the_path():
     """Obstacle slightly left of the straight line; with alpha = 5 rad/s^2 the window reaches
-    |omega| = 0.5 and arcs turning right stay free, so they win on clearance."""
+    |omega| = 0.5 and arcs turning right stay free over the 3 s horizon (the straight ones at
+    v >= 0.3 m/s reach x >= 0.9 and hit the inflated circle at x = 0.6), so a right turn wins."""
     world = LocalWorld(circle_xy_m=[[1.2, 0.05]], circle_radius_m=[0.3])
-    out = DWAController(DWAConfig(alpha_max_radps2=5.0)).compute(RobotState([0, 0, 0], command=[0.4, 0.0]),
+    out = DWAController(DWAConfig(alpha_max_radps2=5.0, horizon_s=3.0)).compute(RobotState([0, 0, 0], command=[0.4, 0.0]),
                                   Reference([[0.0, 0.0], [5.0, 0.0]]), world)
     assert out.status is ControlStatus.OK
     assert out.command[1] < 0  # obstacle slightly left of the line: turn right
-    assert out.candidates_xytheta.shape == (11 * 21, 21, 3)
+    assert out.candidates_xytheta.shape == (11 * 21, 31, 3)
     assert out.scores[out.chosen] == np.max(out.scores)
 
 
 def test_heads_for_goal_in_free_space():
     out = DWAController().compute(RobotState([0, 0, 0], command=[0.4, 0.0]),
                                   Reference([[0.0, 0.0], [5.0, 0.0]]), LocalWorld())
-    # straight ahead, fastest speed in the window
-    np.testing.assert_allclose(out.command, [0.45, 0.0])
+    # straight ahead, fastest speed in the window [0.3, 0.5] (a = 1 m/s^2)
+    np.testing.assert_allclose(out.command, [0.5, 0.0])

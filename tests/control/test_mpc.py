@@ -118,20 +118,33 @@ def test_distance_field_wall(controller):
     assert xs[-1, 1] > 0.25  # but it does get close to the wall, where the reference pulls
 
 
-def test_infeasible_problem_brakes_instead_of_raising(controller):
-    """The robot sits inside the inflated obstacle (circle of radius 1 m at its position): no input
-    sequence satisfies the constraint at stage 1, the solver fails, the status is FALLBACK_BRAKE
-    and the command brakes from (0.5, 0.2) by the rate limits (0.1, 0.3) to (0.4, 0.0)."""
+@pytest.mark.parametrize("solver", SOLVERS)
+def test_infeasible_problem_brakes_instead_of_raising(solver):
+    """Hard obstacle constraints; the robot sits inside the inflated obstacle (circle of radius
+    1 m at its position): no input sequence satisfies the constraint at stage 1, the solver fails,
+    the status is FALLBACK_BRAKE and the command brakes from (0.5, 0.2) by the rate limits
+    (0.1, 0.3) to (0.4, 0.0)."""
+    controller = MPCController(MPCConfig(solver=solver, soft_obstacles=False))
+    world = LocalWorld(circle_xy_m=[[0.05, 0.0]], circle_radius_m=[1.0])
+    ref = Reference([[0.0, 0.0], [5.0, 0.0]])
+    out = controller.compute(RobotState([0.0, 0.0, 0.0], [0.5, 0.2]), ref, world)
+    assert out.status is ControlStatus.FALLBACK_BRAKE
+    np.testing.assert_allclose(out.command, [0.4, 0.0], atol=1e-12)
+    # and the controller recovers on the next, feasible, cycle
+    out = controller.compute(RobotState([0.0, 0.0, 0.0], [0.4, 0.0]), ref, LocalWorld())
+    assert out.status is ControlStatus.OK
+
+
+def test_soft_constraints_give_the_least_violating_plan(controller):
+    """Same situation with the default soft constraints: the problem stays feasible, the plan
+    reports a positive slack (the violation it could not avoid, here >= 0.5 m: the robot can move
+    at most 0.9 m in 2 s from inside a 1.25 m inflated radius), and the robot drives out."""
     controller.reset()
     world = LocalWorld(circle_xy_m=[[0.05, 0.0]], circle_radius_m=[1.0])
     out = controller.compute(RobotState([0.0, 0.0, 0.0], [0.5, 0.2]),
                              Reference([[0.0, 0.0], [5.0, 0.0]]), world)
-    assert out.status is ControlStatus.FALLBACK_BRAKE
-    np.testing.assert_allclose(out.command, [0.4, 0.0], atol=1e-12)
-    # and the controller recovers on the next, feasible, cycle
-    out = controller.compute(RobotState([0.0, 0.0, 0.0], [0.4, 0.0]),
-                             Reference([[0.0, 0.0], [5.0, 0.0]]), LocalWorld())
     assert out.status is ControlStatus.OK
+    assert out.info["max_slack_m"] > 0.5
 
 
 def test_bicycle_tracks_a_turn_within_steering_limits():
