@@ -72,8 +72,7 @@ class OptimizeReport:
 
 
 def _with_poses(graph: PoseGraph, poses: np.ndarray) -> PoseGraph:
-    return PoseGraph(graph.dim, graph.vertex_ids, poses, graph.edge_from, graph.edge_to,
-                     graph.measurements, graph.information, name=graph.name, source=graph.source)
+    return replace(graph, poses=poses, has_initial=True)
 
 
 def ate_against(ground_truth: Trajectory, estimate: Trajectory) -> tuple[float, str]:
