@@ -14,6 +14,7 @@ What the estimators are promised (``Sequence.metadata``, all SI):
   and ``range_bearing_fov_rad`` (centred on the body x axis), each landmark dropped with
   probability ``range_bearing_dropout``. Ids are -1 when ``known_correspondences`` is false.
 * ``initial_pose_sigma``: the prior on ``initial_pose_xytheta`` (the true start pose).
+* Optional ``Gps`` fixes (``gps_sigma_m`` per axis, ``gps_rate_hz``) when the scenario has ``gps``.
 * Event order: at a stamp where both occur, the ``Odometry`` that ends there comes before the
   ``RangeBearing`` taken there (predict, then update). Ground truth holds the true pose at every
   control stamp, which includes every event stamp.
@@ -34,9 +35,10 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from slamkit.data.sequence import Event, Odometry, RangeBearing, Sequence
+from slamkit.data.sequence import Event, Gps, Odometry, RangeBearing, Sequence
 from slamkit.data.trajectory import Trajectory
 from slamkit.errors import ConfigError
+from slamkit.models.gps import Gps as GpsModel
 from slamkit.models.range_bearing import RangeBearingSensor
 from slamkit.sim import paths
 
@@ -96,6 +98,8 @@ class LandmarkScenario:
         max_range_m=8.0, dropout_prob=0.0, rate_hz=10.0))
     known_correspondences: bool = True
     initial_pose_sigma: tuple[float, float, float] = (1e-3, 1e-3, 1e-3)
+    #: optional GNSS fixes (``slamkit.models.gps.Gps``: sigma, rate, lever arm, correlation)
+    gps: GpsModel | None = None
 
     def __post_init__(self) -> None:
         if self.path not in ("loop", "circle", "figure_eight", "random_waypoints", "profile"):
@@ -157,7 +161,7 @@ def _drive(config: LandmarkScenario, rng: np.random.Generator) -> paths.Drive:
 
 def simulate_landmark_sequence(config: LandmarkScenario, rng: np.random.Generator) -> Sequence:
     """One seeded run of ``config``: odometry and range-bearing events plus ground truth."""
-    world_rng, odo_rng, rb_rng = rng.spawn(3)
+    world_rng, odo_rng, rb_rng, gps_rng = rng.spawn(4)
     drive = _drive(config, world_rng)
     xy = drive.world_xytheta_body[:, :2]
     m = config.landmark_margin_m
@@ -185,6 +189,16 @@ def simulate_landmark_sequence(config: LandmarkScenario, rng: np.random.Generato
                 seen = np.full(len(seen), -1, dtype=np.int64)
             events.append(RangeBearing(t, seen, r, b))
 
+    if config.gps is not None and len(drive.controls):
+        g = config.gps
+        n = int(np.floor(drive.stamps_s[-1] * g.rate_hz + 1e-9))
+        t = np.arange(1, n + 1) / g.rate_hz
+        if n:
+            fixes = g.simulate_fixes(gps_rng, drive.pose_at(t), t)
+            gps_events = [Gps(float(ti), fix, g.sigma_m) for ti, fix in zip(t, fixes)]
+            # after the odometry and observation at the same stamp (stable sort keeps that order)
+            events = sorted(events + gps_events, key=lambda e: e.stamp_s)
+
     sensor = config.sensor
     metadata = {
         "generator": "slamkit.sim.landmark_world",
@@ -200,6 +214,10 @@ def simulate_landmark_sequence(config: LandmarkScenario, rng: np.random.Generato
         "range_bearing_dropout": sensor.dropout_prob,
         "known_correspondences": config.known_correspondences,
         "initial_pose_sigma": list(config.initial_pose_sigma),
+        **({} if config.gps is None else {
+            "gps_rate_hz": config.gps.rate_hz, "gps_sigma_m": config.gps.sigma_m,
+            "gps_body_p_antenna": list(config.gps.body_p_antenna),
+            "gps_correlation_time_s": config.gps.correlation_time_s}),
         "units": "SI (m, s, rad)",
         "frames": "world fixed; body x forward, y left; bearings from the body x axis",
     }

@@ -28,6 +28,8 @@ from slamkit.sim.grid_world import GridScenario, simulate_grid_sequence
 from slamkit.sim.landmark_world import PRESETS, LandmarkScenario, simulate_landmark_sequence
 
 Scenario = LandmarkScenario | GridScenario
+#: nested configs whose default is None (so their class cannot be read off the default)
+_OPTIONAL_CONFIGS: dict[str, type] = {"gps": Gps}
 
 
 def _tupled(value: Any) -> Any:
@@ -68,6 +70,8 @@ def _build(cls: type, values: Mapping[str, Any], where: str, base: Any = None) -
                 raise ConfigError(f"{key}: {exc}") from None
         elif dataclasses.is_dataclass(default) and not isinstance(default, type):
             kwargs[name] = _build(type(default), value, key)
+        elif name in _OPTIONAL_CONFIGS:
+            kwargs[name] = _build(_OPTIONAL_CONFIGS[name], value, key)
         else:
             kwargs[name] = _tupled(value)
     try:

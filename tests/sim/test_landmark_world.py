@@ -155,3 +155,24 @@ def test_same_seed_gives_byte_identical_sequence_files(tmp_path):
     back = load_sequence(tmp_path / "a.slamseq")
     assert _flatten(back) == _flatten(seq)
     assert back.metadata["scenario"]["sensor"]["fov_rad"] == pytest.approx(np.deg2rad(120.0))
+
+
+def test_optional_gps_fixes_and_unchanged_other_streams():
+    from slamkit.data.sequence import Gps
+    from slamkit.models.gps import Gps as GpsModel
+
+    base = mildly_nonlinear(duration_s=100.0)
+    with_gps = mildly_nonlinear(duration_s=100.0, gps=GpsModel(sigma_m=0.5, rate_hz=2.0))
+    a = simulate_landmark_sequence(base, np.random.default_rng(9))
+    b = simulate_landmark_sequence(with_gps, np.random.default_rng(9))
+    fixes = b.of_type(Gps)
+    assert len(fixes) == 200 and b.metadata["gps_sigma_m"] == 0.5
+    # GPS draws from its own stream: odometry and observations are the same as without GPS
+    assert _flatten([e for e in b if not isinstance(e, Gps)]) == _flatten(a)
+    gt = b.ground_truth
+    idx = np.searchsorted(gt.stamps_s, [f.stamp_s - 1e-9 for f in fixes])
+    err = np.array([f.world_p_body for f in fixes]) - gt.xytheta()[idx, :2]
+    assert np.std(err) == pytest.approx(0.5, rel=0.15)
+    # a fix shares its stamp with the odometry that ends there and comes after it
+    i = next(k for k, e in enumerate(b.events) if isinstance(e, Gps))
+    assert isinstance(b.events[i - 2], Odometry) and b.events[i - 2].stamp_s == b.events[i].stamp_s

@@ -82,6 +82,10 @@ def test_bad_scenario_exits_with_the_key_named(tmp_path):
 def test_scenario_dicts_presets_nesting_and_switches():
     s = scenario_from_dict({"kind": "landmark", "preset": "strong", "duration_s": 30.0})
     assert s.name == "landmark_strong" and s.duration_s == 30.0 and s.sensor.rate_hz == 5.0
+    s = scenario_from_dict({"kind": "landmark", "preset": "mild", "gps": {"sigma_m": 0.5, "rate_hz": 2.0}})
+    assert s.gps.sigma_m == 0.5 and s.gps.rate_hz == 2.0
+    s = scenario_from_dict({"kind": "landmark", "gps": {"preset": "rtk"}})
+    assert s.gps.sigma_m < 0.1
     s = scenario_from_dict({"kind": "landmark", "profile": [[1.0, 0.5, 0.0]], "path": "profile"})
     assert s.profile == ((1.0, 0.5, 0.0),)
     g = scenario_from_dict({"kind": "grid", "imu_noise": "ideal", "gps": {"preset": "rtk"},
