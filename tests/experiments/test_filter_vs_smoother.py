@@ -1,0 +1,126 @@
+"""The filter_vs_smoother pipeline end to end, and the issue's claims over >= 20 seeds."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+import yaml
+
+from slamkit.errors import ConfigError
+from slamkit.experiments import estimators as registry
+from slamkit.experiments.filter_vs_smoother import (
+    assemble,
+    parse_estimators,
+    parse_scenarios,
+    parse_seeds,
+    run_monte_carlo,
+)
+from slamkit.experiments.pipeline import run_pipeline
+from slamkit.viz.pipelines import observer_for
+
+ROOT = Path(__file__).resolve().parents[2]
+
+#: heading noise 0.6 rad/s and a sighting every 2 s: the heading uncertainty between sightings
+#: is large enough that the EKF's linearisation makes it overconfident (measured: average NEES
+#: about 15 over 20 seeds against a band of [2.02, 4.16])
+STRONG = {"preset": "strong", "name": "strong",
+          "params": {"duration_s": 20.0, "odometry_sigma_v_mps": 0.1, "odometry_sigma_omega_radps": 0.6,
+                     "sensor": {"rate_hz": 0.5, "sigma_range_m": 0.02, "sigma_bearing_rad": 0.01}}}
+
+
+def _consistency(output, scenario: str, estimator: str) -> dict:
+    return next(r for r in output.extra["consistency"]
+                if r["dataset"] == scenario and r["estimator"] == estimator)
+
+
+def _summary(output, scenario: str, estimator: str, metric: str) -> dict:
+    return next(s for s in output.summary
+                if (s["dataset"], s["estimator"], s["metric"]) == (scenario, estimator, metric))
+
+
+def test_pipeline_writes_the_documented_folder_and_recording(tmp_path, verify_rrd) -> None:
+    config = {"pipeline": "filter_vs_smoother", "name": "fvs_test", "seeds": 3, "workers": 2,
+              "scenarios": [{"preset": "mild", "params": {"duration_s": 5.0}}],
+              "estimators": {"ekf": {}, "pf_small": {"type": "pf", "n_particles": 200}}}
+    result = run_pipeline(config, tmp_path / "out", progress=False, observer_factory=observer_for)
+    out = result.out_dir
+    data = json.loads((out / "results.json").read_text())
+    assert data["pipeline"] == "filter_vs_smoother"
+    assert len(data["runs"]) == 2 * 3
+    assert {r["seed"] for r in data["runs"]} == {0, 1, 2}
+    metrics = set(data["runs"][0]["metrics"])
+    assert {"ate_rmse_m", "ate_rot_rmse_rad", "rpe_rmse_m", "nees_mean", "nees_in_band_fraction",
+            "nis_mean", "step_latency_median_ms", "step_latency_p99_ms", "total_time_s"} <= metrics
+    ate = next(s for s in data["summary"] if s["estimator"] == "ekf" and s["metric"] == "ate_rmse_m")
+    assert ate["n"] == 3 and ate["ci95"][0] <= ate["mean"] <= ate["ci95"][1]
+    assert {r["estimator"] for r in data["consistency"]} == {"ekf", "pf_small"}
+    assert sorted(p.name for p in (out / "plots").iterdir()) == ["ate_rmse.png", "error_mild.png", "nees_mild.png"]
+    assert len(list((out / "trajectories").glob("mild_*_seed*.tum"))) == 6
+    report = (out / "report.md").read_text()
+    assert "| mild | ekf |" in report and "## Consistency" in report
+    assert yaml.safe_load((out / "config.yaml").read_text())["seeds"] == 3
+    entities = verify_rrd(out / "recording.rrd")
+    expected = {"/mild/world/ground_truth", "/mild/world/landmarks", "/mild/world/estimate/ekf",
+                "/mild/world/estimate/ekf/covariance", "/mild/world/estimate/ekf/pose",
+                "/mild/world/estimate/ekf/ellipse", "/mild/world/estimate/ekf/associations",
+                "/mild/world/estimate/pf_small/particles", "/mild/plots/error/ekf",
+                "/mild/plots/nees/ekf", "/mild/plots/nees/band_lower", "/mild/plots/nees/band_upper"}
+    assert expected <= entities, expected - entities
+
+
+def test_config_errors_name_the_field() -> None:
+    with pytest.raises(ConfigError, match=r"scenarios\[0\] needs exactly one"):
+        parse_scenarios({"scenarios": [{"preset": "mild", "dataset": "x"}]})
+    with pytest.raises(ConfigError, match="preset must be mild or strong"):
+        parse_scenarios({"scenarios": [{"preset": "wild"}]})
+    with pytest.raises(ConfigError, match="unknown estimator 'kalmann'"):
+        parse_estimators({"estimators": ["kalmann"]})
+    with pytest.raises(ConfigError, match="seeds must be"):
+        parse_seeds({"seeds": 0})
+    assert parse_seeds({"seeds": [3, 7]}) == [3, 7]
+    assert [c.label for c in parse_estimators({"estimators": ["ekf", {"pf": {"n_particles": 10}}]})] == ["ekf", "pf"]
+
+
+def test_shipped_pipeline_config_is_valid() -> None:
+    config = yaml.safe_load((ROOT / "pipelines" / "filter_vs_smoother.yaml").read_text())
+    assert config["pipeline"] == "filter_vs_smoother"
+    assert len(parse_scenarios(config)) >= 2
+    assert all(registry.is_available(c.type) or c.type in registry.REGISTRY for c in parse_estimators(config))
+
+
+def test_ekf_nees_inside_its_band_when_mild_and_outside_when_strong() -> None:
+    """The issue's consistency claim over 20 seeds: the EKF's Monte-Carlo average NEES stays in
+    the chi2(60)/20 95% band [2.02, 4.16] on the mildly nonlinear world and leaves it (above:
+    overconfident) when heading noise is large and sightings sparse."""
+    config = {"seeds": 20, "workers": 2,
+              "scenarios": [{"preset": "mild", "params": {"duration_s": 6.0}}, STRONG],
+              "estimators": {"ekf": {}}}
+    results, scenarios, choices = run_monte_carlo(config)
+    output = assemble(config, results, scenarios, choices)
+    mild, strong = _consistency(output, "mild", "ekf"), _consistency(output, "strong", "ekf")
+    assert mild["runs"] == strong["runs"] == 20
+    assert mild["band95"] == pytest.approx([2.0241, 4.1649], abs=1e-3)
+    assert mild["inside_band"] and 2.4 < mild["anees_mean"] < 3.6
+    assert mild["steps_in_band_fraction"] > 0.8
+    assert not strong["inside_band"] and strong["anees_mean"] > 2 * strong["band95"][1]
+    assert "**above: overconfident**" in output.report_md
+    # the per-run NEES agrees: mild runs average close to the 3 dof a consistent filter shows
+    assert _summary(output, "mild", "ekf", "nees_mean")["mean"] == pytest.approx(3.0, abs=0.6)
+
+
+@pytest.mark.slow
+def test_smoothers_beat_ekf_slam_over_twenty_seeds() -> None:
+    """Mean ATE batch <= iSAM2 <= EKF-SLAM, iSAM2's final trajectory within 2% of batch."""
+    missing = [n for n in ("batch", "isam2", "ekf_slam") if not registry.is_available(n)]
+    if missing:
+        pytest.skip(f"estimators not in this installation yet: {missing}")
+    config = {"seeds": 20, "workers": 2,
+              "scenarios": [{"preset": "mild", "params": {"duration_s": 40.0}}],
+              "estimators": {"batch": {}, "isam2": {}, "ekf_slam": {}}}
+    results, scenarios, choices = run_monte_carlo(config)
+    output = assemble(config, results, scenarios, choices)
+    ate = {e: _summary(output, "mild", e, "ate_rmse_m")["mean"] for e in ("batch", "isam2", "ekf_slam")}
+    assert ate["batch"] <= ate["isam2"] <= ate["ekf_slam"]
+    assert ate["isam2"] <= 1.02 * ate["batch"]
