@@ -51,6 +51,16 @@ class Drive:
         return self.controls[k]
 
 
+def control_stamps(n: int, dt_s: float) -> np.ndarray:
+    """(n,) stamps k * dt_s, computed as k / rate when the rate 1 / dt_s is a whole number, so
+    they equal the stamps of sensors at divisor rates bit for bit (k / 20 == (k / 2) / 10 in
+    floating point, whereas 3 * 0.05 != 0.15)."""
+    rate = 1.0 / dt_s
+    if abs(rate - round(rate)) < 1e-9 * rate:
+        return np.arange(n) / round(rate)
+    return np.arange(n) * dt_s
+
+
 # ---------------------------------------------------------------------------------------------
 # Reference paths (waypoint polylines)
 
@@ -162,7 +172,7 @@ def pure_pursuit(path_xy: np.ndarray, closed: bool, duration_s: float, dt_s: flo
         poses.append(pose)
         controls.append(u)
     poses_a = np.asarray(poses)
-    return Drive(np.arange(len(poses_a)) * dt_s, poses_a, np.asarray(controls).reshape(-1, 2), dt_s)
+    return Drive(control_stamps(len(poses_a), dt_s), poses_a, np.asarray(controls).reshape(-1, 2), dt_s)
 
 
 def velocity_profile(segments: list[tuple[float, float, float]], dt_s: float,
@@ -180,4 +190,4 @@ def integrate_controls(start_xytheta: np.ndarray, controls: np.ndarray, dt_s: fl
     for u in np.asarray(controls, float).reshape(-1, 2):
         poses.append(diff_drive.motion(poses[-1], u, dt_s))
     p = np.asarray(poses)
-    return Drive(np.arange(len(p)) * dt_s, p, np.asarray(controls, float).reshape(-1, 2), dt_s)
+    return Drive(control_stamps(len(p), dt_s), p, np.asarray(controls, float).reshape(-1, 2), dt_s)

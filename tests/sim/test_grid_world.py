@@ -147,3 +147,13 @@ def test_moving_obstacles_shorten_beams_exactly_where_they_are():
         np.testing.assert_allclose(scan.ranges_m, np.fmin(static, dyn), atol=1e-6)
         shortened += int(np.sum(dyn < static - 1e-6))
     assert shortened > 50  # the obstacles are seen
+
+
+def test_every_sensor_stamp_that_falls_on_a_control_stamp_equals_it_exactly(office_run):
+    seq, _ = office_run
+    gt_stamps = set(seq.ground_truth.stamps_s.tolist())
+    for kind, rate in ((Scan, 10.0), (Gps, 1.0)):
+        stamps = [e.stamp_s for e in seq.of_type(kind)]
+        assert all(t in gt_stamps for t in stamps), kind  # 10 Hz and 1 Hz divide 20 Hz
+    imu = [e.stamp_s for e in seq.of_type(Imu)]
+    assert sum(t in gt_stamps for t in imu) == len(seq.of_type(Odometry))  # every 10th IMU sample
