@@ -29,8 +29,6 @@ disconnected graph -> noted.
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -49,6 +47,7 @@ from slamkit.data.formats._records import (
     wrap_angle_rad,
 )
 from slamkit.data.pose_graph import PoseGraph
+from slamkit.data.formats._atomic import atomic_write_text
 from slamkit.errors import DataError
 
 TAGS_2D = ("VERTEX_SE2", "EDGE_SE2")
@@ -129,15 +128,4 @@ def format_g2o(graph: PoseGraph) -> str:
 
 def write_g2o(path: str | Path, graph: PoseGraph) -> Path:
     """Write ``graph`` as g2o, atomically (temporary file in the same folder, then rename)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    text = format_g2o(graph)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w") as handle:
-            handle.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
+    return atomic_write_text(path, format_g2o(graph))

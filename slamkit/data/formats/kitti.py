@@ -18,7 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-from slamkit.data.formats.tum import atomic_write_text, check_stamps, format_rows, read_numeric_rows
+from slamkit.data.formats._atomic import atomic_write_text
+from slamkit.data.formats.tum import check_stamps, format_rows, read_numeric_rows
 from slamkit.data.trajectory import Trajectory
 from slamkit.errors import DataError
 from slamkit.geometry import so3

@@ -17,13 +17,12 @@ shortest decimal that round-trips each float, so ``read_tum(write_tum(t))`` is e
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from slamkit.data.trajectory import Trajectory
+from slamkit.data.formats._atomic import atomic_write_text
 from slamkit.errors import DataError
 
 TUM_FIELDS = 8
@@ -79,21 +78,6 @@ def check_stamps(stamps: np.ndarray, lines: np.ndarray, path: str | Path) -> Non
         k = int(back[0]) + 1
         raise DataError(f"timestamp {stamps[k]!r} is earlier than the previous one {stamps[k - 1]!r}",
                         path, int(lines[k]))
-
-
-def atomic_write_text(path: str | Path, text: str) -> Path:
-    """Write ``text`` to ``path`` via a temporary file in the same folder and ``os.replace``."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w") as handle:
-            handle.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
 
 
 def format_rows(values: np.ndarray) -> str:
