@@ -59,16 +59,16 @@ REGISTRY: dict[str, EstimatorSpec] = {s.name: s for s in [
                   True, "ParticleFilterConfig", True, "bootstrap particle filter localisation"),
     EstimatorSpec("mcl", "filter", "slamkit.estimation.mcl:MonteCarloLocalization", True,
                   "MCLConfig", True, "Monte Carlo localisation (KLD-sampling, augmented MCL)"),
-    EstimatorSpec("ekf_slam", "filter", "slamkit.estimation.ekf_slam:EKFSlam", False,
-                  "EKFSlamConfig", False, "EKF-SLAM"),
+    EstimatorSpec("ekf_slam", "filter", "slamkit.estimation.ekf_slam:EKFSLAM", False,
+                  "EKFSLAMConfig", False, "EKF-SLAM"),
     EstimatorSpec("fastslam", "filter", "slamkit.estimation.fastslam:FastSlam", False,
                   "FastSlamConfig", True, "FastSLAM 1.0"),
-    EstimatorSpec("batch", "batch", "slamkit.backend.landmark_slam:BatchLandmarkSlam", False,
-                  "LandmarkSlamConfig", False, "batch Levenberg-Marquardt over the whole sequence"),
-    EstimatorSpec("isam2", "smoother", "slamkit.backend.landmark_slam:Isam2LandmarkSlam", False,
-                  "LandmarkSlamConfig", False, "iSAM2 incremental smoothing"),
-    EstimatorSpec("fixed_lag", "smoother", "slamkit.backend.landmark_slam:FixedLagLandmarkSlam",
-                  False, "LandmarkSlamConfig", False, "fixed-lag smoother (lag in seconds)"),
+    EstimatorSpec("batch", "batch", "slamkit.backend.landmark_slam:BatchLandmarkSLAM", False,
+                  "LandmarkSLAMConfig", False, "batch Levenberg-Marquardt over the whole sequence"),
+    EstimatorSpec("isam2", "smoother", "slamkit.backend.landmark_slam:Isam2LandmarkSLAM", False,
+                  "LandmarkSLAMConfig", False, "iSAM2 incremental smoothing"),
+    EstimatorSpec("fixed_lag", "smoother", "slamkit.backend.landmark_slam:FixedLagLandmarkSLAM",
+                  False, "LandmarkSLAMConfig", False, "fixed-lag smoother (lag in seconds)"),
 ]}
 
 
@@ -108,6 +108,11 @@ def _noise(sequence: Sequence, params: Mapping[str, Any]):
     return NoiseParams.from_metadata(sequence.metadata, **overrides)
 
 
+def _smoother_noise(module: Any, sequence: Sequence, overrides: Mapping[str, Any]) -> Any:
+    noise = module.SmootherNoise.from_metadata(sequence.metadata)
+    return dataclasses.replace(noise, **{k: float(v) for k, v in overrides.items()}) if overrides else noise
+
+
 def _config(cls: type, params: Mapping[str, Any], where: str) -> Any:
     fields = {f.name for f in dataclasses.fields(cls)}
     unknown = sorted(set(params) - fields)
@@ -133,14 +138,16 @@ def factory(name: str, params: Mapping[str, Any] | None = None, seed: int = 0) -
 
     def build(sequence: Sequence):
         kwargs: dict[str, Any] = {}
-        if config_cls is not None:
-            kwargs["config"] = _config(config_cls, params, f"estimator {name!r}")
-        elif params:
-            kwargs.update(params)
         if s.kind == "filter":
             kwargs["noise"] = _noise(sequence, noise_params)
-        elif noise_params:
-            kwargs["noise"] = _noise(sequence, noise_params)
+            if config_cls is not None:
+                kwargs["config"] = _config(config_cls, params, f"estimator {name!r}")
+            else:
+                kwargs.update(params)
+        else:
+            # smoothers carry their noise inside their config (slamkit.backend.landmark_slam)
+            kwargs["config"] = _config(config_cls, {"noise": _smoother_noise(module, sequence, noise_params),
+                                                    **params}, f"estimator {name!r}")
         if s.random:
             kwargs["rng"] = np.random.default_rng(seed)
         if s.needs_landmark_map:
