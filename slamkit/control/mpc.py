@@ -401,14 +401,17 @@ class MPCController:
                 "lbg": self._lbg, "ubg": self._ubg}
         if self._lam_x is not None:
             args["lam_x0"], args["lam_g0"] = self._lam_x, self._lam_g
+        t0 = time.perf_counter()
         sol = self._solver(**args)
+        solver_time_s = time.perf_counter() - t0
         stats = self._solver.stats()
         w = np.asarray(sol["x"]).ravel()
         status = str(stats.get("return_status", ""))
         ok = bool(stats.get("success", False)) or status in ("Solve_Succeeded",
                                                              "Solved_To_Acceptable_Level")
         info = {"solver_status": status, "iterations": int(stats.get("iter_count", -1)),
-                "cost": float(sol["f"]), "max_slack_m": float(w[self._si].max())}
+                "cost": float(sol["f"]), "max_slack_m": float(w[self._si].max()),
+                "solver_time_s": solver_time_s}
         if ok:
             self._lam_x = np.asarray(sol["lam_x"]).ravel()
             self._lam_g = np.asarray(sol["lam_g"]).ravel()
@@ -535,8 +538,10 @@ class MPCController:
                 self._qp.update(q=q, l=lo, u=hi, Ax=Ax)
             z0 = np.concatenate([Xl.ravel(), Ul.ravel(), np.zeros(c.horizon)])
             self._qp.warm_start(x=z0)
+            t0 = time.perf_counter()
             res = self._qp.solve(raise_error=False)
-            info = {"solver_status": res.info.status, "iterations": int(res.info.iter)}
+            info = {"solver_status": res.info.status, "iterations": int(res.info.iter),
+                    "solver_time_s": time.perf_counter() - t0}
             if res.info.status_val not in _OSQP_OK:
                 return False, None, None, info
             z = res.x

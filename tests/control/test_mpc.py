@@ -159,3 +159,20 @@ def test_bicycle_tracks_a_turn_within_steering_limits():
     assert np.linalg.norm(xs[-1, :2] - [3.0, 3.0]) < 0.3
     assert np.abs(us[:, 1]).max() <= 0.5 + 1e-6
     assert np.abs(np.diff(us[:, 1])).max() <= 0.1 + 1e-6
+
+
+def test_opti_reference_solves_the_same_problem():
+    """The benchmark's reference (casadi.Opti, default IPOPT, cold start) and the tuned build give
+    the same first input on the same problem (to 1e-3: both stop at IPOPT tolerances)."""
+    from slamkit.control.mpc_reference import OptiMPC
+
+    cfg = MPCConfig()
+    ctl = MPCController(cfg)
+    world = LocalWorld(circle_xy_m=[[1.5, 0.3]], circle_radius_m=[0.3], circle_velocity_mps=[[0.0, -0.2]])
+    state = RobotState([0.0, 0.0, 0.1], [0.3, 0.0])
+    ref = Reference([[0.0, 0.0], [5.0, 0.0]], speed_mps=0.6)
+    prob = ctl.problem(state, ref, world)
+    out = ctl.compute(state, ref, world)
+    ok, u0, _t = OptiMPC(cfg).solve(prob)
+    assert ok and out.status is ControlStatus.OK
+    np.testing.assert_allclose(u0, out.command, atol=1e-3)

@@ -1,0 +1,447 @@
+"""Closed-loop local planning: a controller tracks a global path to a goal through a static map
+while moving obstacles cross the path; the ``local_planning`` pipeline compares controllers over
+seeded scenarios.
+
+One control cycle (period ``dt_s``):
+
+1. perception -- the robot knows the static map (as a distance field) and sees the moving
+   circles within ``sensor_range_m`` with their true positions and velocities (a perfect tracker;
+   the point is to compare the decision makers, not the perception);
+2. the controller computes a command from the state, the global path and that local world;
+3. the plant -- ``slamkit.models.diff_drive.motion``, the exact-arc unicycle -- applies it for dt;
+4. the clearance (distance from the robot's disc to the nearest static or moving obstacle
+   surface) is measured; below zero is a collision and ends the episode.
+
+An episode succeeds when the robot's centre gets within ``goal_tolerance_m`` of the goal
+without a collision before ``max_time_s``. Metrics (units in the names): ``success``,
+``time_to_goal_s`` (NaN when not reached), ``path_length_m``, ``min_clearance_m``,
+``collisions`` (0 or 1), ``jerk_rms_mps3`` (RMS of the second difference of the commanded speed
+over dt^2), ``fallback_steps`` (cycles whose status was a brake or a local minimum) and
+``step_latency_median_ms``.
+
+Scenarios (:func:`make_scenario`): a seeded map (the office and warehouse generators of
+``slamkit.maps.generators`` at 20 m x 20 m, or an open room with boxes), start and goal drawn
+in free space 6-14 m apart, the global path from A* on the Nav2-style costmap, and moving circles
+from :func:`slamkit.sim.moving_obstacles.crossing_obstacles` timed to meet the robot.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Iterable, Mapping, Protocol
+
+import numpy as np
+
+from slamkit.control.dwa import DWAConfig, DWAController
+from slamkit.control.mpc import MPCConfig, MPCController
+from slamkit.control.potential_fields import PotentialFieldConfig, PotentialFieldController
+from slamkit.control.protocols import (ControlOutput, ControlStatus, Controller, DistanceGrid,
+                                       LocalWorld, Reference, RobotState)
+from slamkit.errors import ConfigError
+from slamkit.experiments.results import RunRecord, markdown_table, summarise, summary_markdown
+from slamkit.maps.distance_field import distance_field_m
+from slamkit.maps.generators import OfficeConfig, WarehouseConfig, office, random_free_poses, warehouse
+from slamkit.maps.inflation import costmap
+from slamkit.maps.occupancy_grid import OccupancyGrid
+from slamkit.models.diff_drive import motion
+from slamkit.planning.astar import AStarPlanner
+from slamkit.planning.grid_search import costmap_to_cell_cost
+from slamkit.planning.protocols import PlanningProblem
+from slamkit.sim.moving_obstacles import MovingObstacles, crossing_obstacles
+
+SCENARIO_KINDS = ("office", "warehouse", "open")
+CONTROLLERS = ("potential_fields", "dwa", "mpc", "mpc_osqp")
+
+
+# --------------------------------------------------------------------------- scenarios
+
+
+@dataclass(frozen=True)
+class Scenario:
+    name: str
+    seed: int
+    grid: OccupancyGrid
+    start_xytheta: np.ndarray
+    goal_xy_m: np.ndarray
+    path_xy_m: np.ndarray
+    obstacles: MovingObstacles
+    distance: DistanceGrid
+
+
+def _open_room(rng: np.random.Generator, width_m: float = 16.0, height_m: float = 12.0,
+               resolution_m: float = 0.1, boxes: int = 6) -> OccupancyGrid:
+    w, h = int(round(width_m / resolution_m)), int(round(height_m / resolution_m))
+    occ = np.zeros((h, w), dtype=bool)
+    t = 2  # two-cell walls
+    occ[:t, :] = occ[-t:, :] = occ[:, :t] = occ[:, -t:] = True
+    for _ in range(boxes):
+        bw, bh = rng.integers(5, 13, size=2)
+        x0, y0 = rng.integers(t + 10, w - t - 10 - bw), rng.integers(t + 10, h - t - 10 - bh)
+        occ[y0:y0 + bh, x0:x0 + bw] = True
+    return OccupancyGrid(occ, resolution_m, np.zeros(2), name="open")
+
+
+def _map(kind: str, rng: np.random.Generator) -> OccupancyGrid:
+    if kind == "office":
+        return office(rng, OfficeConfig(width_m=20.0, height_m=20.0, resolution_m=0.1), name="office")
+    if kind == "warehouse":
+        return warehouse(rng, WarehouseConfig(width_m=20.0, height_m=20.0, resolution_m=0.1,
+                                              shelf_length_m=6.0, dock_depth_m=5.0, num_pallets=4),
+                         name="warehouse")
+    if kind == "open":
+        return _open_room(rng)
+    raise ConfigError(f"unknown scenario kind {kind!r}; choose from {SCENARIO_KINDS}")
+
+
+def _simplify(path: np.ndarray, every: int = 3) -> np.ndarray:
+    """Keep every ``every``-th A* cell centre (and the last): the controllers interpolate anyway."""
+    if len(path) <= 2:
+        return path
+    keep = np.unique(np.concatenate([np.arange(0, len(path), every), [len(path) - 1]]))
+    return path[keep]
+
+
+def make_scenario(seed: int, kind: str = "office", n_obstacles: int = 3,
+                  robot_radius_m: float = 0.2, distance_m: tuple[float, float] = (6.0, 14.0),
+                  nominal_speed_mps: float = 0.5,
+                  obstacle_speed_mps: tuple[float, float] = (0.2, 0.5)) -> Scenario:
+    """A seeded scenario (same seed and kind -> same scenario)."""
+    rng = np.random.default_rng(seed)
+    grid = _map(kind, rng)
+    # the global path keeps the robot's disc plus 0.15 m from walls, more than any controller's
+    # safety margin, so a path never leads through a gap the local planner refuses to enter
+    cost = costmap(grid, inscribed_radius_m=robot_radius_m + 0.15, inflation_radius_m=1.0)
+    cell_cost = costmap_to_cell_cost(cost)
+    planner = AStarPlanner()
+    for _attempt in range(200):
+        poses = random_free_poses(grid, rng, 2, clearance_m=robot_radius_m + 0.5)
+        d = float(np.linalg.norm(poses[0, :2] - poses[1, :2]))
+        if not distance_m[0] <= d <= distance_m[1]:
+            continue
+        res = planner.plan(PlanningProblem(grid, poses[0, :2], poses[1, :2], cell_cost=cell_cost))
+        if not res.solved or res.length_m > 2.0 * distance_m[1]:
+            continue
+        path = _simplify(res.path)
+        start = poses[0].copy()
+        # start roughly facing the path, as after a global plan
+        lead = path[min(5, len(path) - 1)] - path[0]
+        start[2] = math.atan2(lead[1], lead[0]) + rng.uniform(-0.5, 0.5)
+        obstacles = crossing_obstacles(path, n_obstacles, rng, grid=grid, speed_mps=obstacle_speed_mps,
+                                       nominal_speed_mps=nominal_speed_mps)
+        distance = DistanceGrid(distance_field_m(grid), grid.resolution_m, grid.origin_xy_m)
+        return Scenario(f"{kind}_{seed}", seed, grid, start, poses[1, :2].copy(), path, obstacles,
+                        distance)
+    raise ConfigError(f"could not draw a start/goal pair with a path in {kind} map (seed {seed})")
+
+
+# --------------------------------------------------------------------------- controllers
+
+
+def make_controller(name: str, params: Mapping[str, Any] | None = None, seed: int = 0) -> Controller:
+    """Registry names: potential_fields, dwa, mpc (IPOPT), mpc_osqp (the QP fast path)."""
+    params = dict(params or {})
+    try:
+        if name == "potential_fields":
+            return PotentialFieldController(PotentialFieldConfig(**params), rng=np.random.default_rng(seed))
+        if name == "dwa":
+            return DWAController(DWAConfig(**params))
+        if name in ("mpc", "mpc_osqp"):
+            params.setdefault("solver", "ipopt" if name == "mpc" else "osqp")
+            for key in ("u_min", "u_max", "du_max_per_s", "r_u", "r_du"):
+                if key in params:
+                    params[key] = tuple(params[key])
+            return MPCController(MPCConfig(**params))
+    except TypeError as exc:
+        raise ConfigError(f"controller {name!r}: {exc}") from exc
+    raise ConfigError(f"unknown controller {name!r}; choose from {CONTROLLERS}")
+
+
+# --------------------------------------------------------------------------- the loop
+
+
+@dataclass(frozen=True)
+class ClosedLoopConfig:
+    dt_s: float = 0.1
+    max_time_s: float = 60.0
+    goal_tolerance_m: float = 0.3
+    robot_radius_m: float = 0.2
+    sensor_range_m: float = 5.0
+    reference_speed_mps: float = 0.6
+
+
+@dataclass(frozen=True)
+class StepSnapshot:
+    """What observers (the Rerun recorder, progress bars) see after each cycle."""
+
+    step: int
+    t_s: float
+    pose_xytheta: np.ndarray
+    output: ControlOutput
+    obstacle_xy_m: np.ndarray
+    obstacle_radius_m: np.ndarray
+    clearance_m: float
+
+
+class Observer(Protocol):
+    def on_episode(self, scenario: Scenario, controller: str) -> None: ...
+
+    def on_step(self, snapshot: StepSnapshot) -> None: ...
+
+
+@dataclass(frozen=True)
+class Episode:
+    scenario: str
+    controller: str
+    seed: int
+    t_s: np.ndarray            # (T,)
+    poses_xytheta: np.ndarray  # (T, 3)
+    commands: np.ndarray       # (T - 1, 2)
+    statuses: tuple[str, ...]  # (T - 1,)
+    solve_time_s: np.ndarray   # (T - 1,)
+    clearance_m: np.ndarray    # (T,)
+    reached_goal: bool
+    collided: bool
+    metrics: Mapping[str, float] = field(default_factory=dict)
+
+
+def perceive(scenario: Scenario, pose_xytheta: np.ndarray, t_s: float,
+             config: ClosedLoopConfig) -> LocalWorld:
+    obs = scenario.obstacles
+    if len(obs) == 0:
+        return LocalWorld(distance=scenario.distance, t_s=t_s)
+    xy = obs.position_at(t_s)
+    seen = np.linalg.norm(xy - pose_xytheta[:2], axis=1) - obs.radius_m <= config.sensor_range_m
+    return LocalWorld(xy[seen], obs.radius_m[seen], obs.velocity_at(t_s)[seen], scenario.distance, t_s)
+
+
+def clearance_m(scenario: Scenario, xy_m: np.ndarray, t_s: float, robot_radius_m: float) -> float:
+    """Distance from the robot's disc to the nearest obstacle surface (< 0: collision). Static
+    distances run between cell centres, so half a cell is taken off for the occupied cell's extent."""
+    d_static = float(scenario.distance.query(xy_m)[0]) - 0.5 * scenario.grid.resolution_m
+    d = d_static
+    if len(scenario.obstacles):
+        centres = scenario.obstacles.position_at(t_s)
+        d = min(d, float((np.linalg.norm(centres - xy_m, axis=1) - scenario.obstacles.radius_m).min()))
+    return d - robot_radius_m
+
+
+def run_episode(scenario: Scenario, controller: Controller, config: ClosedLoopConfig = ClosedLoopConfig(),
+                observers: Iterable[Observer] = ()) -> Episode:
+    observers = list(observers)
+    for ob in observers:
+        ob.on_episode(scenario, controller.name)
+    controller.reset()
+    reference = Reference(scenario.path_xy_m, speed_mps=config.reference_speed_mps)
+    x = np.asarray(scenario.start_xytheta, dtype=float).copy()
+    u = np.zeros(2)
+    ts, xs, us, st, lat = [0.0], [x], [], [], []
+    clear = [clearance_m(scenario, x[:2], 0.0, config.robot_radius_m)]
+    reached = collided = False
+    steps = int(round(config.max_time_s / config.dt_s))
+    for k in range(steps):
+        t = k * config.dt_s
+        if np.linalg.norm(x[:2] - scenario.goal_xy_m) <= config.goal_tolerance_m:
+            reached = True
+            break
+        world = perceive(scenario, x, t, config)
+        out = controller.compute(RobotState(x, u, t), reference, world)
+        u = out.command
+        x = motion(x, u, config.dt_s)
+        t_next = t + config.dt_s
+        c = clearance_m(scenario, x[:2], t_next, config.robot_radius_m)
+        ts.append(t_next); xs.append(x); us.append(u); st.append(out.status.value)  # noqa: E702
+        lat.append(out.solve_time_s); clear.append(c)  # noqa: E702
+        if observers:
+            obs = scenario.obstacles
+            snap = StepSnapshot(k + 1, t_next, x, out,
+                                obs.position_at(t_next) if len(obs) else np.zeros((0, 2)),
+                                obs.radius_m, c)
+            for ob in observers:
+                ob.on_step(snap)
+        if c < 0.0:
+            collided = True
+            break
+    else:
+        reached = bool(np.linalg.norm(x[:2] - scenario.goal_xy_m) <= config.goal_tolerance_m)
+    ep = Episode(scenario.name, controller.name, scenario.seed, np.asarray(ts), np.asarray(xs),
+                 np.asarray(us).reshape(-1, 2), tuple(st), np.asarray(lat), np.asarray(clear),
+                 reached and not collided, collided)
+    return Episode(**{**ep.__dict__, "metrics": episode_metrics(ep, config.dt_s)})
+
+
+def episode_metrics(ep: Episode, dt_s: float) -> dict[str, float]:
+    v = ep.commands[:, 0] if len(ep.commands) else np.zeros(0)
+    jerk = np.diff(v, n=2) / dt_s**2 if len(v) >= 3 else np.zeros(0)
+    fallback = sum(s in (ControlStatus.FALLBACK_BRAKE.value, ControlStatus.LOCAL_MINIMUM.value)
+                   for s in ep.statuses)
+    return {
+        "success": float(ep.reached_goal),
+        "time_to_goal_s": float(ep.t_s[-1]) if ep.reached_goal else float("nan"),
+        "path_length_m": float(np.linalg.norm(np.diff(ep.poses_xytheta[:, :2], axis=0), axis=1).sum()),
+        "min_clearance_m": float(ep.clearance_m.min()),
+        "collisions": float(ep.collided),
+        "jerk_rms_mps3": float(np.sqrt(np.mean(jerk**2))) if len(jerk) else 0.0,
+        "fallback_steps": float(fallback),
+        "step_latency_median_ms": float(np.median(ep.solve_time_s) * 1e3) if len(ep.solve_time_s) else 0.0,
+    }
+
+
+# --------------------------------------------------------------------------- comparison
+
+
+def _seeds(spec: Any) -> list[int]:
+    if isinstance(spec, Mapping):
+        return list(range(int(spec.get("start", 0)), int(spec.get("start", 0)) + int(spec["count"])))
+    if isinstance(spec, int):
+        return list(range(spec))
+    return [int(s) for s in spec]
+
+
+def scenario_list(config: Mapping[str, Any]) -> list[Scenario]:
+    sc = dict(config.get("scenarios", {}))
+    kinds = list(sc.get("kinds", ["office"]))
+    for k in kinds:
+        if k not in SCENARIO_KINDS:
+            raise ConfigError(f"scenarios.kinds: unknown kind {k!r}; choose from {SCENARIO_KINDS}")
+    seeds = _seeds(sc.get("seeds", 5))
+    n_obs = int(sc.get("n_obstacles", 3))
+    return [make_scenario(seed, kinds[i % len(kinds)], n_obs) for i, seed in enumerate(seeds)]
+
+
+class _PipelineStepAdapter:
+    """Forwards closed-loop steps to a pipeline observer (``slamkit.experiments.observers``) as
+    ``StepSnapshot(kind="local_planning", run="<controller>/<scenario>", ...)`` whose state holds
+    the scenario, the controller name and this module's :class:`StepSnapshot`."""
+
+    def __init__(self, observer, controller: str, scenario: Scenario):
+        self.observer, self.controller, self.scenario = observer, controller, scenario
+
+    def on_episode(self, scenario: Scenario, controller: str) -> None:
+        pass
+
+    def on_step(self, snap: StepSnapshot) -> None:
+        from slamkit.experiments.observers import StepSnapshot as PipelineStep
+
+        self.observer.on_step(PipelineStep("local_planning", f"{self.controller}/{self.scenario.name}",
+                                           snap.step, snap.t_s, {"scenario": self.scenario,
+                                                                 "controller": self.controller,
+                                                                 "step": snap}))
+
+
+def compare(config: Mapping[str, Any], observer=None,
+            progress: Callable[[int], None] | None = None) -> tuple[list[Episode], list[Scenario]]:
+    """Every controller on every scenario of ``config`` (the pipeline's dict). A pipeline
+    ``observer`` that wants steps sees the episodes of the first ``record_scenarios`` scenarios
+    (default 1, to keep recordings small)."""
+    controllers = list(config.get("controllers", ["dwa", "mpc"]))
+    for c in controllers:
+        if c not in CONTROLLERS:
+            raise ConfigError(f"controllers: unknown controller {c!r}; choose from {CONTROLLERS}")
+    params = dict(config.get("controller_params", {}) or {})
+    try:
+        loop = ClosedLoopConfig(**dict(config.get("closed_loop", {}) or {}))
+    except TypeError as exc:
+        raise ConfigError(f"closed_loop: {exc}") from exc
+    n_record = int(config.get("record_scenarios", 1))
+    watch = observer is not None and getattr(observer, "wants_steps", True)
+    episodes = []
+    scenarios = scenario_list(config)
+    for name in controllers:
+        ctl = make_controller(name, params.get(name))
+        for i, sc in enumerate(scenarios):
+            obs = [_PipelineStepAdapter(observer, name, sc)] if watch and i < n_record else []
+            episodes.append(run_episode(sc, ctl, loop, obs))
+            if progress is not None:
+                progress(1)
+    return episodes, scenarios
+
+
+def episodes_to_runs(episodes: Iterable[Episode]) -> list[RunRecord]:
+    """One RunRecord per episode; dataset = "local_planning" so the summary groups by controller
+    over all scenarios (the scenario name is kept in params)."""
+    return [RunRecord("local_planning", e.controller, dict(e.metrics), seed=e.seed,
+                      params={"scenario": e.scenario}) for e in episodes]
+
+
+def report_markdown(config: Mapping[str, Any], episodes: list[Episode], summary: list[dict]) -> str:
+    text = f"# Local planning: {config.get('name', 'local_planning')}\n\n"
+    text += ("Controllers track an A* path through a static map while moving circles cross it "
+             "(perfect perception within range). Mean ± half the 95% CI over scenarios; "
+             "time to goal over successful runs only.\n\n")
+    text += summary_markdown(summary) + "\n\n## Runs\n\n"
+    rows = [[e.scenario, e.controller, e.metrics["success"], e.metrics["time_to_goal_s"],
+             e.metrics["min_clearance_m"], e.metrics["collisions"], e.metrics["step_latency_median_ms"]]
+            for e in episodes]
+    text += markdown_table(["scenario", "controller", "success", "time to goal (s)",
+                            "min clearance (m)", "collisions", "latency median (ms)"], rows) + "\n"
+    return text
+
+
+def plot(plots: Path, episodes: list[Episode], scenarios: Mapping[str, Scenario]) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    first = episodes[0].scenario
+    sc = scenarios[first]
+    fig, ax = plt.subplots(figsize=(7, 7))
+    g = sc.grid
+    extent = (g.origin_xy_m[0], g.origin_xy_m[0] + g.width * g.resolution_m,
+              g.origin_xy_m[1], g.origin_xy_m[1] + g.height * g.resolution_m)
+    ax.imshow(g.occupied, origin="lower", extent=extent, cmap="Greys", alpha=0.8)
+    ax.plot(sc.path_xy_m[:, 0], sc.path_xy_m[:, 1], "k--", lw=1, label="global path")
+    for e in episodes:
+        if e.scenario == first:
+            ax.plot(e.poses_xytheta[:, 0], e.poses_xytheta[:, 1], lw=1.5,
+                    label=f"{e.controller} ({'ok' if e.reached_goal else 'fail'})")
+    for a, b in zip(sc.obstacles.a_xy_m, sc.obstacles.b_xy_m):
+        ax.plot([a[0], b[0]], [a[1], b[1]], color="tab:red", lw=3, alpha=0.4)
+    ax.legend(loc="best", fontsize=8)
+    ax.set_title(f"{first}: trajectories (red: obstacle crossing segments)")
+    ax.set_aspect("equal")
+    fig.savefig(plots / "trajectories.png", dpi=110, bbox_inches="tight")
+    plt.close(fig)
+
+    names = list(dict.fromkeys(e.controller for e in episodes))
+    fig, axes = plt.subplots(1, 3, figsize=(13, 4))
+    for ax, metric, label in zip(axes, ("success", "time_to_goal_s", "min_clearance_m"),
+                                 ("success rate", "time to goal (s)", "min clearance (m)")):
+        vals = []
+        for n in names:
+            v = np.array([e.metrics[metric] for e in episodes if e.controller == n], dtype=float)
+            vals.append(float(v[np.isfinite(v)].mean()) if np.isfinite(v).any() else 0.0)
+        ax.bar(names, vals, color="tab:blue")
+        ax.set_title(label)
+    fig.savefig(plots / "metrics.png", dpi=110, bbox_inches="tight")
+    plt.close(fig)
+
+
+def run(config: Mapping[str, Any], folder, progress, observer=None):
+    """Pipeline ``local_planning`` (registered in ``slamkit.experiments.pipeline.PIPELINES``):
+    controllers x seeded scenarios -> results.json runs/summary, report.md and plots; the
+    observer (``slamkit.viz.control.LocalPlanningObserver`` from the CLI) records the steps."""
+    from slamkit.experiments.pipeline import PipelineOutput
+
+    n = len(_seeds(dict(config.get("scenarios", {})).get("seeds", 5))) * len(
+        list(config.get("controllers", ["dwa", "mpc"])))
+    advance = progress.task("closed-loop episodes", n)
+    episodes, scenarios = compare(config, observer, advance)
+    runs = episodes_to_runs(episodes)
+    summary = summarise(runs)
+    plot(folder.plots, episodes, {s.name: s for s in scenarios})
+    return PipelineOutput(runs, report_markdown(config, episodes, summary), summary, payload=episodes)
+
+
+def run_pipeline(config: Mapping[str, Any], out_dir: str | Path, observer_factory=None) -> dict[str, Any]:
+    """Run the comparison and write the results folder; returns the results.json dict.
+    ``observer_factory`` as in ``slamkit.experiments.pipeline.run_pipeline`` (e.g.
+    ``slamkit.viz.pipelines.observer_for``) adds ``recording.rrd``."""
+    from slamkit.experiments.pipeline import run_pipeline as _run
+
+    cfg = dict(config)
+    cfg.setdefault("pipeline", "local_planning")
+    return _run(cfg, out_dir, progress=False, observer_factory=observer_factory).results
