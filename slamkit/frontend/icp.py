@@ -1,0 +1,222 @@
+"""2D iterative closest point (ICP): point-to-point and point-to-line, with a KD-tree, outlier
+rejection, an initial guess (from odometry), a convergence test and a covariance estimate for the
+resulting pose-graph constraint.
+
+* Point-to-point: Besl & McKay, "A method for registration of 3-D shapes", IEEE PAMI 14(2),
+  1992; each iteration solves the closed-form least-squares rigid alignment of the current
+  correspondences with the SVD of the cross-covariance (Arun, Huang & Blostein, IEEE PAMI 9(5),
+  1987), so the error sum_i ||R p_i + t - q_i||^2 decreases monotonically and convergence is
+  linear.
+* Point-to-line: Chen & Medioni, "Object modelling by registration of multiple range images",
+  IVC 10(3), 1992; in 2D Censi, "An ICP variant using a point-to-line metric", ICRA 2008. The
+  residual is the distance along the target's normal, e_i = n_i^T (R p_i + t - q_i); one
+  Gauss-Newton step on the linearised rotation per iteration (Low, "Linear least-squares
+  optimization for point-to-plane ICP", TR04-004, 2004). Converges quadratically near the
+  optimum (Censi 2008, sec. V), hence in fewer iterations than point-to-point.
+* Target normals: the eigenvector of the smallest eigenvalue of the covariance of each target
+  point's ``normal_neighbours`` nearest neighbours (PCA).
+* Outlier rejection: correspondences farther than ``max_correspondence_m`` are dropped; with
+  ``trim_fraction`` < 1 only the closest fraction of the rest is used (trimmed ICP, Chetverikov
+  et al., ICPR 2002). Trimming is off by default: with full overlap a fixed trim fraction makes
+  point-to-point converge to a biased fixed point (measured 1.5 cm / 0.015 rad off on noise-free
+  office scans at trim 0.9, exact at 1.0); use it for scans that only partly overlap.
+* Convergence: the increment of an iteration is below ``translation_tol_m`` and
+  ``rotation_tol_rad``.
+* Covariance (Hessian method, e.g. Bengtsson & Baerveldt, RAS 44, 2003; Prakhya et al., 2015):
+  Sigma = s^2 (J^T J)^-1 with J the point-to-line residual Jacobian at the solution and s^2 the
+  residual variance (floored at ``sigma_floor_m``^2). The point-to-line Jacobian is used for both
+  methods because it exposes degenerate geometry (a corridor constrains nothing along its
+  axis); point-to-point's J^T J would be well conditioned there and overconfident. Scan points
+  are not independent (they sample the same few walls), so the Hessian covariance is inflated
+  by ``covariance_scale`` before it is used as a constraint.
+
+Conventions: ``target_T_source`` maps source points into the target frame,
+q ~ R(theta) p + (x, y). ``covariance`` is expressed in the tangent space of the *right*
+perturbation, target_T_source o exp(xi) -- the convention of GTSAM's BetweenFactor<Pose2> and of
+``slamkit.data.pose_graph`` information matrices.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from slamkit.errors import ConfigError, DataError
+from slamkit.geometry import se2
+
+METHODS = ("point_to_point", "point_to_line")
+
+
+@dataclass(frozen=True)
+class IcpConfig:
+    method: str = "point_to_line"
+    max_iterations: int = 50
+    max_correspondence_m: float = 1.0
+    #: fraction of the gated correspondences (closest first) used in each step
+    trim_fraction: float = 1.0
+    translation_tol_m: float = 1e-7
+    rotation_tol_rad: float = 1e-7
+    normal_neighbours: int = 6
+    min_correspondences: int = 10
+    #: a source point counts as matched in ``fitness`` when its nearest target point is this close
+    fitness_distance_m: float = 0.1
+    sigma_floor_m: float = 0.01
+    covariance_scale: float = 10.0
+
+    def __post_init__(self) -> None:
+        if self.method not in METHODS:
+            raise ConfigError(f"IcpConfig.method must be one of {METHODS}, got {self.method!r}")
+        if self.max_iterations < 1:
+            raise ConfigError(f"IcpConfig.max_iterations must be >= 1, got {self.max_iterations}")
+        if not self.max_correspondence_m > 0:
+            raise ConfigError(f"IcpConfig.max_correspondence_m must be > 0, got {self.max_correspondence_m}")
+        if not 0 < self.trim_fraction <= 1:
+            raise ConfigError(f"IcpConfig.trim_fraction must lie in (0, 1], got {self.trim_fraction}")
+        if self.normal_neighbours < 2:
+            raise ConfigError("IcpConfig.normal_neighbours must be >= 2")
+
+
+@dataclass(frozen=True)
+class IcpResult:
+    """``fitness``: fraction of source points within ``fitness_distance_m`` of the target after
+    alignment; ``rmse_m``: RMS residual of the correspondences used in the last step."""
+
+    target_T_source: np.ndarray
+    covariance: np.ndarray
+    iterations: int
+    converged: bool
+    fitness: float
+    rmse_m: float
+    num_correspondences: int
+
+    @property
+    def information(self) -> np.ndarray:
+        return np.linalg.inv(self.covariance)
+
+
+class IcpTarget:
+    """A target point set prepared once: KD-tree and unit normals (N, 2)."""
+
+    def __init__(self, points_xy: np.ndarray, normal_neighbours: int = 6):
+        pts = _check_points(points_xy, "target")
+        self.points = pts
+        self.tree = cKDTree(pts)
+        self.normals = estimate_normals(pts, self.tree, normal_neighbours)
+
+
+def _check_points(points: np.ndarray, name: str) -> np.ndarray:
+    p = np.asarray(points, dtype=float)
+    if p.ndim != 2 or p.shape[1] != 2:
+        raise DataError(f"ICP {name} points must have shape (N, 2), got {p.shape}")
+    p = p[np.all(np.isfinite(p), axis=1)]
+    if len(p) < 3:
+        raise DataError(f"ICP {name} needs at least 3 finite points, got {len(p)}")
+    return p
+
+
+def scan_to_points(ranges_m: np.ndarray, angles_rad: np.ndarray, max_range_m: float = np.inf
+                   ) -> np.ndarray:
+    """(N, 2) sensor-frame end points of the beams with a return (finite range < max)."""
+    r = np.asarray(ranges_m, dtype=float)
+    a = np.asarray(angles_rad, dtype=float)
+    ok = np.isfinite(r) & (r < max_range_m)
+    return np.column_stack([r[ok] * np.cos(a[ok]), r[ok] * np.sin(a[ok])])
+
+
+def estimate_normals(points: np.ndarray, tree: cKDTree, k: int) -> np.ndarray:
+    """Unit normals (N, 2) by PCA of each point's k nearest neighbours (batched 2x2 eigh)."""
+    k = min(k, len(points))
+    _, idx = tree.query(points, k=k)
+    nb = points[idx]  # (N, k, 2)
+    centred = nb - nb.mean(axis=1, keepdims=True)
+    cov = np.einsum("nki,nkj->nij", centred, centred)
+    _, vecs = np.linalg.eigh(cov)
+    return vecs[:, :, 0]  # eigenvector of the smallest eigenvalue
+
+
+def _correspondences(target: IcpTarget, moved: np.ndarray, config: IcpConfig):
+    dist, idx = target.tree.query(moved, k=1, distance_upper_bound=config.max_correspondence_m)
+    ok = np.isfinite(dist)
+    src = np.flatnonzero(ok)
+    d = dist[ok]
+    if config.trim_fraction < 1.0 and len(d) > config.min_correspondences:
+        keep = max(config.min_correspondences, int(np.ceil(config.trim_fraction * len(d))))
+        order = np.argpartition(d, keep - 1)[:keep]
+        src, d = src[order], d[order]
+    return src, idx[src]
+
+
+def _point_to_line_jacobian(moved: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    # d e / d(dx, dy, dtheta) of e = n^T (p + (dx, dy) + dtheta (-p_y, p_x) - q)
+    return np.column_stack([normals[:, 0], normals[:, 1],
+                            normals[:, 1] * moved[:, 0] - normals[:, 0] * moved[:, 1]])
+
+
+def _best_rigid(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Least-squares q ~ R p + t (Arun et al. 1987) as (x, y, theta)."""
+    mp, mq = p.mean(axis=0), q.mean(axis=0)
+    H = (p - mp).T @ (q - mq)
+    theta = np.arctan2(H[0, 1] - H[1, 0], H[0, 0] + H[1, 1])
+    c, s = np.cos(theta), np.sin(theta)
+    t = mq - np.array([c * mp[0] - s * mp[1], s * mp[0] + c * mp[1]])
+    return np.array([t[0], t[1], theta])
+
+
+def icp(source_xy: np.ndarray, target: np.ndarray | IcpTarget,
+        initial_target_T_source: np.ndarray | None = None, config: IcpConfig = IcpConfig()
+        ) -> IcpResult:
+    """Align ``source_xy`` (N, 2) to ``target`` ((M, 2) points or a prepared :class:`IcpTarget`),
+    starting from ``initial_target_T_source`` (for example the odometry between the scans)."""
+    src = _check_points(source_xy, "source")
+    tgt = target if isinstance(target, IcpTarget) else IcpTarget(target, config.normal_neighbours)
+    T = np.zeros(3) if initial_target_T_source is None else np.asarray(initial_target_T_source, float).reshape(3)
+    converged = False
+    iterations = 0
+    for iterations in range(1, config.max_iterations + 1):
+        moved = se2.transform_points(T, src)
+        si, ti = _correspondences(tgt, moved, config)
+        if len(si) < config.min_correspondences:
+            break
+        if config.method == "point_to_point":
+            delta = _best_rigid(moved[si], tgt.points[ti])
+        else:
+            n = tgt.normals[ti]
+            e = np.einsum("ni,ni->n", n, moved[si] - tgt.points[ti])
+            J = _point_to_line_jacobian(moved[si], n)
+            A = J.T @ J
+            try:
+                delta = -np.linalg.solve(A, J.T @ e)
+            except np.linalg.LinAlgError:
+                delta = -np.linalg.lstsq(A, J.T @ e, rcond=None)[0]
+        # the increment acts in the target frame (left perturbation)
+        T = se2.compose(delta, T)
+        if (np.hypot(delta[0], delta[1]) < config.translation_tol_m
+                and abs(delta[2]) < config.rotation_tol_rad):
+            converged = True
+            break
+    return _finish(src, tgt, T, iterations, converged, config)
+
+
+def _finish(src: np.ndarray, tgt: IcpTarget, T: np.ndarray, iterations: int, converged: bool,
+            config: IcpConfig) -> IcpResult:
+    moved = se2.transform_points(T, src)
+    dist, _ = tgt.tree.query(moved, k=1)
+    fitness = float(np.mean(dist <= config.fitness_distance_m))
+    si, ti = _correspondences(tgt, moved, config)
+    if len(si) < 3:
+        return IcpResult(T, np.diag([1e6, 1e6, 1e6]), iterations, False, fitness, float("inf"), len(si))
+    n = tgt.normals[ti]
+    e = np.einsum("ni,ni->n", n, moved[si] - tgt.points[ti])
+    J = _point_to_line_jacobian(moved[si], n)
+    dof = max(len(e) - 3, 1)
+    s2 = max(float(e @ e) / dof, config.sigma_floor_m ** 2)
+    cov_left = s2 * np.linalg.pinv(J.T @ J) * config.covariance_scale
+    # left perturbation exp(d) o T = T o exp(Ad(T^-1) d): move the covariance to the right
+    Ad = se2.adjoint(se2.inverse(T))
+    cov = Ad @ cov_left @ Ad.T
+    cov = 0.5 * (cov + cov.T)
+    residual = np.linalg.norm(moved[si] - tgt.points[ti], axis=1)
+    return IcpResult(T, cov, iterations, converged, fitness,
+                     float(np.sqrt(np.mean(residual ** 2))), len(si))

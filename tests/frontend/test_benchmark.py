@@ -1,0 +1,29 @@
+"""The scan-matching bench returns its cases with same-run references and equal results (the
+timings themselves are not asserted)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from slamkit.frontend import benchmark
+from slamkit.frontend.icp import IcpConfig, icp
+
+
+def test_naive_reference_equals_vectorised_icp():
+    rng = np.random.default_rng(0)
+    target = rng.uniform(-5, 5, (60, 2))
+    source = target + np.array([0.05, -0.03])
+    cfg = IcpConfig(method="point_to_point", max_iterations=5, translation_tol_m=0.0,
+                    rotation_tol_rad=0.0, max_correspondence_m=1.0)
+    fast = icp(source, target, np.zeros(3), cfg).target_T_source
+    slow = benchmark.naive_icp(source, target, np.zeros(3), 5, 1.0)
+    np.testing.assert_allclose(fast, slow, atol=1e-12)
+
+
+def test_quick_bench_cases():
+    cases = benchmark.run(quick=True)
+    names = [c.name for c in cases]
+    assert names == ["icp2d_point_to_point_360_beams", "icp2d_point_to_line_360_beams_to_convergence"]
+    c = cases[0]
+    assert c.reference is not None and c.ratio is not None and c.ratio > 0
+    assert c.extra["max_abs_difference"] < 1e-9  # both did the same work
