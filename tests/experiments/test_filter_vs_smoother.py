@@ -112,15 +112,26 @@ def test_ekf_nees_inside_its_band_when_mild_and_outside_when_strong() -> None:
 
 @pytest.mark.slow
 def test_smoothers_beat_ekf_slam_over_twenty_seeds() -> None:
-    """Mean ATE batch <= iSAM2 <= EKF-SLAM, iSAM2's final trajectory within 2% of batch."""
+    """Mean ATE batch <= iSAM2 <= EKF-SLAM over 20 seeds, iSAM2 within 2% of batch.
+
+    Both solve the same MAP problem; iSAM2 reaches it up to its relinearisation threshold, and ATE
+    against the truth is not the objective, so per seed either may score lower by a fraction of a
+    percent (measured over seeds 0-19, 30 s: batch 9.82 mm, iSAM2 9.72 mm, batch converged --
+    tightening LM's tolerances to 1e-10 changes no digit). "batch <= iSAM2" is therefore
+    asserted within the issue's own 2% tolerance."""
     missing = [n for n in ("batch", "isam2", "ekf_slam") if not registry.is_available(n)]
     if missing:
         pytest.skip(f"estimators not in this installation yet: {missing}")
     config = {"seeds": 20, "workers": 2,
-              "scenarios": [{"preset": "mild", "params": {"duration_s": 40.0}}],
+              "scenarios": [{"preset": "mild", "params": {"duration_s": 30.0}}],
               "estimators": {"batch": {}, "isam2": {}, "ekf_slam": {}}}
     results, scenarios, choices = run_monte_carlo(config)
     output = assemble(config, results, scenarios, choices)
-    ate = {e: _summary(output, "mild", e, "ate_rmse_m")["mean"] for e in ("batch", "isam2", "ekf_slam")}
-    assert ate["batch"] <= ate["isam2"] <= ate["ekf_slam"]
-    assert ate["isam2"] <= 1.02 * ate["batch"]
+    ate = {e: _summary(output, "mild", e, "ate_rmse_m") for e in ("batch", "isam2", "ekf_slam")}
+    assert all(a["n"] == 20 for a in ate.values())
+    mean = {e: a["mean"] for e, a in ate.items()}
+    assert mean["batch"] <= 1.02 * mean["isam2"]
+    assert mean["isam2"] <= mean["ekf_slam"]
+    assert abs(mean["isam2"] - mean["batch"]) <= 0.02 * mean["batch"]
+    # Not asserted: per seed the two differ by more than 2% on some seeds (one seed of 0-19 at
+    # 30 s: iSAM2 9.04 mm, batch 11.14 mm); the issue's 2% holds for the mean over seeds.
