@@ -4,12 +4,20 @@ Pose graphs: :func:`build_graph` (graph.py) -> :func:`initial_values` (initialis
 :func:`optimize` with an :class:`OptimizeConfig` (solvers.py; LM, GN, dog-leg, iSAM2 replay,
 QR fallback, marginals) -> :class:`OptimizeResult`; :func:`sesync_objective` (objective.py)
 scores any solution in SE-Sync's objective. ``slamkit bench pose-graph`` lives in benchmark.py.
+
+Landmark SLAM smoothers (landmark_slam.py), Estimator-protocol objects fed a Sequence:
+:class:`BatchLandmarkSLAM` (``batch``, also ``solve(sequence)``), :class:`Isam2LandmarkSLAM`
+(``isam2``) and :class:`FixedLagLandmarkSLAM` (``fixed_lag``), configured by
+:class:`LandmarkSLAMConfig`.
 """
 
 from slamkit.backend.graph import build_graph
 from slamkit.backend.initialisation import InitialEstimate, initial_values
+from slamkit.backend.landmark_slam import (BatchLandmarkSLAM, FixedLagLandmarkSLAM,
+                                           Isam2LandmarkSLAM, LandmarkSLAMConfig, SmootherNoise)
 from slamkit.backend.objective import sesync_objective, sesync_weights
 from slamkit.backend.solvers import OptimizeConfig, OptimizeResult, optimize
 
 __all__ = ["build_graph", "initial_values", "InitialEstimate", "optimize", "OptimizeConfig",
-           "OptimizeResult", "sesync_objective", "sesync_weights"]
+           "OptimizeResult", "sesync_objective", "sesync_weights", "BatchLandmarkSLAM",
+           "Isam2LandmarkSLAM", "FixedLagLandmarkSLAM", "LandmarkSLAMConfig", "SmootherNoise"]

@@ -1,0 +1,515 @@
+"""Planar landmark SLAM as a factor graph: batch Levenberg-Marquardt, iSAM2 and fixed-lag smoothing.
+
+The graph (Dellaert & Kaess, "Factor Graphs for Robot Perception", FnT Robotics 6(1-2) 2017,
+sec. 1.3 and 5): a pose variable X(k) per Odometry event (the first, X(0), carries the prior), a
+``BetweenFactorPose2`` per Odometry event and a ``BearingRangeFactor2D`` per range-bearing
+observation of landmark L(j).
+
+* Odometry -> between factor through the velocity motion model (Thrun, Burgard & Fox,
+  Probabilistic Robotics, sec. 5.3): the measured relative pose is the exact arc
+  ``slamkit.models.diff_drive.motion(0, u, dt)``; its covariance is the control noise pushed
+  through the model, L M L^T (L = df/du at the origin, M = diag(sigma_v^2, sigma_omega^2)),
+  re-expressed in the Pose2 tangent at the measurement (rotate the translation block by R_z^T).
+  L M L^T has rank 2 (two controls drive three pose coordinates), so a small floor
+  ``odometry_floor_sigma`` is added in quadrature to make the factor's information finite.
+* RangeBearing -> ``BearingRangeFactor2D(X(k), L(j), bearing, range)`` with noise
+  (sigma_bearing, sigma_range); a landmark is initialised from its first sighting,
+  m = x + r (cos(theta + b), sin(theta + b)) with the current estimate of the pose. Observations
+  with unknown correspondence (id -1) are skipped and counted: these smoothers need data
+  association done upstream.
+* An observation attaches to the most recent pose (the simulators emit the Odometry that ends at
+  a stamp before the RangeBearing taken there).
+
+Estimators (``slamkit.data.estimate`` protocols, registry names ``batch``, ``isam2``,
+``fixed_lag``):
+
+* :class:`BatchLandmarkSLAM` keeps the whole graph and solves it with LM on ``estimate()`` /
+  ``solve(sequence)``; marginals from ``gtsam.Marginals``.
+* :class:`Isam2LandmarkSLAM` calls ``ISAM2.update`` once per event that adds factors (Kaess et al.,
+  "iSAM2", IJRR 2012); ``estimate()`` returns the smoothed trajectory and
+  ``extras['online_xytheta']`` the estimate each pose had when it was newest.
+* :class:`FixedLagLandmarkSLAM` keeps only the last ``lag_s`` seconds of variables
+  (``gtsam.IncrementalFixedLagSmoother`` or ``BatchFixedLagSmoother``); older variables are
+  marginalised out and their last estimate (and covariance) before leaving is what it reports.
+  A landmark is kept alive while it is being observed; one seen again after it was marginalised
+  is re-initialised as a new variable.
+
+Pose covariances are reported, like the filters', in world-frame (x, y, theta): GTSAM's Pose2
+marginals live in the body-frame tangent and are rotated by the heading (first order).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+import gtsam
+import numpy as np
+from gtsam.symbol_shorthand import L, X
+
+from slamkit.data.estimate import Estimate, Prior
+from slamkit.data.sequence import Event, Odometry, RangeBearing, Sequence
+from slamkit.data.trajectory import Trajectory
+from slamkit.errors import ConfigError, EstimationError
+from slamkit.models import diff_drive
+
+
+# ---- configuration ------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class SmootherNoise:
+    """Noise the smoothers assume (SI). ``from_metadata`` reads a Sequence's
+    ``odometry_sigma`` = (sigma_v_mps, sigma_omega_radps), ``range_bearing_sigma`` =
+    (sigma_range_m, sigma_bearing_rad) and ``initial_pose_sigma`` = (x_m, y_m, theta_rad)."""
+
+    sigma_v_mps: float = 0.1
+    sigma_omega_radps: float = 0.05
+    sigma_range_m: float = 0.1
+    sigma_bearing_rad: float = 0.02
+    initial_pose_sigma: tuple[float, float, float] = (1e-3, 1e-3, 1e-3)
+
+    def __post_init__(self) -> None:
+        values = (self.sigma_v_mps, self.sigma_omega_radps, self.sigma_range_m,
+                  self.sigma_bearing_rad, *self.initial_pose_sigma)
+        if len(self.initial_pose_sigma) != 3 or not all(np.isfinite(v) and v > 0 for v in values):
+            raise ConfigError(f"smoother noise sigmas must be positive and finite, got {self}")
+
+    @classmethod
+    def from_metadata(cls, metadata: Mapping[str, Any]) -> "SmootherNoise":
+        kwargs: dict[str, Any] = {}
+        for key, names in (("odometry_sigma", ("sigma_v_mps", "sigma_omega_radps")),
+                           ("range_bearing_sigma", ("sigma_range_m", "sigma_bearing_rad"))):
+            if key in metadata:
+                values = np.asarray(metadata[key], dtype=float).reshape(-1)
+                if values.size != 2:
+                    raise ConfigError(f"metadata field {key} must have 2 values, got {values.size}")
+                kwargs.update(zip(names, values.tolist()))
+        if "initial_pose_sigma" in metadata:
+            values = np.asarray(metadata["initial_pose_sigma"], dtype=float).reshape(-1)
+            if values.size != 3:
+                raise ConfigError(f"metadata field initial_pose_sigma must have 3 values, "
+                                  f"got {values.size}")
+            kwargs["initial_pose_sigma"] = tuple(values.tolist())
+        return cls(**kwargs)
+
+
+@dataclass(frozen=True)
+class LandmarkSLAMConfig:
+    """``noise`` None means "read it from the sequence metadata" (``solve``) or the defaults
+    (``reset``). ``odometry_floor_sigma`` (m, m, rad) is added in quadrature to every odometry
+    factor (see module docstring). LM tolerances are GTSAM's defaults; the iSAM2 settings apply
+    to ``isam2`` and the incremental fixed-lag smoother."""
+
+    noise: SmootherNoise | None = None
+    odometry_floor_sigma: tuple[float, float, float] = (1e-4, 1e-4, 1e-5)
+    max_iterations: int = 100
+    relative_error_tol: float = 1e-5
+    absolute_error_tol: float = 1e-5
+    relinearize_threshold: float = 0.01
+    relinearize_skip: int = 1
+    lag_s: float = 5.0
+    fixed_lag_kind: str = "incremental"  # 'incremental' | 'batch'
+    compute_covariances: bool = True
+
+    def __post_init__(self) -> None:
+        if len(self.odometry_floor_sigma) != 3 or min(self.odometry_floor_sigma) <= 0:
+            raise ConfigError(f"odometry_floor_sigma must be 3 positive sigmas, got "
+                              f"{self.odometry_floor_sigma}")
+        if not (np.isfinite(self.lag_s) and self.lag_s > 0):
+            raise ConfigError(f"lag_s must be positive, got {self.lag_s}")
+        if self.fixed_lag_kind not in ("incremental", "batch"):
+            raise ConfigError(f"fixed_lag_kind must be 'incremental' or 'batch', got "
+                              f"{self.fixed_lag_kind!r}")
+        if self.max_iterations < 1 or self.relinearize_skip < 1:
+            raise ConfigError("max_iterations and relinearize_skip must be >= 1")
+
+
+def prior_from_sequence(sequence: Sequence, noise: SmootherNoise) -> Prior:
+    """The start pose the sequence declares (origin if none) with ``initial_pose_sigma``."""
+    start = (np.zeros(3) if sequence.initial_pose_xytheta is None
+             else np.asarray(sequence.initial_pose_xytheta, dtype=float).reshape(3))
+    return Prior(start, np.diag(np.square(noise.initial_pose_sigma)))
+
+
+# ---- factor helpers -----------------------------------------------------------------------------
+
+def odometry_factor_terms(odometry: Odometry, noise: SmootherNoise,
+                          floor_sigma: tuple[float, float, float]) -> tuple[gtsam.Pose2, np.ndarray]:
+    """Relative pose and its covariance (Pose2 tangent at the measurement) for one Odometry."""
+    u = np.array([odometry.v_mps, odometry.omega_radps])
+    delta = diff_drive.motion(np.zeros(3), u, odometry.dt_s)
+    _, Lu = diff_drive.motion_jacobians(np.zeros(3), u, odometry.dt_s)
+    cov = Lu @ np.diag([noise.sigma_v_mps**2, noise.sigma_omega_radps**2]) @ Lu.T
+    # Z Exp(xi) ~ (t_z + R_z xi_t, th_z + xi_th): the tangent error is R_z^T times the coordinate
+    # error in the previous pose's frame
+    c, s = np.cos(delta[2]), np.sin(delta[2])
+    A = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+    cov = A @ cov @ A.T + np.diag(np.square(floor_sigma))
+    return gtsam.Pose2(*delta), 0.5 * (cov + cov.T)
+
+
+def _world_cov(pose_xytheta: np.ndarray, cov_body: np.ndarray) -> np.ndarray:
+    c, s = np.cos(pose_xytheta[2]), np.sin(pose_xytheta[2])
+    A = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    return A @ cov_body @ A.T
+
+
+def _xytheta(pose: gtsam.Pose2) -> np.ndarray:
+    return np.array([pose.x(), pose.y(), pose.theta()])
+
+
+# ---- shared bookkeeping -------------------------------------------------------------------------
+
+class _LandmarkSmootherBase:
+    """Turns events into factors and new variables; subclasses decide when to optimise."""
+
+    name = "landmark_smoother"
+
+    def __init__(self, config: LandmarkSLAMConfig = LandmarkSLAMConfig()) -> None:
+        self.config = config
+        self._ready = False
+
+    # -- protocol ------------------------------------------------------------------------------
+    def reset(self, prior: Prior) -> None:
+        mean = np.asarray(prior.pose_xytheta, dtype=float).reshape(3)
+        cov = np.asarray(prior.covariance, dtype=float).reshape(3, 3)
+        if not (np.all(np.isfinite(mean)) and np.all(np.isfinite(cov))):
+            raise EstimationError(f"{self.name}: prior contains NaN or infinite values")
+        if np.any(np.linalg.eigvalsh(0.5 * (cov + cov.T)) <= 0):
+            raise EstimationError(f"{self.name}: prior covariance must be positive definite")
+        self.noise = self.config.noise or getattr(self, "_pending_noise", None) or SmootherNoise()
+        self._bearing_range_model = gtsam.noiseModel.Diagonal.Sigmas(
+            np.array([self.noise.sigma_bearing_rad, self.noise.sigma_range_m]))
+        self._stamps: list[float | None] = [None]      # X(0)'s stamp is set by the first event
+        self._landmark_key: dict[int, int] = {}
+        self._landmark_ids_of_key: dict[int, int] = {}
+        self._next_landmark_index = 0
+        self._latency: list[float] = []
+        self._counts = {"odometry": 0, "observations": 0, "unassociated": 0, "ignored_events": 0,
+                        "zero_dt_odometry": 0}
+        self._latest_pose = gtsam.Pose2(*mean)
+        factors = gtsam.NonlinearFactorGraph()
+        factors.add(gtsam.PriorFactorPose2(X(0), self._latest_pose,
+                                           gtsam.noiseModel.Gaussian.Covariance(cov)))
+        values = gtsam.Values()
+        values.insert(X(0), self._latest_pose)
+        self._reset_solver()
+        self._pending = (factors, values, {X(0): None})
+        self._ready = True
+
+    def step(self, event: Event) -> None:
+        if not self._ready:
+            raise EstimationError(f"{self.name}: step() called before reset(prior)")
+        t0 = time.perf_counter()
+        stamp = float(event.stamp_s)
+        # self._pending stays the object being filled until processed, so _current_pose sees
+        # variables created earlier in this same step
+        factors, values, stamps = self._pending
+        if self._stamps[0] is None:
+            self._stamps[0] = stamp - event.dt_s if isinstance(event, Odometry) else stamp
+            stamps[X(0)] = self._stamps[0]
+        if isinstance(event, Odometry):
+            self._add_odometry(event, factors, values, stamps)
+        elif isinstance(event, RangeBearing):
+            self._add_observations(event, factors, values, stamps)
+        else:
+            self._counts["ignored_events"] += 1
+        if factors.size() or values.size():
+            self._process(factors, values, stamps, stamp)
+            self._pending = (gtsam.NonlinearFactorGraph(), gtsam.Values(), {})
+        self._latency.append(time.perf_counter() - t0)
+
+    def estimate(self) -> Estimate:
+        if not self._ready:
+            raise EstimationError(f"{self.name}: estimate() called before reset(prior)")
+        poses, covs, landmarks, landmark_covs, extras = self._collect()
+        stamps = np.array([s if s is not None else 0.0 for s in self._stamps])
+        return Estimate(
+            trajectory=Trajectory.from_se2(stamps, poses),
+            pose_covariances=covs,
+            world_p_landmarks=landmarks,
+            landmark_covariances=landmark_covs,
+            step_latency_s=np.array(self._latency),
+            extras={**self._counts, "num_poses": len(self._stamps),
+                    "num_landmarks": len(landmarks),
+                    "landmark_variables": self._next_landmark_index, **extras},
+        )
+
+    # -- event -> factors ------------------------------------------------------------------------
+    def _add_odometry(self, event: Odometry, factors, values, stamps) -> None:
+        if not (np.isfinite(event.dt_s) and event.dt_s >= 0):
+            raise EstimationError(f"{self.name}: Odometry at t={event.stamp_s} has dt_s={event.dt_s}")
+        if event.dt_s == 0:
+            self._counts["zero_dt_odometry"] += 1
+            return
+        k = len(self._stamps)
+        z, cov = odometry_factor_terms(event, self.noise, self.config.odometry_floor_sigma)
+        factors.add(gtsam.BetweenFactorPose2(X(k - 1), X(k), z,
+                                             gtsam.noiseModel.Gaussian.Covariance(cov)))
+        self._latest_pose = self._current_pose(k - 1).compose(z)
+        values.insert(X(k), self._latest_pose)
+        self._stamps.append(float(event.stamp_s))
+        stamps[X(k)] = float(event.stamp_s)
+        self._counts["odometry"] += 1
+
+    def _add_observations(self, event: RangeBearing, factors, values, stamps) -> None:
+        ids = np.asarray(event.landmark_ids, dtype=np.int64).reshape(-1)
+        ranges = np.asarray(event.range_m, dtype=float).reshape(-1)
+        bearings = np.asarray(event.bearing_rad, dtype=float).reshape(-1)
+        if not (len(ids) == len(ranges) == len(bearings)):
+            raise EstimationError(f"{self.name}: RangeBearing at t={event.stamp_s} has "
+                                  f"{len(ids)} ids, {len(ranges)} ranges, {len(bearings)} bearings")
+        k = len(self._stamps) - 1
+        pose = self._current_pose(k)
+        for lid, r, b in zip(ids.tolist(), ranges.tolist(), bearings.tolist()):
+            if lid < 0:
+                self._counts["unassociated"] += 1
+                continue
+            key = self._landmark_key.get(lid)
+            if key is None or not self._alive(key):
+                key = L(self._next_landmark_index)
+                self._next_landmark_index += 1
+                self._landmark_key[lid] = key
+                self._landmark_ids_of_key[key] = lid
+                values.insert(key, pose.transformFrom(gtsam.Point2(r * np.cos(b), r * np.sin(b))))
+            stamps[key] = float(event.stamp_s)
+            factors.add(gtsam.BearingRangeFactor2D(X(k), key, gtsam.Rot2.fromAngle(b), r,
+                                                   self._bearing_range_model))
+            self._counts["observations"] += 1
+
+    # -- subclass hooks ----------------------------------------------------------------------------
+    def _reset_solver(self) -> None:
+        raise NotImplementedError
+
+    def _process(self, factors, values, stamps, stamp) -> None:
+        raise NotImplementedError
+
+    def _current_pose(self, k: int) -> gtsam.Pose2:
+        raise NotImplementedError
+
+    def _alive(self, key: int) -> bool:
+        return True
+
+    def _collect(self):
+        raise NotImplementedError
+
+    def _landmark_output(self, estimate: gtsam.Values, cov_of) -> tuple[dict, dict]:
+        landmarks, covs = {}, {}
+        for lid, key in self._landmark_key.items():
+            if estimate.exists(key):
+                landmarks[lid] = np.asarray(estimate.atPoint2(key), dtype=float).reshape(2)
+                if cov_of is not None:
+                    covs[lid] = cov_of(key)
+        return landmarks, covs
+
+
+# ---- batch ----------------------------------------------------------------------------------------
+
+class BatchLandmarkSLAM(_LandmarkSmootherBase):
+    """Full-batch smoother (registry name ``batch``): every factor kept, LM over all of them."""
+
+    name = "batch"
+
+    def solve(self, sequence: Sequence) -> Estimate:
+        """reset from the sequence's start pose and metadata noise, feed every event, solve."""
+        noise = self.config.noise or SmootherNoise.from_metadata(sequence.metadata)
+        self._pending_noise = noise
+        try:
+            self.reset(prior_from_sequence(sequence, noise))
+        finally:
+            self._pending_noise = None
+        for event in sequence:
+            self.step(event)
+        return self.estimate()
+
+    def _reset_solver(self) -> None:
+        self._graph = gtsam.NonlinearFactorGraph()
+        self._initial = gtsam.Values()
+        self._solution: gtsam.Values | None = None
+        self._result_info: dict[str, Any] = {}
+
+    def _process(self, factors, values, stamps, stamp) -> None:
+        self._graph.push_back(factors)
+        self._initial.insert(values)
+        self._solution = None
+
+    def _current_pose(self, k: int) -> gtsam.Pose2:
+        # dead reckoning / first sighting: the batch solve starts from the chained odometry
+        if self._pending[1].exists(X(k)):
+            return self._pending[1].atPose2(X(k))
+        return self._initial.atPose2(X(k))
+
+    def _solve(self) -> gtsam.Values:
+        if self._solution is None:
+            factors, values, _ = self._pending
+            if factors.size():
+                self._process(factors, values, {}, None)
+                self._pending = (gtsam.NonlinearFactorGraph(), gtsam.Values(), {})
+            params = gtsam.LevenbergMarquardtParams()
+            params.setMaxIterations(self.config.max_iterations)
+            params.setRelativeErrorTol(self.config.relative_error_tol)
+            params.setAbsoluteErrorTol(self.config.absolute_error_tol)
+            t0 = time.perf_counter()
+            optimizer = gtsam.LevenbergMarquardtOptimizer(self._graph, self._initial, params)
+            self._solution = gtsam.Values(optimizer.optimize())
+            self._result_info = {"solve_s": time.perf_counter() - t0,
+                                 "iterations": optimizer.iterations(),
+                                 "initial_error": self._graph.error(self._initial),
+                                 "final_error": self._graph.error(self._solution)}
+        return self._solution
+
+    def _collect(self):
+        solution = self._solve()
+        n = len(self._stamps)
+        poses = np.array([_xytheta(solution.atPose2(X(k))) for k in range(n)])
+        covs, cov_of = None, None
+        if self.config.compute_covariances:
+            marginals = gtsam.Marginals(self._graph, solution)
+            covs = np.stack([_world_cov(poses[k], marginals.marginalCovariance(X(k)))
+                             for k in range(n)])
+            cov_of = marginals.marginalCovariance
+        landmarks, landmark_covs = self._landmark_output(solution, cov_of)
+        return poses, covs, landmarks, landmark_covs, dict(self._result_info)
+
+
+# ---- iSAM2 ---------------------------------------------------------------------------------------
+
+class Isam2LandmarkSLAM(_LandmarkSmootherBase):
+    """Incremental smoother (registry name ``isam2``): one ISAM2.update per event."""
+
+    name = "isam2"
+
+    def _reset_solver(self) -> None:
+        params = gtsam.ISAM2Params()
+        params.setRelinearizeThreshold(self.config.relinearize_threshold)
+        params.relinearizeSkip = self.config.relinearize_skip
+        self._isam = gtsam.ISAM2(params)
+        self._online: list[np.ndarray] = []
+
+    def _process(self, factors, values, stamps, stamp) -> None:
+        self._isam.update(factors, values)
+        k = len(self._stamps) - 1
+        self._latest_pose = self._isam.calculateEstimatePose2(X(k))
+        online = _xytheta(self._latest_pose)
+        if len(self._online) == k + 1:
+            self._online[k] = online
+        else:
+            self._online.append(online)
+
+    def _current_pose(self, k: int) -> gtsam.Pose2:
+        if self._pending[1].exists(X(k)):
+            return self._pending[1].atPose2(X(k))
+        if k == len(self._stamps) - 1:
+            return self._latest_pose
+        return self._isam.calculateEstimatePose2(X(k))
+
+    def _collect(self):
+        factors, values, stamps = self._pending
+        if factors.size():
+            self._process(factors, values, stamps, None)
+            self._pending = (gtsam.NonlinearFactorGraph(), gtsam.Values(), {})
+        estimate = self._isam.calculateEstimate()
+        n = len(self._stamps)
+        poses = np.array([_xytheta(estimate.atPose2(X(k))) for k in range(n)])
+        covs, cov_of = None, None
+        if self.config.compute_covariances:
+            covs = np.stack([_world_cov(poses[k], self._isam.marginalCovariance(X(k)))
+                             for k in range(n)])
+            cov_of = self._isam.marginalCovariance
+        landmarks, landmark_covs = self._landmark_output(estimate, cov_of)
+        return poses, covs, landmarks, landmark_covs, {"online_xytheta": np.array(self._online)}
+
+
+# ---- fixed lag -----------------------------------------------------------------------------------
+
+class FixedLagLandmarkSLAM(_LandmarkSmootherBase):
+    """Fixed-lag smoother (registry name ``fixed_lag``) over the last ``config.lag_s`` seconds."""
+
+    name = "fixed_lag"
+
+    def _reset_solver(self) -> None:
+        lag = float(self.config.lag_s)
+        if self.config.fixed_lag_kind == "incremental":
+            params = gtsam.ISAM2Params()
+            params.setRelinearizeThreshold(self.config.relinearize_threshold)
+            params.relinearizeSkip = self.config.relinearize_skip
+            self._smoother = gtsam.IncrementalFixedLagSmoother(lag, params)
+        else:
+            self._smoother = gtsam.BatchFixedLagSmoother(lag)
+        self._key_stamp: dict[int, float] = {}
+        self._frozen: dict[int, tuple[np.ndarray, np.ndarray | None]] = {}
+
+    def _alive(self, key: int) -> bool:
+        return key in self._key_stamp
+
+    def _snapshot(self, key: int, estimate: gtsam.Values) -> tuple[np.ndarray, np.ndarray | None]:
+        if key in self._landmark_ids_of_key:
+            value = np.asarray(estimate.atPoint2(key), dtype=float).reshape(2)
+        else:
+            value = _xytheta(estimate.atPose2(key))
+        cov = None
+        if self.config.compute_covariances and self.config.fixed_lag_kind == "incremental":
+            cov = self._smoother.marginalCovariance(key)
+        return value, cov
+
+    def _process(self, factors, values, stamps, stamp) -> None:
+        stamps = {k: (self._stamps[0] if t is None else t) for k, t in stamps.items()}
+        self._key_stamp.update(stamps)
+        newest = max(self._key_stamp.values())
+        leaving = [k for k, t in self._key_stamp.items() if t < newest - self.config.lag_s]
+        if leaving and self._has_run:
+            # remember what the smoother believes about them just before they are marginalised
+            estimate = self._smoother.calculateEstimate()
+            for key in leaving:
+                if estimate.exists(key):
+                    self._frozen[key] = self._snapshot(key, estimate)
+        self._smoother.update(factors, values, stamps)
+        self._has_run = True
+        for key in leaving:
+            del self._key_stamp[key]
+        k = len(self._stamps) - 1
+        if X(k) in self._key_stamp:
+            self._latest_pose = self._smoother.calculateEstimatePose2(X(k))
+
+    _has_run = False
+
+    def _current_pose(self, k: int) -> gtsam.Pose2:
+        if self._pending[1].exists(X(k)):
+            return self._pending[1].atPose2(X(k))
+        if k == len(self._stamps) - 1:
+            return self._latest_pose
+        return self._smoother.calculateEstimatePose2(X(k))
+
+    def _collect(self):
+        factors, values, stamps = self._pending
+        if factors.size():
+            self._process(factors, values, stamps, None)
+            self._pending = (gtsam.NonlinearFactorGraph(), gtsam.Values(), {})
+        estimate = self._smoother.calculateEstimate()
+        n = len(self._stamps)
+        poses = np.empty((n, 3))
+        covs = np.full((n, 3, 3), np.nan) if self.config.compute_covariances else None
+        for k in range(n):
+            key = X(k)
+            value, cov = (self._snapshot(key, estimate) if estimate.exists(key)
+                          else self._frozen[key])
+            poses[k] = value
+            if covs is not None and cov is not None:
+                covs[k] = _world_cov(value, cov)
+        if covs is not None and np.isnan(covs).any():
+            covs = None  # the batch fixed-lag smoother exposes no marginals
+        landmarks, landmark_covs = {}, {}
+        for key, lid in self._landmark_ids_of_key.items():
+            if estimate.exists(key):
+                value, cov = self._snapshot(key, estimate)
+            elif key in self._frozen:
+                value, cov = self._frozen[key]
+            else:
+                continue
+            # a landmark re-initialised after marginalisation: report its newest variable
+            if self._landmark_key.get(lid) == key or lid not in landmarks:
+                landmarks[lid] = value
+                if cov is not None:
+                    landmark_covs[lid] = cov
+        return poses, covs, landmarks, landmark_covs, {"lag_s": self.config.lag_s}
