@@ -147,10 +147,12 @@ def test_soft_constraints_give_the_least_violating_plan(controller):
     assert out.info["max_slack_m"] > 0.5
 
 
-def test_bicycle_tracks_a_turn_within_steering_limits():
+@pytest.mark.parametrize("solver", SOLVERS)
+def test_bicycle_tracks_a_turn_within_steering_limits(solver):
     """Kinematic bicycle (L = 0.5 m, |steer| <= 0.5 rad, steer rate <= 1 rad/s) follows an L-shaped
     path: ends within 0.3 m of the corner's far end with steering within limits to 1e-6."""
-    cfg = MPCConfig(model="bicycle", u_min=(0.0, -0.5), u_max=(0.8, 0.5), du_max_per_s=(1.0, 1.0))
+    cfg = MPCConfig(model="bicycle", solver=solver, u_min=(0.0, -0.5), u_max=(0.8, 0.5),
+                    du_max_per_s=(1.0, 1.0))
     ctl = MPCController(cfg)
     f = discrete_dynamics(cfg)
     plant = lambda x, u: np.asarray(f(x, u)).ravel()  # noqa: E731

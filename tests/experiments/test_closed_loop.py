@@ -139,3 +139,21 @@ def test_pipeline_recording(tmp_path, verify_rrd):
     entities = verify_rrd(tmp_path / "rec" / "recording.rrd")
     assert "/dwa/open_1/world/candidates" in entities
     assert "/mpc_osqp/open_1/world/mpc_horizon" in entities
+
+
+def test_control_benchmark_cases_have_same_run_ratios():
+    """The bench's case structure on a tiny run (no timing assertions: speed belongs to the bench)."""
+    from slamkit.experiments.control_benchmark import _record_cycles, closed_loop_cases, timing_cases
+
+    cases, episodes = closed_loop_cases(1, controllers=("dwa",), kinds=("open",))
+    assert [c.name for c in cases] == ["success_rate_dwa", "time_to_goal_mean_s_dwa", "path_length_mean_m_dwa",
+                                       "min_clearance_mean_m_dwa", "collision_rate_dwa", "jerk_rms_mean_mps3_dwa"]
+    assert cases[0].value == episodes[0].metrics["success"]
+    cycles = _record_cycles(1, 4)
+    assert len(cycles) == 4 and cycles[0][0].t_s == 0.0
+    timing = timing_cases(cycles)
+    assert [c.name for c in timing] == ["mpc_ipopt_n20_median", "mpc_ipopt_n20_p99", "mpc_osqp_n20_median",
+                                        "dwa_cycle_median"]
+    for c in timing:
+        assert c.unit == "ms" and c.ratio == pytest.approx(c.reference_value / c.value)
+        assert c.extra["cycles"] == 4 and c.extra["reference_failures"] == 0
