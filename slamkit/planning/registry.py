@@ -1,0 +1,65 @@
+"""Planners by registry name: what configs, the CLI and the benchmark type.
+
+``make_planner("rrt-star", rng=np.random.default_rng(3), max_iterations=2000)`` builds the
+planner with its config's defaults overridden by the keyword arguments. Underscores and hyphens
+are interchangeable (``rrt_star`` == ``rrt-star``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, Callable
+
+import numpy as np
+
+from slamkit.errors import ConfigError
+from slamkit.planning.astar import AStarConfig, AStarPlanner
+from slamkit.planning.dijkstra import DijkstraConfig, DijkstraPlanner
+from slamkit.planning.dstar_lite import DStarLiteConfig, DStarLitePlanner
+from slamkit.planning.informed_rrt_star import InformedRRTStarPlanner
+from slamkit.planning.prm import PRMConfig, PRMPlanner
+from slamkit.planning.protocols import Hook, Planner
+from slamkit.planning.rrt import RRTConfig, RRTPlanner
+from slamkit.planning.rrt_connect import RRTConnectConfig, RRTConnectPlanner
+from slamkit.planning.rrt_star import RRTStarConfig, RRTStarPlanner
+
+#: name -> (planner class, config class, needs an rng)
+PLANNERS: dict[str, tuple[type, type, bool]] = {
+    "astar": (AStarPlanner, AStarConfig, False),
+    "dijkstra": (DijkstraPlanner, DijkstraConfig, False),
+    "dstar-lite": (DStarLitePlanner, DStarLiteConfig, False),
+    "prm": (PRMPlanner, PRMConfig, True),
+    "rrt": (RRTPlanner, RRTConfig, True),
+    "rrt-connect": (RRTConnectPlanner, RRTConnectConfig, True),
+    "rrt-star": (RRTStarPlanner, RRTStarConfig, True),
+    "informed-rrt-star": (InformedRRTStarPlanner, RRTStarConfig, True),
+}
+GRID_PLANNERS = ("astar", "dijkstra", "dstar-lite")
+
+
+def canonical(name: str) -> str:
+    key = name.strip().lower().replace("_", "-")
+    if key not in PLANNERS:
+        raise ConfigError(f"unknown planner {name!r}; choose from {', '.join(PLANNERS)}")
+    return key
+
+
+def make_planner(name: str, rng: np.random.Generator | None = None, hook: Hook | None = None,
+                 **config: Any) -> Planner:
+    key = canonical(name)
+    cls, cfg_cls, needs_rng = PLANNERS[key]
+    fields = {f.name for f in dataclasses.fields(cfg_cls)}
+    unknown = set(config) - fields
+    if unknown:
+        raise ConfigError(f"{key}: unknown config keys {sorted(unknown)}; known: {sorted(fields)}")
+    cfg = cfg_cls(**config)
+    if needs_rng:
+        return cls(cfg, rng=np.random.default_rng(0) if rng is None else rng, hook=hook)
+    return cls(cfg, hook=hook)
+
+
+def planner_names() -> list[str]:
+    return list(PLANNERS)
+
+
+Factory = Callable[..., Planner]
