@@ -1,0 +1,179 @@
+"""Monte Carlo localization on an occupancy grid with the lidar likelihood-field model and
+KLD-sampling: global localization on a map SLAM built.
+
+* MCL: Dellaert, Fox, Burgard & Thrun, ICRA 1999; *Probabilistic Robotics* Table 8.2 --
+  sample motion (Table 5.3, exact-arc model with the odometry's velocity noise), weight by the
+  measurement likelihood, resample.
+* Measurement model: the likelihood field (*Probabilistic Robotics* sec. 6.4, Table 6.3,
+  :class:`slamkit.models.lidar.LikelihoodFieldModel`) on the map's Euclidean distance field
+  (:func:`slamkit.maps.distance_field.distance_field_m`), evaluated for every particle and beam
+  at once. As in AMCL, only ``max_beams`` evenly spaced beams are used, and the per-scan
+  log-likelihood is multiplied by ``likelihood_exponent`` (< 1) -- beams are not independent
+  (Thrun et al. sec. 6.3.4 and 8.3.5), and without tempering a uniform prior collapses on the
+  first scan onto whatever particle happens to fit best.
+* KLD-sampling: Fox, IJRR 22(12), 2003 -- the sample size adapts to the spread of the belief
+  (:func:`slamkit.estimation.mcl.kld_sample_count`, drawing one i.i.d. batch of ``n_max`` and
+  keeping the prefix the sequential algorithm would keep), between ``n_min`` and ``n_max``.
+* Resampling: multinomial i.i.d. draws (needed for the KLD prefix) from
+  :mod:`slamkit.estimation.particle_filter`, then roughening (Gordon et al. 1993) of the
+  resampled set so that identical copies spread again.
+
+Uniform prior: particles drawn uniformly over the *known free* cells of the map (cells whose
+thresholded log-odds is free, i.e. not occupied and observed); headings uniform.
+
+Estimator protocol: ``reset(prior)`` (the prior's mean is ignored when ``global_init``),
+``step(event)`` for ``Odometry`` (predict) and ``Scan`` (update), ``estimate()``.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.special import logsumexp
+
+from slamkit.data.estimate import Prior
+from slamkit.data.sequence import Event, Odometry, Scan
+from slamkit.errors import ConfigError, EstimationError
+from slamkit.estimation._common import FilterBase, NoiseParams, weighted_pose_mean_cov
+from slamkit.estimation.mcl import kld_sample_count
+from slamkit.estimation.particle_filter import (
+    multinomial_resample,
+    normalize_log_weights,
+    roughen,
+    sample_gaussian_poses,
+    sample_motion,
+)
+from slamkit.maps.distance_field import distance_field_m
+from slamkit.maps.occupancy_grid import OccupancyGrid
+from slamkit.models.lidar import LikelihoodFieldModel
+
+
+@dataclass(frozen=True)
+class LidarMCLConfig:
+    n_min: int = 500
+    n_max: int = 2000
+    global_init: bool = True
+    kld_epsilon: float = 0.05
+    kld_delta: float = 0.01
+    kld_bin_xy_m: float = 0.5
+    kld_bin_theta_rad: float = float(np.deg2rad(10.0))
+    max_beams: int = 60
+    likelihood: LikelihoodFieldModel = field(default_factory=lambda: LikelihoodFieldModel(
+        z_hit=0.9, z_rand=0.1, sigma_hit_m=0.3))
+    #: measured on a 20 m office from a uniform prior (3 seeds): exponent 0.05 with sigma_hit
+    #: 0.3 m converged in 5-8 updates every time; 0.1 with 0.5 m failed one seed in three
+    likelihood_exponent: float = 0.05
+    roughening_k: float = 0.1
+    #: odometry noise multiplier in the motion model (particles must cover the true motion)
+    motion_noise_scale: float = 2.0
+
+    def __post_init__(self) -> None:
+        if not (1 <= self.n_min <= self.n_max):
+            raise ConfigError(f"LidarMCLConfig needs 1 <= n_min <= n_max, got {self.n_min}, {self.n_max}")
+        if not (0 < self.likelihood_exponent <= 1):
+            raise ConfigError("LidarMCLConfig.likelihood_exponent must lie in (0, 1]")
+        if self.max_beams < 1:
+            raise ConfigError("LidarMCLConfig.max_beams must be >= 1")
+
+
+class LidarMCL(FilterBase):
+    """MCL with the likelihood field on ``grid`` (registry name ``lidar_mcl``).
+
+    ``free_mask`` (H, W) marks where a uniform prior may put particles (default: the grid's free
+    cells). ``extras`` of the estimate: ``particle_counts`` per update, ``n_updates``."""
+
+    name = "lidar_mcl"
+
+    def __init__(self, grid: OccupancyGrid, noise: NoiseParams = NoiseParams(),
+                 config: LidarMCLConfig = LidarMCLConfig(), rng: np.random.Generator | None = None,
+                 free_mask: np.ndarray | None = None) -> None:
+        super().__init__()
+        self.grid = grid
+        self.noise = noise
+        self.config = config
+        self.rng = rng if rng is not None else np.random.default_rng(0)
+        self.field_m = distance_field_m(grid)
+        free = ~grid.occupied if free_mask is None else np.asarray(free_mask, bool) & ~grid.occupied
+        iy, ix = np.nonzero(free)
+        if len(iy) == 0:
+            raise ConfigError("LidarMCL: the map has no free cell to place particles in")
+        self._free_cells = np.column_stack([ix, iy])
+        self._bin = np.array([config.kld_bin_xy_m, config.kld_bin_xy_m, config.kld_bin_theta_rad])
+        self._control_cov = noise.control_cov * config.motion_noise_scale ** 2
+
+    # -- sampling ---------------------------------------------------------------------------
+    def uniform_poses(self, n: int) -> np.ndarray:
+        """n poses uniform over the free cells (uniform within each cell) and headings."""
+        c = self._free_cells[self.rng.integers(0, len(self._free_cells), n)]
+        xy = self.grid.origin_xy_m + (c + self.rng.random((n, 2))) * self.grid.resolution_m
+        return np.column_stack([xy, self.rng.uniform(-np.pi, np.pi, n)])
+
+    def _reset(self, prior: Prior) -> None:
+        c = self.config
+        if c.global_init:
+            self.particles = self.uniform_poses(c.n_max)
+        else:
+            self.particles = sample_gaussian_poses(prior.pose_xytheta, prior.covariance, c.n_max, self.rng)
+        self.log_w = np.full(len(self.particles), -np.log(len(self.particles)))
+        self.particle_counts: list[int] = []
+        self._posterior = None
+
+    def _predict(self, odometry: Odometry) -> None:
+        u = np.array([odometry.v_mps, odometry.omega_radps])
+        self.particles = sample_motion(self.particles, u, odometry.dt_s, self._control_cov, self.rng)
+        self._posterior = None
+
+    def scan_log_likelihood(self, particles: np.ndarray, scan: Scan) -> np.ndarray:
+        """Tempered likelihood-field log-likelihood (P,) of ``scan`` for every particle."""
+        a = np.asarray(scan.angles_rad, float)
+        r = np.asarray(scan.ranges_m, float)
+        valid = np.flatnonzero(np.isfinite(r) & (r < scan.max_range_m))
+        if len(valid) == 0:
+            return np.zeros(len(particles))
+        pick = valid[np.linspace(0, len(valid) - 1, min(self.config.max_beams, len(valid))).astype(int)]
+        ll = self.config.likelihood.log_likelihood(particles, r[pick], a[pick], scan.max_range_m,
+                                                   self.field_m, self.grid.world_to_cell)
+        return self.config.likelihood_exponent * ll
+
+    def _update_scan(self, scan: Scan) -> None:
+        c = self.config
+        loglik = self.scan_log_likelihood(self.particles, scan)
+        self.log_w = normalize_log_weights(self.log_w + loglik)
+        w = np.exp(self.log_w)
+        self._posterior = weighted_pose_mean_cov(self.particles, w)
+        new = self.particles[multinomial_resample(w, self.rng, c.n_max)]
+        new = roughen(new, c.roughening_k, self.rng, np.array([False, False, True]))
+        n = kld_sample_count(new, self._bin, c.kld_epsilon, c.kld_delta, c.n_min)
+        self.particles = new[:n]
+        self.log_w = np.full(n, -np.log(n))
+        self.particle_counts.append(n)
+
+    # -- protocol ---------------------------------------------------------------------------
+    def step(self, event: Event) -> None:
+        if not isinstance(event, Scan):
+            super().step(event)
+            return
+        if not self._ready:
+            raise EstimationError(f"{self.name}: step() called before reset(prior)")
+        t0 = time.perf_counter()
+        self._update_scan(event)
+        mean, cov = self._pose_and_covariance()
+        stamp = float(event.stamp_s)
+        if self._stamps and self._stamps[-1] == stamp:
+            self._poses[-1], self._covs[-1] = mean, cov
+        else:
+            self._stamps.append(stamp)
+            self._poses.append(mean)
+            self._covs.append(cov)
+        self._latency.append(time.perf_counter() - t0)
+
+    def _pose_and_covariance(self) -> tuple[np.ndarray, np.ndarray]:
+        if self._posterior is not None:
+            return self._posterior[0].copy(), self._posterior[1].copy()
+        w = np.exp(self.log_w - logsumexp(self.log_w))
+        return weighted_pose_mean_cov(self.particles, w)
+
+    def _extras(self) -> dict:
+        return {"particle_counts": np.array(self.particle_counts), "n_updates": len(self.particle_counts)}
