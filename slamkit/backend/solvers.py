@@ -209,7 +209,7 @@ def optimize(graph: PoseGraph, config: OptimizeConfig = OptimizeConfig(),
         init = initial_values(graph, config.init, config.prior_sigma,
                               factor_graph=fg if config.robust == "none" else None)
     warnings += init.warnings
-    initial_error = fg.error(init.values)
+    initial_error = None
     keys = [key_of[int(v)] for v in graph.vertex_ids.tolist()]
 
     def to_numpy(values: gtsam.Values) -> np.ndarray:
@@ -218,6 +218,7 @@ def optimize(graph: PoseGraph, config: OptimizeConfig = OptimizeConfig(),
     solver, linear = config.solver, config.linear_solver
     with Stopwatch() as sw_solve:
         if solver == "isam2":
+            initial_error = fg.error(init.values)
             hook = on_iteration
             if hook is not None:
                 hook(0, initial_error, init.poses)
@@ -250,7 +251,9 @@ def optimize(graph: PoseGraph, config: OptimizeConfig = OptimizeConfig(),
                         fg, init.values, solver, linear, config, on_iteration, to_numpy)
                 except _SolveFailed as again:
                     raise BackendError(f"{graph.name}: QR fallback failed too: {again}") from None
-    final_error = fg.error(values)
+            # the optimizer already evaluated both: no need to sweep the graph again
+            initial_error = errors[0]
+    final_error = errors[-1]
     if not converged:
         warnings.append(f"stopped at the iteration cap ({config.max_iterations}) before the "
                         f"convergence test passed")

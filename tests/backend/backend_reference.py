@@ -117,10 +117,14 @@ def load(file: str) -> PoseGraph:
     return read_isam(path)
 
 
-@functools.lru_cache(maxsize=None)
 def slamkit_solve(file: str, init: str = "file", solver: str = "lm",
                   linear_solver: str = "cholesky", manifest: bool = False) -> OptimizeResult:
     """slamkit's solve (GTSAM default or MANIFEST tolerances), cached for the session."""
+    return _slamkit_solve(file, init, solver, linear_solver, manifest)
+
+
+@functools.lru_cache(maxsize=None)
+def _slamkit_solve(file, init, solver, linear_solver, manifest) -> OptimizeResult:
     config = OptimizeConfig(solver=solver, init=init, linear_solver=linear_solver,
                             **settings(manifest))
     return optimize(load(file), config)
@@ -159,11 +163,15 @@ def raw_problem(file: str, first_vertex: int) -> tuple[gtsam.NonlinearFactorGrap
     return graph, initial
 
 
-@functools.lru_cache(maxsize=None)
 def raw_solve(file: str, init: str = "file", solver: str = "lm",
               linear_solver: str = "MULTIFRONTAL_CHOLESKY", manifest: bool = False,
               ) -> tuple[float, float, int, float]:
-    """Plain GTSAM: ``(initial error, final error, iterations, seconds)``."""
+    """Plain GTSAM: ``(initial error, final error, iterations, seconds)``, cached."""
+    return _raw_solve(file, init, solver, linear_solver, manifest)
+
+
+@functools.lru_cache(maxsize=None)
+def _raw_solve(file, init, solver, linear_solver, manifest) -> tuple[float, float, int, float]:
     s = settings(manifest)
     graph, initial = raw_problem(file, int(load(file).vertex_ids[0]))
     if init == "chordal":
