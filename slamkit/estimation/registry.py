@@ -1,0 +1,87 @@
+"""The filters of ``slamkit.estimation`` by the names users type in configs.
+
+``make_estimator(name, sequence, params, rng)`` builds a ready-to-``reset`` Estimator for one
+Sequence: the noise it assumes comes from ``sequence.metadata`` (``odometry_sigma``,
+``range_bearing_sigma``; override with the ``NoiseParams`` field names in ``params``), the
+localization filters get the sequence's landmark map, and the remaining ``params`` fill the
+filter's config dataclass by field name. The cross-package table that also lists the GTSAM
+smoothers is ``slamkit.experiments.estimators``; this one stays inside the estimation layer so
+the filters' own tests and benchmark can iterate over every filter.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+import numpy as np
+
+from slamkit.data.estimate import Estimator
+from slamkit.data.sequence import Sequence
+from slamkit.errors import ConfigError
+from slamkit.estimation._common import NoiseParams
+from slamkit.estimation.ekf import EKFLocalization, EKFLocalizationConfig
+from slamkit.estimation.ekf_slam import EKFSLAM, EKFSLAMConfig
+from slamkit.estimation.fastslam import FastSLAM, FastSLAMConfig
+from slamkit.estimation.histogram_filter import HistogramFilter, HistogramFilterConfig
+from slamkit.estimation.mcl import MCLConfig, MonteCarloLocalization
+from slamkit.estimation.particle_filter import ParticleFilterConfig, ParticleFilterLocalization
+from slamkit.estimation.ukf import UKFLocalization, UKFLocalizationConfig
+
+
+@dataclass(frozen=True)
+class FilterSpec:
+    name: str
+    cls: type
+    config_cls: type
+    #: localization against the sequence's known landmark map (False: SLAM)
+    needs_landmark_map: bool
+    #: takes an ``rng`` (particle methods)
+    random: bool
+    description: str
+
+
+REGISTRY: dict[str, FilterSpec] = {s.name: s for s in [
+    FilterSpec("ekf", EKFLocalization, EKFLocalizationConfig, True, False,
+               "EKF localization on a known landmark map"),
+    FilterSpec("ukf", UKFLocalization, UKFLocalizationConfig, True, False,
+               "UKF localization (angle-aware sigma points)"),
+    FilterSpec("pf", ParticleFilterLocalization, ParticleFilterConfig, True, True,
+               "bootstrap particle filter localization"),
+    FilterSpec("mcl", MonteCarloLocalization, MCLConfig, True, True,
+               "Monte Carlo localization: global init, KLD-sampling, augmented MCL"),
+    FilterSpec("histogram", HistogramFilter, HistogramFilterConfig, True, False,
+               "grid (histogram) Bayes filter localization"),
+    FilterSpec("ekf_slam", EKFSLAM, EKFSLAMConfig, False, False, "EKF-SLAM, O(n^2) updates"),
+    FilterSpec("fastslam", FastSLAM, FastSLAMConfig, False, True, "FastSLAM 1.0"),
+]}
+
+NAMES: tuple[str, ...] = tuple(REGISTRY)
+_NOISE_FIELDS = tuple(f.name for f in dataclasses.fields(NoiseParams))
+
+
+def make_estimator(name: str, sequence: Sequence, params: Mapping[str, Any] | None = None,
+                   rng: np.random.Generator | None = None) -> Estimator:
+    """Build filter ``name`` for ``sequence`` (see module doc)."""
+    try:
+        spec = REGISTRY[name]
+    except KeyError:
+        raise ConfigError(f"unknown filter {name!r}; known: {', '.join(REGISTRY)}") from None
+    params = dict(params or {})
+    noise = NoiseParams.from_metadata(sequence.metadata,
+                                      **{k: float(params.pop(k)) for k in _NOISE_FIELDS if k in params})
+    fields = {f.name for f in dataclasses.fields(spec.config_cls)}
+    unknown = sorted(set(params) - fields)
+    if unknown:
+        raise ConfigError(f"filter {name!r}: unknown parameter(s) {unknown}; "
+                          f"{spec.config_cls.__name__} has {sorted(fields)}")
+    kwargs: dict[str, Any] = {"noise": noise, "config": spec.config_cls(**params)}
+    if spec.random:
+        kwargs["rng"] = rng if rng is not None else np.random.default_rng(0)
+    if spec.needs_landmark_map:
+        if not sequence.world_p_landmarks:
+            raise ConfigError(f"filter {name!r} localizes against a known landmark map, but "
+                              f"sequence {sequence.name!r} has none")
+        return spec.cls(sequence.world_p_landmarks, **kwargs)
+    return spec.cls(**kwargs)
