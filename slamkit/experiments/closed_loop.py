@@ -69,6 +69,27 @@ class Scenario:
     path_xy_m: np.ndarray
     obstacles: MovingObstacles
     distance: DistanceGrid
+    #: A* traversal multipliers of the static map (inf = blocked), reused when a controller
+    #: hands over to the global planner
+    cell_cost: np.ndarray | None = None
+
+
+def replan(scenario: Scenario, xy_m: np.ndarray, t_s: float, robot_radius_m: float) -> np.ndarray | None:
+    """Hand-over to the global planner: A* from ``xy_m`` to the goal on the static costmap with
+    the moving obstacles' current discs (inflated by the robot radius) blocked. None if no path."""
+    if scenario.cell_cost is None:
+        return None
+    cost = scenario.cell_cost.copy()
+    g = scenario.grid
+    if len(scenario.obstacles):
+        iy, ix = np.mgrid[0:g.height, 0:g.width]
+        centres = g.cell_to_world(np.column_stack([ix.ravel(), iy.ravel()]))
+        pos = scenario.obstacles.position_at(t_s)
+        d = np.linalg.norm(centres[:, None, :] - pos[None, :, :], axis=2)
+        blocked = (d <= scenario.obstacles.radius_m + robot_radius_m).any(axis=1).reshape(g.height, g.width)
+        cost[blocked] = np.inf
+    res = AStarPlanner().plan(PlanningProblem(g, np.asarray(xy_m, float), scenario.goal_xy_m, cell_cost=cost))
+    return _simplify(res.path) if res.solved else None
 
 
 def _open_room(rng: np.random.Generator, width_m: float = 16.0, height_m: float = 12.0,
@@ -133,7 +154,7 @@ def make_scenario(seed: int, kind: str = "office", n_obstacles: int = 3,
                                        nominal_speed_mps=nominal_speed_mps)
         distance = DistanceGrid(distance_field_m(grid), grid.resolution_m, grid.origin_xy_m)
         return Scenario(f"{kind}_{seed}", seed, grid, start, poses[1, :2].copy(), path, obstacles,
-                        distance)
+                        distance, cell_cost)
     raise ConfigError(f"could not draw a start/goal pair with a path in {kind} map (seed {seed})")
 
 
@@ -240,6 +261,7 @@ def run_episode(scenario: Scenario, controller: Controller, config: ClosedLoopCo
     ts, xs, us, st, lat = [0.0], [x], [], [], []
     clear = [clearance_m(scenario, x[:2], 0.0, config.robot_radius_m)]
     reached = collided = False
+    replans = 0
     steps = int(round(config.max_time_s / config.dt_s))
     for k in range(steps):
         t = k * config.dt_s
@@ -248,6 +270,12 @@ def run_episode(scenario: Scenario, controller: Controller, config: ClosedLoopCo
             break
         world = perceive(scenario, x, t, config)
         out = controller.compute(RobotState(x, u, t), reference, world)
+        if out.status is ControlStatus.LOCAL_MINIMUM:
+            # the controller asks the global planner for help: replan from here around what it sees
+            path = replan(scenario, x[:2], t, config.robot_radius_m)
+            if path is not None and len(path) >= 2:
+                reference = Reference(path, speed_mps=config.reference_speed_mps)
+                replans += 1
         u = out.command
         x = motion(x, u, config.dt_s)
         t_next = t + config.dt_s
@@ -269,7 +297,8 @@ def run_episode(scenario: Scenario, controller: Controller, config: ClosedLoopCo
     ep = Episode(scenario.name, controller.name, scenario.seed, np.asarray(ts), np.asarray(xs),
                  np.asarray(us).reshape(-1, 2), tuple(st), np.asarray(lat), np.asarray(clear),
                  reached and not collided, collided)
-    return Episode(**{**ep.__dict__, "metrics": episode_metrics(ep, config.dt_s)})
+    metrics = {**episode_metrics(ep, config.dt_s), "replans": float(replans)}
+    return Episode(**{**ep.__dict__, "metrics": metrics})
 
 
 def episode_metrics(ep: Episode, dt_s: float) -> dict[str, float]:

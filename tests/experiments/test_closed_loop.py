@@ -157,3 +157,36 @@ def test_control_benchmark_cases_have_same_run_ratios():
     for c in timing:
         assert c.unit == "ms" and c.ratio == pytest.approx(c.reference_value / c.value)
         assert c.extra["cycles"] == 4 and c.extra["reference_failures"] == 0
+
+
+def _u_trap():
+    """A U open towards the start (back wall at x = 8 m, arms at y = 3 and 7 m) with the tracked
+    path a straight line through it: a local minimum for gradient descent."""
+    from slamkit.control.protocols import DistanceGrid
+    from slamkit.maps.distance_field import distance_field_m
+    from slamkit.maps.inflation import costmap
+    from slamkit.maps.occupancy_grid import OccupancyGrid
+    from slamkit.planning.grid_search import costmap_to_cell_cost
+
+    occ = np.zeros((100, 140), bool)
+    occ[:2, :] = occ[-2:, :] = occ[:, :2] = occ[:, -2:] = True
+    occ[30:70, 80:83] = True
+    occ[30:33, 55:83] = True
+    occ[67:70, 55:83] = True
+    g = OccupancyGrid(occ, 0.1)
+    return Scenario("trap", 0, g, np.array([2.0, 5.0, 0.0]), np.array([12.0, 5.0]),
+                    np.array([[2.0, 5.0], [12.0, 5.0]]), MovingObstacles.empty(),
+                    DistanceGrid(distance_field_m(g), 0.1), costmap_to_cell_cost(costmap(g, 0.35, 1.0)))
+
+
+def test_potential_field_hands_over_to_the_global_planner():
+    """In the U trap, potential fields with escape="handover" stall, report LOCAL_MINIMUM, the loop
+    replans with A* (once) and the robot reaches the goal around the U (measured 29.5 s, 19.4 m);
+    the seeded random walk does not get out of a U this deep within 60 s."""
+    sc = _u_trap()
+    ep = run_episode(sc, make_controller("potential_fields", {"escape": "handover"}))
+    assert ep.reached_goal and ep.metrics["replans"] >= 1
+    assert "local_minimum" in ep.statuses
+    assert ep.metrics["path_length_m"] > 14.0  # around the U, not through it (straight line: 10 m)
+    walk = run_episode(sc, make_controller("potential_fields", {"escape": "random_walk"}))
+    assert not walk.reached_goal and "escaping" in walk.statuses
