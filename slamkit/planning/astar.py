@@ -62,16 +62,14 @@ class AStarPlanner:
         if setup.status is not None:
             return failed(PlanStatus(setup.status), self.name, time_s=time.perf_counter() - t0)
         cfg = self.config
-        finite = setup.cell_cost[np.isfinite(setup.cell_cost)]
-        hscale = cfg.heuristic_weight * float(finite.min())
+        hscale = cfg.heuristic_weight * setup.min_cost
         out = search(setup.cell_cost, setup.start_ixy, setup.goal_ixy, cfg.connectivity,
                      cfg.corner_cutting, cfg.heuristic, hscale, record_order=self.hook is not None)
         elapsed = time.perf_counter() - t0
         grid = setup.grid
         if self.hook is not None and out.order is not None:
             report_expansions(self.hook, grid, out.order, cfg.hook_batches)
-        stats = PlanStats(time_s=elapsed, expansions=int(out.expansions),
-                          tree_size=int(np.isfinite(out.g).sum()))
+        stats = PlanStats(time_s=elapsed, expansions=int(out.expansions), tree_size=out.opened)
         if not np.isfinite(out.cost):
             # the whole component of the start was closed: the goal is provably unreachable
             return PlanResult(PlanStatus.NO_PATH, np.zeros((0, 2)), float("inf"), stats, self.name)

@@ -157,8 +157,7 @@ class DStarLitePlanner:
         self._grid = setup.grid
         self._w, self._hgt = setup.grid.width, setup.grid.height
         self._cost = setup.cell_cost.reshape(-1).tolist()
-        finite = setup.cell_cost[np.isfinite(setup.cell_cost)]
-        self._hscale = float(finite.min())
+        self._hscale = setup.min_cost
         self._nmoves = 4 if self.config.connectivity == 4 else 8
         n = self._w * self._hgt
         self._g = [math.inf] * n

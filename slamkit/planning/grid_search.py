@@ -33,6 +33,7 @@ class SearchOutput:
     expansions: int
     g: np.ndarray               # (H*W,) cost-to-come, inf where never reached
     order: np.ndarray | None    # (expansions,) flat indices in expansion order, if recorded
+    opened: int = 0             # distinct cells ever put on the open list
 
 
 def costmap_to_cell_cost(costmap: np.ndarray, weight: float = 3.0,
@@ -88,11 +89,11 @@ def search(cell_cost: np.ndarray, start_ixy: tuple[int, int], goal_ixy: tuple[in
     parent = np.empty(n, dtype=np.int64)
     path = np.empty(n, dtype=np.int64)
     order = np.empty(n, dtype=np.int64) if record_order else None
-    goal_cost, path_len, expansions, n_order = mod.search(
+    goal_cost, path_len, expansions, n_order, opened = mod.search(
         cost.reshape(-1), h, w, s, t, connectivity, int(corner_cutting), hkind,
         float(heuristic_scale), g, parent, path, order)
     return SearchOutput(goal_cost, path[:path_len].copy(), expansions, g,
-                        None if order is None else order[:n_order].copy())
+                        None if order is None else order[:n_order].copy(), opened)
 
 
 _DX = (1, -1, 0, 0, 1, 1, -1, -1)
@@ -169,8 +170,26 @@ def search_python(cost: np.ndarray, start: int, goal: int, connectivity: int = 8
             path.append(v)
             v = parent[v]
         path.reverse()
-    return SearchOutput(goal_cost, np.asarray(path, dtype=np.int64), expansions, np.asarray(g),
-                        np.asarray(order, dtype=np.int64) if record_order else None)
+    g_arr = np.asarray(g)
+    return SearchOutput(goal_cost, np.asarray(path, dtype=np.int64), expansions, g_arr,
+                        np.asarray(order, dtype=np.int64) if record_order else None,
+                        int(np.isfinite(g_arr).sum()))
+
+
+_UNIT_COST_CACHE: list[tuple[object, np.ndarray]] = []
+
+
+def _unit_cost(grid) -> np.ndarray:
+    """``inf`` on occupied cells, 1 elsewhere; cached for the last few grids (grids are
+    immutable), so repeated queries on one map skip an O(cells) conversion."""
+    for g, cost in _UNIT_COST_CACHE:
+        if g is grid:
+            return cost
+    cost = np.where(grid.occupied, np.inf, 1.0)
+    cost.setflags(write=False)
+    _UNIT_COST_CACHE.insert(0, (grid, cost))
+    del _UNIT_COST_CACHE[4:]
+    return cost
 
 
 @dataclass(frozen=True)
@@ -179,6 +198,7 @@ class GridSetup:
 
     grid: "object"               # the OccupancyGrid
     cell_cost: np.ndarray        # (H, W) multiplier, inf = blocked
+    min_cost: float              # smallest finite multiplier (scales admissible heuristics)
     start_ixy: tuple[int, int]
     goal_ixy: tuple[int, int]
     status: str | None           # None if valid, else "invalid_start" / "invalid_goal"
@@ -196,7 +216,7 @@ def setup_grid_problem(problem) -> GridSetup:
         raise PlanningError(f"grid planners need an OccupancyGrid world, got {type(grid).__name__}")
     if problem.start.size != 2:
         raise PlanningError("grid planners plan for a point robot: start/goal must be (x, y)")
-    base = np.where(grid.occupied, np.inf, 1.0)
+    base = _unit_cost(grid)
     if problem.cell_cost is not None:
         cc = np.asarray(problem.cell_cost, dtype=float)
         if cc.shape != grid.shape:
@@ -204,6 +224,10 @@ def setup_grid_problem(problem) -> GridSetup:
         if np.any(np.isnan(cc)) or np.any(cc < 0):
             raise PlanningError("cell_cost must be >= 0 and not NaN")
         base = np.where(grid.occupied, np.inf, cc)
+        finite = base[np.isfinite(base)]
+        min_cost = float(finite.min()) if finite.size else 1.0
+    else:
+        min_cost = 1.0
     cells = grid.world_to_cell(np.stack([problem.start, problem.goal]))
     inside = grid.in_bounds(cells)
     s = (int(cells[0, 0]), int(cells[0, 1]))
@@ -213,4 +237,4 @@ def setup_grid_problem(problem) -> GridSetup:
         status = "invalid_start"
     elif not inside[1] or not np.isfinite(base[t[1], t[0]]):
         status = "invalid_goal"
-    return GridSetup(grid, base, s, t, status)
+    return GridSetup(grid, base, min_cost, s, t, status)
