@@ -10,7 +10,8 @@ from slamkit.backend.benchmark import run
 
 def test_quick_bench_compares_like_with_like():
     cases = {c.name: c for c in run(quick=True, repeat=1)}
-    assert set(cases) == {"lm_end_to_end_w100", "isam2_replay_w100"}
+    assert set(cases) == {"lm_end_to_end_w100", "lm_backend_only_w100", "isam2_replay_w100"}
+    assert cases["lm_backend_only_w100"].extra["iterations"] == 3
     lm = cases["lm_end_to_end_w100"]
     assert lm.extra["final_error_rel_diff"] < 1e-9
     assert lm.extra["iterations"] == lm.extra["reference_iterations"] == 3
