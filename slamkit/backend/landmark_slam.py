@@ -149,9 +149,14 @@ def odometry_factor_terms(odometry: Odometry, noise: SmootherNoise,
     return gtsam.Pose2(*delta), 0.5 * (cov + cov.T)
 
 
+def _world_cov_rotation(theta: float) -> np.ndarray:
+    """A with X Exp(xi) ~ (t + R xi_t, theta + xi_theta): world-frame error = A xi (first order)."""
+    c, s = np.cos(theta), np.sin(theta)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
 def _world_cov(pose_xytheta: np.ndarray, cov_body: np.ndarray) -> np.ndarray:
-    c, s = np.cos(pose_xytheta[2]), np.sin(pose_xytheta[2])
-    A = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    A = _world_cov_rotation(pose_xytheta[2])
     return A @ cov_body @ A.T
 
 
@@ -190,8 +195,11 @@ class _LandmarkSmootherBase:
                         "zero_dt_odometry": 0}
         self._latest_pose = gtsam.Pose2(*mean)
         factors = gtsam.NonlinearFactorGraph()
+        # the Prior's covariance is world-frame (x, y, theta) like the filters'; GTSAM's Pose2
+        # prior lives in the body-frame tangent: Sigma_body = A^T Sigma_world A
+        A = _world_cov_rotation(mean[2])
         factors.add(gtsam.PriorFactorPose2(X(0), self._latest_pose,
-                                           gtsam.noiseModel.Gaussian.Covariance(cov)))
+                                           gtsam.noiseModel.Gaussian.Covariance(A.T @ cov @ A)))
         values = gtsam.Values()
         values.insert(X(0), self._latest_pose)
         self._reset_solver()
@@ -454,7 +462,8 @@ class FixedLagLandmarkSLAM(_LandmarkSmootherBase):
         return value, cov
 
     def _process(self, factors, values, stamps, stamp) -> None:
-        stamps = {k: (self._stamps[0] if t is None else t) for k, t in stamps.items()}
+        start = self._stamps[0] if self._stamps[0] is not None else 0.0
+        stamps = {k: (start if t is None else t) for k, t in stamps.items()}
         self._key_stamp.update(stamps)
         newest = max(self._key_stamp.values())
         leaving = [k for k, t in self._key_stamp.items() if t < newest - self.config.lag_s]

@@ -10,7 +10,7 @@ import pytest
 from slamkit.backend.landmark_slam import (BatchLandmarkSLAM, FixedLagLandmarkSLAM,
                                            Isam2LandmarkSLAM, LandmarkSLAMConfig, SmootherNoise,
                                            odometry_factor_terms, prior_from_sequence)
-from slamkit.data.estimate import BatchEstimator, Estimator
+from slamkit.data.estimate import BatchEstimator, Estimator, Prior
 from slamkit.data.sequence import Gps, Odometry, RangeBearing, Sequence
 from slamkit.data.trajectory import Trajectory
 from slamkit.errors import ConfigError, EstimationError
@@ -232,3 +232,16 @@ def test_bad_config_and_metadata():
     with pytest.raises(ConfigError):
         SmootherNoise.from_metadata({"odometry_sigma": [0.1]})
     assert SmootherNoise.from_metadata({"range_bearing_sigma": [0.2, 0.01]}).sigma_range_m == 0.2
+
+
+@pytest.mark.parametrize("kind", ["batch", "isam2", "fixed_lag"])
+def test_estimate_right_after_reset_is_the_prior(kind):
+    seq = circle_sequence(0, steps=5)
+    est = make(kind, seq)
+    prior_pose = np.array([1.0, 2.0, 0.3])
+    est.reset(Prior(prior_pose, np.diag([0.01, 0.04, 0.0025])))
+    e = est.estimate()
+    np.testing.assert_allclose(e.trajectory.xytheta()[0], prior_pose, atol=1e-9)
+    # the world-frame prior covariance comes back unchanged: it is rotated into GTSAM's
+    # body-frame tangent (heading 0.3 rad) for the factor and back for the estimate
+    np.testing.assert_allclose(e.pose_covariances[0], np.diag([0.01, 0.04, 0.0025]), atol=1e-9)
