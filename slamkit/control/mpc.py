@@ -276,7 +276,10 @@ class MPCController:
         self._U = np.zeros((n, 2))
         self._lam_x: np.ndarray | None = None
         self._lam_g: np.ndarray | None = None
-        self._qp_warm: tuple[np.ndarray, np.ndarray] | None = None
+        # OSQP keeps duals and its adapted step size between solves; a fresh setup (a few ms,
+        # once per episode or after a failure) makes a reset controller deterministic
+        if self.config.solver == "osqp":
+            self._qp = None
 
     # ------------------------------------------------------------------ problem data
     def problem(self, state: RobotState, reference: Reference, world: LocalWorld) -> _Problem:
