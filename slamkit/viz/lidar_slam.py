@@ -1,0 +1,139 @@
+"""Rerun recordings of lidar SLAM runs (``slamkit.experiments.lidar_slam``).
+
+Entity tree per run (``<run>`` = ``<world>_<robust>``; mirrors the frame tree):
+
+    <run>/world/ground_truth_map        occupied cells of the true grid (static)
+    <run>/world/ground_truth            the true keyframe path (static)
+    <run>/world/trajectory/frontend     chained ICP odometry: before loop closure (static)
+    <run>/world/trajectory/optimised    the pose graph after loop closure (static)
+    <run>/world/keyframes               keyframe positions after optimisation (static)
+    <run>/world/loop_closures           accepted loop-closure edges (static)
+    <run>/world/false_loop_closures     injected wrong edges, when any (static)
+    <run>/world/robot                   optimised keyframe pose over the ``keyframe`` timeline
+    <run>/world/robot/scan              the keyframe's scan end points in the robot frame
+    <run>/map/occupancy                 the growing log-odds map as an image (p(occupied),
+                                        rows flipped so north is up), every ``map_every`` keyframes
+    <run>/plots/icp_fitness ...         not logged: numbers live in results.json
+
+Timelines: ``keyframe`` (index) and ``sim_time`` (seconds).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import rerun as rr
+import rerun.blueprint as rrb
+
+from slamkit.maps.log_odds import LogOddsMap
+from slamkit.viz.recording import open_recording
+
+COLOR_MAP = (90, 90, 90)
+COLOR_GROUND_TRUTH = (40, 200, 80)
+COLOR_FRONTEND = (160, 160, 160)
+COLOR_OPTIMISED = (30, 120, 255)
+COLOR_LOOP = (255, 140, 0)
+COLOR_FALSE_LOOP = (230, 30, 30)
+COLOR_SCAN = (30, 160, 255)
+
+
+def blueprint(runs: list[str]) -> rrb.Blueprint:
+    views = []
+    for r in runs:
+        views.append(rrb.Spatial3DView(origin=f"{r}/world", name=f"{r}: world"))
+        views.append(rrb.Spatial2DView(origin=f"{r}/map", name=f"{r}: map"))
+    return rrb.Blueprint(rrb.Grid(*views), collapse_panels=True)
+
+
+def _xyz(xy: np.ndarray, z: float = 0.0) -> np.ndarray:
+    xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+    return np.column_stack([xy, np.full(len(xy), z)])
+
+
+def _map_image(m: LogOddsMap) -> np.ndarray:
+    """uint8 grey image: white free, black occupied, mid-grey unknown; row 0 at the top (north)."""
+    return np.ascontiguousarray((255.0 * (1.0 - m.probability()))[::-1].astype(np.uint8))
+
+
+def run_label(result) -> str:
+    return f"{result.name}_{result.config.robust}"
+
+
+def log_lidar_slam(stream: rr.RecordingStream, result, prefix: str = "", map_every: int = 10) -> None:
+    """Log one ``LidarSlamResult`` under ``prefix`` (see the module docstring)."""
+    p = f"{prefix}/" if prefix else ""
+    if result.truth is not None:
+        g = result.truth
+        iy, ix = np.nonzero(g.occupied)
+        stream.log(f"{p}world/ground_truth_map",
+                   rr.Points3D(_xyz(g.cell_to_world(np.column_stack([ix, iy]))),
+                               radii=[0.5 * g.resolution_m], colors=[COLOR_MAP]), static=True)
+    if result.ground_truth_poses is not None:
+        stream.log(f"{p}world/ground_truth", rr.LineStrips3D([_xyz(result.ground_truth_poses[:, :2])],
+                                                             radii=[0.02], colors=[COLOR_GROUND_TRUTH]),
+                   static=True)
+    fe, opt = result.frontend_poses, result.optimised_poses
+    stream.log(f"{p}world/trajectory/frontend",
+               rr.LineStrips3D([_xyz(fe[:, :2])], radii=[0.02], colors=[COLOR_FRONTEND]), static=True)
+    stream.log(f"{p}world/trajectory/optimised",
+               rr.LineStrips3D([_xyz(opt[:, :2])], radii=[0.03], colors=[COLOR_OPTIMISED]), static=True)
+    stream.log(f"{p}world/keyframes", rr.Points3D(_xyz(opt[:, :2]), radii=[0.06], colors=[COLOR_OPTIMISED],
+                                                  labels=[str(k) for k in range(len(opt))]),
+               static=True)
+    if result.loops:
+        seg = np.stack([_xyz(opt[[lc.i for lc in result.loops], :2]),
+                        _xyz(opt[[lc.j for lc in result.loops], :2])], axis=1)
+        stream.log(f"{p}world/loop_closures", rr.LineStrips3D(seg, radii=[0.015], colors=[COLOR_LOOP]),
+                   static=True)
+    if result.false_loops:
+        fl = np.asarray(result.false_loops)
+        seg = np.stack([_xyz(opt[fl[:, 0], :2]), _xyz(opt[fl[:, 1], :2])], axis=1)
+        stream.log(f"{p}world/false_loop_closures",
+                   rr.LineStrips3D(seg, radii=[0.03], colors=[COLOR_FALSE_LOOP]), static=True)
+    # robot pose per keyframe as transform columns, scans in the robot frame
+    k = np.arange(len(opt))
+    times = [rr.TimeColumn("keyframe", sequence=k), rr.TimeColumn("sim_time", duration=result.stamps_s)]
+    half = 0.5 * opt[:, 2]
+    quat_xyzw = np.column_stack([np.zeros(len(opt)), np.zeros(len(opt)), np.sin(half), np.cos(half)])
+    stream.send_columns(f"{p}world/robot", indexes=times,
+                        columns=rr.Transform3D.columns(translation=_xyz(opt[:, :2]), quaternion=quat_xyzw))
+    m = LogOddsMap(result.map.shape, result.map.origin_xy_m, result.map.config)
+    for i, pts in enumerate(result.keyframe_points):
+        stream.set_time("keyframe", sequence=i)
+        stream.set_time("sim_time", duration=float(result.stamps_s[i]))
+        stream.log(f"{p}world/robot/scan", rr.Points3D(_xyz(pts), radii=[0.03], colors=[COLOR_SCAN]))
+        if result.keyframe_ranges_m is not None:
+            m.update(opt[i], result.angles_rad, result.keyframe_ranges_m[i], result.max_range_m)
+            if i % map_every == 0 or i == len(opt) - 1:
+                stream.log(f"{p}map/occupancy", rr.Image(_map_image(m), color_model="L"))
+
+
+def record_lidar_slam(results, path: str | Path | None = None, spawn: bool = False) -> Path | None:
+    """Record ``LidarSlamResult``s (one subtree each) to ``path`` and/or a spawned viewer."""
+    results = list(results)
+    labels = [run_label(r) for r in results]
+    with open_recording("slamkit_lidar_slam", path, spawn, blueprint(labels)) as rec:
+        for label, res in zip(labels, results):
+            log_lidar_slam(rec.stream, res, label)
+    return None if path is None else Path(path)
+
+
+class LidarSlamObserver:
+    """Records the ``lidar_slam`` pipeline from its output (``payload``: LidarSlamResult list)."""
+
+    wants_steps = False
+
+    def __init__(self, path, spawn: bool = False):
+        self.path, self.spawn = path, spawn
+
+    def on_step(self, snapshot) -> None:
+        pass
+
+    def on_output(self, output) -> None:
+        results = getattr(output, "payload", output)
+        if results:
+            record_lidar_slam(results, self.path, self.spawn)
+
+    def close(self) -> None:
+        pass
