@@ -12,6 +12,7 @@ Entity tree (2D, world frame, metres; timeline ``sim_time``):
                             inadmissible ones grey)
 * ``world/chosen``          the rollout DWA picked
 * ``world/mpc_horizon``     the MPC's predicted trajectory
+* ``world/mpc_reference``   the reference points it tracks (pushed out of obstacles)
 * ``world/forces/...``      potential-field attractive / repulsive / total force arrows
 * ``plots/speed_mps``, ``plots/omega_radps``, ``plots/clearance_m``, ``plots/solve_time_ms``
 
@@ -102,6 +103,9 @@ class ClosedLoopRecorder:
         if out.predicted_xytheta is not None:
             s.log(f"{p}world/mpc_horizon", rr.LineStrips2D([out.predicted_xytheta[:, :2]],
                                                            colors=[(200, 0, 200)], radii=[0.025]))
+        if "reference_xytheta" in out.info:
+            s.log(f"{p}world/mpc_reference", rr.Points2D(np.asarray(out.info["reference_xytheta"])[:, :2],
+                                                         radii=[0.03], colors=[(255, 160, 0)]))
         for name, f in out.force_xy.items():
             s.log(f"{p}world/forces/{name}", rr.Arrows2D(origins=[x[:2]], vectors=[np.asarray(f)]))
         s.log(f"{p}plots/speed_mps", rr.Scalars(float(out.command[0])))

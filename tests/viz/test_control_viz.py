@@ -33,3 +33,4 @@ def test_recording_of_dwa_and_mpc_episodes(tmp_path, verify_rrd):
     assert f"/dwa/{sc.name}/world/candidates" in entities
     assert f"/dwa/{sc.name}/world/chosen" in entities
     assert f"/mpc_osqp/{sc.name}/world/mpc_horizon" in entities
+    assert f"/mpc_osqp/{sc.name}/world/mpc_reference" in entities
