@@ -124,7 +124,13 @@ class DStarLitePlanner:
         record = self._order
         while True:
             key, u = self._top()
-            if not (key < self._key(start) or rhs[start] != g[start]) or u < 0:
+            if u < 0:
+                break
+            ks = self._key(start)
+            # keys are float sums: a vertex whose key equals the start's in exact arithmetic can
+            # come out an ulp above it and be skipped wrongly (seen on den312d after a block).
+            # Processing near-ties too is merely a little extra work, never wrong.
+            if not (key[0] < ks[0] + 1e-9 * (1.0 + abs(ks[0])) or rhs[start] != g[start]):
                 break
             heapq.heappop(self._heap)
             del self._open[u]
