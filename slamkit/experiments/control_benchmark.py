@@ -112,12 +112,14 @@ def timing_cases(cycles) -> list[BenchCase]:
         if state.t_s == 0.0:  # a new episode: engines start cold, as in the loop
             ipopt.reset()
             fast.reset()
+        # the reference gets exactly the problem the tuned build solves this cycle (taken before
+        # compute() moves the warm start, which is also the distance-field linearisation point)
+        prob = ipopt.problem(state, reference, world)
         out = timed("ipopt", lambda: ipopt.compute(state, reference, world))
         t_ipopt.append(out.solve_time_s)
         t_solver.append(out.info.get("solver_time_s", np.nan))
         t_fast.append(timed("osqp", lambda: fast.compute(state, reference, world)).solve_time_s)
         t_dwa.append(timed("dwa", lambda: dwa.compute(state, reference, world)).solve_time_s)
-        prob = ipopt.problem(state, reference, world)
         ok, _u, t = timed("ref", lambda: ref.solve(prob))
         t_ref.append(t)
         ref_fail += not ok
