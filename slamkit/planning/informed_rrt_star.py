@@ -47,13 +47,13 @@ class InformedRRTStarPlanner(RRTStarPlanner):
 
     def _sample(self, world, start: np.ndarray, goal: np.ndarray, best_cost: float) -> np.ndarray:
         if not math.isfinite(best_cost):
-            return world.sample_uniform(self.rng, 1)[0]
+            return super()._sample(world, start, goal, best_cost)
         s, g = start[:2], goal[:2]
         c_min = float(np.linalg.norm(g - s))
         ellipse_area = math.pi * 0.25 * best_cost * math.sqrt(max(best_cost ** 2 - c_min ** 2, 0.0))
         box = world.bounds_m
         if ellipse_area >= float(np.prod(box[1] - box[0])):
-            return world.sample_uniform(self.rng, 1)[0]
+            return super()._sample(world, start, goal, best_cost)
         for _ in range(100):
             xy = sample_ellipse(self.rng, s, g, best_cost, 8)
             inside = np.all((xy >= box[0]) & (xy <= box[1]), axis=1)

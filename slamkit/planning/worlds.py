@@ -88,6 +88,10 @@ class PointWorld:
         if np.any(self.circles[:, 2] <= 0):
             raise PlanningError("circle radii must be positive")
         self._r2 = self.circles[None, :, 2] ** 2
+        self._cx = np.ascontiguousarray(self.circles[None, :, 0])
+        self._cy = np.ascontiguousarray(self.circles[None, :, 1])
+        self._circle_list = [tuple(c) for c in (self.circles[:, :2].tolist())]
+        self._r2_list = (self.circles[:, 2] ** 2).tolist()
         self.polygons = [np.asarray(p, dtype=float).reshape(-1, 2) for p in polygons]
         if any(len(p) < 3 for p in self.polygons):
             raise PlanningError("every polygon needs at least 3 vertices")
@@ -154,6 +158,20 @@ class PointWorld:
             ok &= self.grid.is_free_world(X)
         return ok
 
+    def point_valid(self, x: np.ndarray) -> bool:
+        """``is_valid`` for one point, in plain Python for circles (one point per iteration
+        is the tree planners' common case, where numpy's per-call overhead dominates)."""
+        px, py = float(x[0]), float(x[1])
+        lo, hi = self.bounds_m
+        if not (lo[0] <= px <= hi[0] and lo[1] <= py <= hi[1]):
+            return False
+        for (cx, cy), r2 in zip(self._circle_list, self._r2_list):
+            if (px - cx) ** 2 + (py - cy) ** 2 <= r2:
+                return False
+        if self.polygons or self.grid is not None:
+            return bool(self.is_valid(np.array([[px, py]]))[0])
+        return True
+
     def motions_valid(self, A: np.ndarray, B: np.ndarray) -> np.ndarray:
         """(N,) True where the straight segment A_i -> B_i is collision-free (endpoints included)."""
         A = np.asarray(A, dtype=float).reshape(-1, 2)
@@ -166,20 +184,25 @@ class PointWorld:
 
     def edges_free(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """(N,) segment test for segments whose endpoints are already known to be valid (the
-        planners' hot path: tree vertices are valid by construction)."""
+        planners' hot path: tree vertices are valid by construction). ``b`` may be one (1, 2)
+        point shared by all segments."""
         good = np.ones(len(a), dtype=bool)
         if len(self.circles):
-            d = b - a
-            l2 = np.maximum(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1], 1e-300)
-            cx = self.circles[None, :, 0] - a[:, 0:1]
-            cy = self.circles[None, :, 1] - a[:, 1:2]
-            t = np.clip((cx * d[:, 0:1] + cy * d[:, 1:2]) / l2[:, None], 0.0, 1.0)
-            ex = cx - t * d[:, 0:1]
-            ey = cy - t * d[:, 1:2]
-            good &= ~np.any(ex * ex + ey * ey <= self._r2, axis=1)
+            # closest point of each segment to each circle centre (written out: this runs once
+            # per RRT* iteration, where numpy call overhead dominates)
+            dx = b[:, 0:1] - a[:, 0:1]
+            dy = b[:, 1:2] - a[:, 1:2]
+            l2 = np.maximum(dx * dx + dy * dy, 1e-300)
+            cx = self._cx - a[:, 0:1]
+            cy = self._cy - a[:, 1:2]
+            t = np.clip((cx * dx + cy * dy) / l2, 0.0, 1.0)
+            ex = cx - t * dx
+            ey = cy - t * dy
+            good &= ~(ex * ex + ey * ey <= self._r2).any(1)
         if len(self._edge_p):
-            good &= ~_segments_cross_edges(a, b, self._edge_p, self._edge_q)
+            good &= ~_segments_cross_edges(a, np.broadcast_to(b, a.shape), self._edge_p, self._edge_q)
         if self.grid is not None and good.any():
+            b = np.broadcast_to(b, a.shape)
             g = np.flatnonzero(good)
             seg = np.linalg.norm(b[g] - a[g], axis=1)
             k = int(min(np.ceil(seg.max() / self.check_step_m), 100_000)) + 1
@@ -326,7 +349,11 @@ class SE2World:
         return self.is_valid(poses.reshape(-1, 3)).reshape(len(A), -1).all(axis=1)
 
     def edges_free(self, A: np.ndarray, B: np.ndarray) -> np.ndarray:
-        return self.motions_valid(A, B)
+        A = np.asarray(A, dtype=float).reshape(-1, 3)
+        return self.motions_valid(A, np.broadcast_to(np.asarray(B, dtype=float).reshape(-1, 3), A.shape))
+
+    def point_valid(self, x: np.ndarray) -> bool:
+        return bool(self.is_valid(np.asarray(x, dtype=float)[None])[0])
 
     def clearance(self, X: np.ndarray) -> np.ndarray:
         return self.base.clearance(np.asarray(X, dtype=float).reshape(-1, 3)[:, :2])
