@@ -84,6 +84,10 @@ class EKFLocalizationConfig:
     gate_probability: float = 0.99
     #: also reject known-id measurements whose NIS exceeds the gate (outlier rejection)
     gate_known: bool = False
+    #: True: one update per measurement, each relinearised at the previous posterior (Table
+    #: 7.2's loop). False: the known-id measurements of one event are stacked into a single
+    #: update (one linearisation; identical for linear models, ~10x cheaper in Python).
+    sequential_updates: bool = False
 
 
 class EKFLocalization(FilterBase):
@@ -115,6 +119,31 @@ class EKFLocalization(FilterBase):
 
     def _update(self, observation: RangeBearing) -> None:
         ids, zs = observation_rows(observation)
+        if not self.config.sequential_updates and not self.config.gate_known:
+            known = np.array([int(i) in self._index for i in ids], dtype=bool)
+            if known.any():
+                self._stacked_update(ids[known], zs[known])
+            self._rejected += int(np.sum((ids >= 0) & ~known))
+            ids, zs = ids[ids < 0], zs[ids < 0]
+        self._sequential_update(ids, zs)
+
+    def _stacked_update(self, ids: np.ndarray, zs: np.ndarray) -> None:
+        m = len(ids)
+        lm = self.landmarks[[self._index[int(i)] for i in ids]]
+        pose = np.broadcast_to(self.x, (m, 3))
+        z_hat = range_bearing.observe(pose, lm)
+        H_pose, _ = range_bearing.observe_jacobians(pose, lm)
+        H = H_pose.reshape(2 * m, 3)
+        R = np.kron(np.eye(m), self.noise.range_bearing_cov)
+        nu = range_bearing_residual(zs, z_hat).reshape(2 * m)
+        x, self.P, nu, S = ekf_update(self.x, self.P, nu, np.zeros(2 * m), H, R)
+        # one NIS per measurement from the diagonal 2 x 2 blocks of S (each chi-square with 2 dof)
+        k = np.arange(m)
+        self._record_nis(nu.reshape(m, 2), S.reshape(m, 2, m, 2)[k, :, k, :])
+        self.x = np.asarray(x, dtype=float)
+        self.x[2] = wrap_angle(self.x[2])
+
+    def _sequential_update(self, ids: np.ndarray, zs: np.ndarray) -> None:
         R = self.noise.range_bearing_cov
         # Sequential updates: each measurement is linearised at the estimate the previous ones
         # produced, which is exact for independent measurement noise and more accurate than one
