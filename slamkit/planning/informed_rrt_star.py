@@ -44,6 +44,13 @@ class InformedRRTStarPlanner(RRTStarPlanner):
     def __init__(self, config: RRTStarConfig = RRTStarConfig(), rng: np.random.Generator | None = None,
                  hook=None):
         super().__init__(config, rng, hook)
+        self._ell_cost: float | None = None
+        self._ell_pts = np.zeros((0, 2))
+        self._ell_i = 0
+
+    def plan(self, problem):
+        self._ell_cost = None  # never reuse ellipse samples across problems
+        return super().plan(problem)
 
     def _sample(self, world, start: np.ndarray, goal: np.ndarray, best_cost: float) -> np.ndarray:
         if not math.isfinite(best_cost):
@@ -54,12 +61,20 @@ class InformedRRTStarPlanner(RRTStarPlanner):
         box = world.bounds_m
         if ellipse_area >= float(np.prod(box[1] - box[0])):
             return super()._sample(world, start, goal, best_cost)
-        for _ in range(100):
-            xy = sample_ellipse(self.rng, s, g, best_cost, 8)
-            inside = np.all((xy >= box[0]) & (xy <= box[1]), axis=1)
-            if inside.any():
-                p = xy[np.argmax(inside)]
-                if world.dim == 3:
-                    return np.array([p[0], p[1], self.rng.uniform(-math.pi, math.pi)])
-                return p
-        return world.sample_uniform(self.rng, 1)[0]
+        # ellipse samples are drawn in blocks for the current c_best (redrawn when it improves,
+        # since the informed set only shrinks, a block drawn for an older c_best is discarded)
+        if getattr(self, "_ell_cost", None) != best_cost or self._ell_i >= len(self._ell_pts):
+            pts = np.zeros((0, 2))
+            for _ in range(100):
+                xy = sample_ellipse(self.rng, s, g, best_cost, 256)
+                pts = np.vstack([pts, xy[np.all((xy >= box[0]) & (xy <= box[1]), axis=1)]])
+                if len(pts):
+                    break
+            if not len(pts):
+                return super()._sample(world, start, goal, best_cost)
+            self._ell_pts, self._ell_i, self._ell_cost = pts, 0, best_cost
+        p = self._ell_pts[self._ell_i]
+        self._ell_i += 1
+        if world.dim == 3:
+            return np.array([p[0], p[1], self.rng.uniform(-math.pi, math.pi)])
+        return p
