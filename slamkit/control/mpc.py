@@ -31,9 +31,12 @@ multipliers. Solvers:
   dynamics and obstacle constraints are linearised around the shifted previous solution and the
   resulting sparse QP is solved by OSQP (Stellato et al., Math. Prog. Comp. 12, 2020), whose matrix
   pattern is fixed at construction so a cycle only updates numbers.
-
-fatrop (shipped with CasADi 3.8) is not offered: its structure detection rejects the rate
-constraints u_k - u_{k-1}, which couple two stages (it would need the last input as extra state).
+* ``fatrop`` (Vanroye et al., "FATROP: a fast constrained optimal control problem solver for
+  robot trajectory optimization and control", IROS 2023; shipped with CasADi 3.8): an interior-point
+  method whose linear algebra is a Riccati recursion over the stages. Its structure detection needs
+  every constraint to involve one stage only, so the rate constraint u_k - u_{k-1} is written with
+  the last input carried as extra state, z_k = (x_k, u_{k-1}), and each stage's slack is a third
+  input; the terminal stage (which has no input, hence no slack) carries no obstacle rows.
 
 A solver failure (infeasible, iteration limit, numerical trouble) never raises inside the loop: the
 output has status FALLBACK_BRAKE and the command decelerates within the rate limits. The returned
@@ -58,7 +61,7 @@ from slamkit.control.protocols import (ControlOutput, ControlStatus, LocalWorld,
 from slamkit.errors import ControlError
 
 MODELS = ("unicycle", "bicycle")
-SOLVERS = ("ipopt", "osqp")
+SOLVERS = ("ipopt", "osqp", "fatrop")
 _OSQP_OK = (int(osqp.SolverStatus.OSQP_SOLVED), int(osqp.SolverStatus.OSQP_SOLVED_INACCURATE))
 _FAR_M = 1e3  # where unused obstacle slots are parked (relative to the robot)
 
@@ -112,6 +115,8 @@ class MPCConfig:
     use_distance_field: bool = True
     goal_tolerance_m: float = 0.2
     ipopt_options: dict[str, Any] = field(default_factory=_default_ipopt)
+    fatrop_options: dict[str, Any] = field(default_factory=lambda: {"print_level": 0, "tol": 1e-4,
+                                                                     "mu_init": 1e-2, "max_iter": 100})
     osqp_eps: float = 1e-4
     #: SQP-style re-linearisations per cycle of the OSQP fast path (1 = real-time iteration)
     osqp_iterations: int = 1
@@ -241,6 +246,69 @@ def build_nlp(config: MPCConfig) -> dict[str, Any]:
             "s_index": idx[nx + 2 * n:], "layout": lay}
 
 
+def build_nlp_stagewise(config: MPCConfig) -> dict[str, Any]:
+    """The same OCP for fatrop: w = (z_0, v_0, z_1, v_1, ..., z_N) with z_k = (x_k, u_{k-1}) and
+    v_k = (u_k, s_k); constraints ordered stage by stage, each involving one stage (plus z_{k+1}
+    in the dynamics), with an ``equality`` flag per row for fatrop's structure detection."""
+    n, k = config.horizon, config.max_circles
+    lay = _Layout(n, k)
+    f = discrete_dynamics(config)
+    Z = [ca.SX.sym(f"z{i}", 5) for i in range(n + 1)]
+    V = [ca.SX.sym(f"v{i}", 3) for i in range(n)]
+    P = ca.SX.sym("p", lay.size)
+    sl = lay.slices
+    ref = ca.reshape(P[sl["ref"]], 3, n)
+    obs = ca.reshape(P[sl["obs_xy"]], 2, n * k)
+    obs_r = P[sl["obs_r"]]
+    dist_g = ca.reshape(P[sl["dist_g"]], 2, n)
+    dist_b = P[sl["dist_b"]]
+    du = np.asarray(config.du_max_per_s) * config.dt_s
+    r_u, r_du = np.asarray(config.r_u), np.asarray(config.r_du)
+    s_hi = np.inf if config.soft_obstacles else 0.0
+    g, lbg, ubg = [], [], []
+
+    def add(expr, lo, hi):
+        g.append(expr)
+        lbg.append(np.atleast_1d(np.asarray(lo, float)))
+        ubg.append(np.atleast_1d(np.asarray(hi, float)))
+
+    cost = 0
+    w = []
+    for i in range(n + 1):
+        w.append(Z[i])
+        if i < n:
+            w.append(V[i])
+            u, slack = V[i][:2], V[i][2]
+            add(Z[i + 1] - ca.vertcat(f(Z[i][:3], u), u), np.zeros(5), np.zeros(5))
+        if i == 0:
+            add(Z[0] - ca.vertcat(P[sl["x0"]], P[sl["u_prev"]]), np.zeros(5), np.zeros(5))
+        if i < n:
+            # u_0's window is also bounded by the parameters lo0/hi0 through z_0 = (x0, u_prev)
+            add(u - Z[i][3:5], -du, du)
+            add(u, np.asarray(config.u_min), np.asarray(config.u_max))
+            add(slack, 0.0, s_hi)
+            cost += ca.sumsqr(np.sqrt(r_u) * u) + ca.sumsqr(np.sqrt(r_du) * (u - Z[i][3:5]))
+            cost += config.slack_weight * slack + config.slack_weight * slack ** 2
+        if i >= 1:
+            xk = Z[i][:3]
+            if i < n:
+                for j in range(k):
+                    d = xk[:2] - obs[:, (i - 1) * k + j]
+                    add(ca.sqrt(ca.sumsqr(d) + 1e-9) - obs_r[j] + slack, 0.0, np.inf)
+                if config.use_distance_field:
+                    add(ca.dot(dist_g[:, i - 1], xk[:2]) - dist_b[i - 1] + slack, 0.0, np.inf)
+            e = xk - ref[:, i - 1]
+            last = i == n
+            cost += (config.q_xy_terminal if last else config.q_xy) * ca.sumsqr(e[:2])
+            cost += (config.q_theta_terminal if last else config.q_theta) * e[2] ** 2
+    lbg_a, ubg_a = np.concatenate(lbg), np.concatenate(ubg)
+    base = 8 * np.arange(n + 1)
+    return {"nlp": {"x": ca.vertcat(*w), "p": P, "f": cost, "g": ca.vertcat(*g)},
+            "lbg": lbg_a, "ubg": ubg_a, "equality": [bool(e) for e in lbg_a == ubg_a],
+            "x_index": base[:, None] + np.arange(3), "u_index": base[:n, None] + 5 + np.arange(2),
+            "s_index": base[:n] + 7, "layout": lay}
+
+
 class MPCController:
     """Warm-started MPC; holds the built solver and the previous solution (engine state)."""
 
@@ -261,6 +329,15 @@ class MPCController:
             self._nw = built["nlp"]["x"].shape[0]
             opts = {"ipopt": dict(config.ipopt_options), "print_time": False}
             self._solver = ca.nlpsol("mpc", "ipopt", built["nlp"], opts)
+        elif config.solver == "fatrop":
+            built = build_nlp_stagewise(config)
+            self._layout = built["layout"]
+            self._lbg, self._ubg = built["lbg"], built["ubg"]
+            self._xi, self._ui, self._si = built["x_index"], built["u_index"], built["s_index"]
+            self._nw = built["nlp"]["x"].shape[0]
+            opts = {"structure_detection": "auto", "equality": built["equality"], "print_time": False,
+                    "fatrop": dict(config.fatrop_options)}
+            self._solver = ca.nlpsol("mpc", "fatrop", built["nlp"], opts)
         else:
             self._build_qp()
         # batched Jacobians of the dynamics for the OSQP linearisation
@@ -386,6 +463,8 @@ class MPCController:
     def _bounds(self, prob: _Problem) -> tuple[np.ndarray, np.ndarray]:
         lbx = np.full(self._nw, -np.inf)
         ubx = np.full(self._nw, np.inf)
+        if self.config.solver == "fatrop":  # every bound is a constraint row there
+            return lbx, ubx
         lbx[self._ui] = self._umin
         ubx[self._ui] = self._umax
         lbx[self._ui[0]] = prob.u_lo0
@@ -399,10 +478,13 @@ class MPCController:
         w0 = np.zeros(self._nw)
         w0[self._xi] = X0
         w0[self._ui] = np.clip(U0, self._umin, self._umax)
+        if self.config.solver == "fatrop":  # the carried last input of every stage
+            w0[self._xi[:, :1] + 3] = np.vstack([prob.u_prev, w0[self._ui]])[:, :1]
+            w0[self._xi[:, :1] + 4] = np.vstack([prob.u_prev, w0[self._ui]])[:, 1:2]
         lbx, ubx = self._bounds(prob)
         args = {"x0": w0, "p": prob.vector(self._layout), "lbx": lbx, "ubx": ubx,
                 "lbg": self._lbg, "ubg": self._ubg}
-        if self._lam_x is not None:
+        if self._lam_x is not None and self.config.solver == "ipopt":
             args["lam_x0"], args["lam_g0"] = self._lam_x, self._lam_g
         t0 = time.perf_counter()
         sol = self._solver(**args)

@@ -53,7 +53,7 @@ from slamkit.planning.protocols import PlanningProblem
 from slamkit.sim.moving_obstacles import MovingObstacles, crossing_obstacles
 
 SCENARIO_KINDS = ("office", "warehouse", "open")
-CONTROLLERS = ("potential_fields", "dwa", "mpc", "mpc_osqp")
+CONTROLLERS = ("potential_fields", "dwa", "mpc", "mpc_osqp", "mpc_fatrop")
 
 
 # --------------------------------------------------------------------------- scenarios
@@ -162,15 +162,15 @@ def make_scenario(seed: int, kind: str = "office", n_obstacles: int = 3,
 
 
 def make_controller(name: str, params: Mapping[str, Any] | None = None, seed: int = 0) -> Controller:
-    """Registry names: potential_fields, dwa, mpc (IPOPT), mpc_osqp (the QP fast path)."""
+    """Registry names: potential_fields, dwa, mpc (IPOPT), mpc_osqp (the QP fast path), mpc_fatrop."""
     params = dict(params or {})
     try:
         if name == "potential_fields":
             return PotentialFieldController(PotentialFieldConfig(**params), rng=np.random.default_rng(seed))
         if name == "dwa":
             return DWAController(DWAConfig(**params))
-        if name in ("mpc", "mpc_osqp"):
-            params.setdefault("solver", "ipopt" if name == "mpc" else "osqp")
+        if name in ("mpc", "mpc_osqp", "mpc_fatrop"):
+            params.setdefault("solver", {"mpc": "ipopt", "mpc_osqp": "osqp", "mpc_fatrop": "fatrop"}[name])
             for key in ("u_min", "u_max", "du_max_per_s", "r_u", "r_du"):
                 if key in params:
                     params[key] = tuple(params[key])

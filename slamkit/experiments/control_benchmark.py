@@ -10,6 +10,7 @@ every cycle; the cycles are then replayed in order through
 
 * the tuned MPC (IPOPT, built once, warm-started)            goal: median < 6 ms, p99 < 20 ms
 * the MPC fast path (one OSQP QP per cycle)                  goal: median <= 2 ms
+* the same NLP solved by fatrop (Riccati-structured IPM)     reported beside them
 * DWA on the same states and worlds                          goal: median < 10 ms per cycle
 * the reference: ``casadi.Opti`` + default IPOPT, cold start (``slamkit.control.mpc_reference``)
 
@@ -96,10 +97,12 @@ def _record_cycles(n_scenarios: int, max_cycles: int) -> list[tuple[RobotState, 
 def timing_cases(cycles) -> list[BenchCase]:
     ipopt = MPCController(MPCConfig(solver="ipopt"))
     fast = MPCController(MPCConfig(solver="osqp"))
+    fatrop = MPCController(MPCConfig(solver="fatrop"))
     dwa = DWAController()
     ref = OptiMPC(MPCConfig())
     t_ipopt, t_fast, t_dwa, t_ref, t_solver = [], [], [], [], []
-    cpu: dict[str, list[float]] = {"ipopt": [], "osqp": [], "dwa": [], "ref": []}
+    cpu: dict[str, list[float]] = {"ipopt": [], "osqp": [], "fatrop": [], "dwa": [], "ref": []}
+    t_fatrop = []
     ref_fail = 0
 
     def timed(key, fn):
@@ -112,6 +115,7 @@ def timing_cases(cycles) -> list[BenchCase]:
         if state.t_s == 0.0:  # a new episode: engines start cold, as in the loop
             ipopt.reset()
             fast.reset()
+            fatrop.reset()
         # the reference gets exactly the problem the tuned build solves this cycle (taken before
         # compute() moves the warm start, which is also the distance-field linearisation point)
         prob = ipopt.problem(state, reference, world)
@@ -119,6 +123,7 @@ def timing_cases(cycles) -> list[BenchCase]:
         t_ipopt.append(out.solve_time_s)
         t_solver.append(out.info.get("solver_time_s", np.nan))
         t_fast.append(timed("osqp", lambda: fast.compute(state, reference, world)).solve_time_s)
+        t_fatrop.append(timed("fatrop", lambda: fatrop.compute(state, reference, world)).solve_time_s)
         t_dwa.append(timed("dwa", lambda: dwa.compute(state, reference, world)).solve_time_s)
         ok, _u, t = timed("ref", lambda: ref.solve(prob))
         t_ref.append(t)
@@ -139,6 +144,9 @@ def timing_cases(cycles) -> list[BenchCase]:
         compare("mpc_osqp_n20_median", float(np.median(tf)), "ms", ref_name, float(np.median(tr)),
                 goal="<= 2 ms", **extra, p99_ms=float(np.percentile(tf, 99)),
                 cpu_median_ms=float(np.median(c["osqp"]))),
+        compare("mpc_fatrop_n20_median", float(np.median(ms(t_fatrop))), "ms", ref_name, float(np.median(tr)),
+                **extra, p99_ms=float(np.percentile(ms(t_fatrop), 99)),
+                cpu_median_ms=float(np.median(c["fatrop"])), cpu_p99_ms=float(np.percentile(c["fatrop"], 99))),
         compare("dwa_cycle_median", float(np.median(td)), "ms", ref_name, float(np.median(tr)),
                 goal="< 10 ms", **extra, p99_ms=float(np.percentile(td, 99)),
                 cpu_median_ms=float(np.median(c["dwa"]))),

@@ -18,6 +18,7 @@ FACTORIES = {
     "dwa": DWAController,
     "mpc": lambda: MPCController(MPCConfig(solver="ipopt")),
     "mpc_osqp": lambda: MPCController(MPCConfig(solver="osqp")),
+    "mpc_fatrop": lambda: MPCController(MPCConfig(solver="fatrop")),
 }
 # every default config shares these limits: |v| <= 0.8 m/s, |omega| <= 1.5 rad/s
 V_MAX, OMEGA_MAX = 0.8, 1.5

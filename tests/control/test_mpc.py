@@ -12,7 +12,7 @@ from slamkit.control.protocols import (ControlStatus, DistanceGrid, LocalWorld, 
 from slamkit.errors import ControlError
 from slamkit.models.diff_drive import motion
 
-SOLVERS = ["ipopt", "osqp"]
+SOLVERS = ["ipopt", "osqp", "fatrop"]
 
 
 def _run(ctl, x0, ref, world, steps, plant=None):

@@ -95,6 +95,7 @@ def test_collision_ends_the_episode():
     ("dwa", ("open", 0), 0.5),          # measured 0.64 m, 14.4 s
     ("mpc_osqp", ("open", 2), 0.12),    # measured 0.17 m, 21.3 s
     ("mpc", ("open", 2), 0.12),         # measured 0.17 m, 21.3 s
+    ("mpc_fatrop", ("open", 2), 0.12),
     ("potential_fields", ("open", 0), 0.3),  # measured 0.42 m, 13.1 s
 ])
 def test_closed_loop_success_on_fixed_scenarios(controller, scenario, min_clearance):
@@ -153,7 +154,7 @@ def test_control_benchmark_cases_have_same_run_ratios():
     assert len(cycles) == 4 and cycles[0][0].t_s == 0.0
     timing = timing_cases(cycles)
     assert [c.name for c in timing] == ["mpc_ipopt_n20_median", "mpc_ipopt_n20_p99", "mpc_osqp_n20_median",
-                                        "dwa_cycle_median"]
+                                        "mpc_fatrop_n20_median", "dwa_cycle_median"]
     for c in timing:
         assert c.unit == "ms" and c.ratio == pytest.approx(c.reference_value / c.value)
         assert c.extra["cycles"] == 4 and c.extra["reference_failures"] == 0
