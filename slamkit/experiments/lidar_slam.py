@@ -109,6 +109,7 @@ class LidarSlamResult:
     max_range_m: float = 20.0
     config: LidarSlamConfig = field(default_factory=LidarSlamConfig)
     truth: OccupancyGrid | None = None
+    frontend: "FrontEnd | None" = field(default=None, repr=False)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -305,7 +306,7 @@ def run_slam(sequence: Sequence, truth: OccupancyGrid | None = None,
     return LidarSlamResult(sequence.name, fe.stamps_s, fe.odometry_poses, fe.frontend_poses, poses,
                            gt_poses, fe.keyframe_points, graph, tuple(loops), tuple(false_pairs),
                            slam_map, fe_map, metrics, quality, fe.angles_rad, fe.keyframe_ranges_m,
-                           fe.max_range_m, config, truth)
+                           fe.max_range_m, config, truth, fe)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -364,8 +365,10 @@ def run(config: Mapping[str, Any], folder, progress, observer=None):
         for seed in seeds:
             sim = _simulate(world, int(seed))
             seq, grid = _sim_parts(sim)
+            fe = None  # the front-end does not depend on the kernel: run it once per sequence
             for robust in variants:
-                res = run_slam(seq, grid, replace(slam_cfg, robust=robust), observer)
+                res = run_slam(seq, grid, replace(slam_cfg, robust=robust), observer, frontend=fe)
+                fe = res.frontend
                 results.append(res)
                 label = f"lidar_slam/{robust}"
                 runs.append(RunRecord(seq.name, label, dict(res.metrics), seed=int(seed),

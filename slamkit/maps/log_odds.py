@@ -10,12 +10,13 @@ clamped to [l_min, l_max] so a cell can change its mind after a moved object (th
 OctoMap, Hornung et al., Autonomous Robots 34(3), 2013, sec. 3.2).
 
 Inverse sensor model used here (Table 9.2, with obstacle thickness alpha = one cell): along
-every beam with a return, the cells the beam crosses before its end point are *free*
-(``l_free`` < 0) and the cell just behind the end point is *occupied* (``l_occ`` > 0). "Just
-behind": slamkit's lidar measures the range to the boundary where the beam *enters* the
-obstacle (``slamkit.maps.raycast``), so the obstacle cell lies beyond the end point; the hit is
-placed ``hit_offset_cells`` (half a cell) further along the beam, which puts it in the right
-cell even with a few centimetres of range noise. Beams without a return (NaN) or at max range
+every beam with a return, the cells the beam crosses up to ``free_margin_cells`` (one cell)
+before its end point are *free* (``l_free`` < 0) and the cell just behind the end point is
+*occupied* (``l_occ`` > 0). "Just behind": slamkit's lidar measures the range to the boundary
+where the beam *enters* the obstacle (``slamkit.maps.raycast``), so the obstacle cell lies beyond
+the end point; the hit is placed ``hit_offset_cells`` (half a cell) further along the beam, which
+puts it in the right cell even with a few centimetres of range noise, and the free margin keeps
+that noise from clearing the obstacle cell the beam just entered. Beams without a return (NaN) or at max range
 update nothing by default: a max-range reading from the beam model's z_max mixture component
 would otherwise carve free space through a wall.
 

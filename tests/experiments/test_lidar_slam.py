@@ -129,3 +129,20 @@ def test_trim_to_free_space(world):
     first = seq.ground_truth.stamps_s[np.flatnonzero(x >= 10.0)[0]]
     assert cut.ground_truth.stamps_s[-1] < first and all(e.stamp_s < first for e in cut.events)
     assert cut.metadata["trimmed_s"] == pytest.approx(seq.ground_truth.stamps_s[-1] - first)
+
+
+@pytest.mark.slow
+def test_shipped_pipeline_config(tmp_path):
+    """pipelines/lidar_slam.yaml as shipped: every run of the loop-rich warehouse keeps a map IoU
+    of at least 0.9 and loop closure never makes ATE worse by more than noise."""
+    from pathlib import Path
+
+    cfg = Path(__file__).resolve().parents[2] / "pipelines" / "lidar_slam.yaml"
+    res = run_pipeline(cfg, tmp_path / "run", progress=False)
+    runs = res.results["runs"]
+    assert len(runs) == 4
+    for r in runs:
+        m = r["metrics"]
+        assert m["ate_rmse_m"] <= 1.2 * m["ate_frontend_m"] + 0.002
+        if r["dataset"] == "warehouse_loops":
+            assert m["num_loop_closures"] >= 50 and m["map_iou"] >= 0.9
