@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from slamkit.planning.protocols import PlanningProblem, PlanStatus, failed, PlanResult
+from slamkit.planning.protocols import PlanningProblem, PlanStatus, failed
 from slamkit.planning.worlds import as_world
 
 
@@ -96,13 +96,3 @@ def steer(world, a: np.ndarray, b: np.ndarray, max_step: float) -> np.ndarray:
 def default_step(world) -> float:
     """OMPL's default range: 20% of the space's extent."""
     return 0.2 * world.extent
-
-
-def path_cost(world, path: np.ndarray) -> float:
-    if len(path) < 2:
-        return 0.0
-    return float(sum(world.distance(path[i], path[i + 1][None])[0] for i in range(len(path) - 1)))
-
-
-def result(status: PlanStatus, path: np.ndarray, cost: float, stats, name: str) -> PlanResult:
-    return PlanResult(status, path, cost, stats, name)

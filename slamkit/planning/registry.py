@@ -8,7 +8,7 @@ are interchangeable (``rrt_star`` == ``rrt-star``).
 from __future__ import annotations
 
 import dataclasses
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -61,5 +61,3 @@ def make_planner(name: str, rng: np.random.Generator | None = None, hook: Hook |
 def planner_names() -> list[str]:
     return list(PLANNERS)
 
-
-Factory = Callable[..., Planner]

@@ -11,7 +11,6 @@ import pytest
 from typer.testing import CliRunner
 
 from slamkit.cli import app
-from slamkit.maps.movingai import load_map
 from slamkit.maps.occupancy_grid import OccupancyGrid
 from slamkit.planning.protocols import PlanningProblem
 from slamkit.planning.registry import make_planner
