@@ -1,1 +1,19 @@
+"""Global planning: grid search and sampling-based planners behind one contract.
 
+``planner.plan(PlanningProblem(world, start, goal)) -> PlanResult`` (see :mod:`.protocols`).
+
+Grid (OccupancyGrid, optional per-cell cost multipliers from a costmap): ``astar``,
+``dijkstra`` (compiled C core with a pure-Python fallback, :mod:`.grid_search`), ``dstar-lite``
+(incremental). Sampling (:class:`.worlds.PointWorld` with circles/polygons/grid, or
+:class:`.worlds.SE2World` for a rigid polygonal body): ``prm``, ``rrt``, ``rrt-connect``,
+``rrt-star``, ``informed-rrt-star``. Build any of them by name with
+:func:`.registry.make_planner`; post-process paths with :mod:`.postprocess`;
+``slamkit bench planning`` runs :mod:`.benchmark`.
+"""
+
+from slamkit.planning.protocols import (PlanEvent, Planner, PlanningProblem, PlanResult, PlanStats,
+                                        PlanStatus)
+from slamkit.planning.registry import make_planner, planner_names
+
+__all__ = ["PlanEvent", "Planner", "PlanningProblem", "PlanResult", "PlanStats", "PlanStatus",
+           "make_planner", "planner_names"]
