@@ -135,14 +135,15 @@ def _tolerance(decimals: int) -> float:
     return 1e-3 + 0.5 * 10.0 ** -decimals
 
 
-def _check_scenarios(movingai: Path, name: str, sample: int | None) -> None:
+def _check_scenarios(movingai: Path, name: str, sample: int | None,
+                     heuristics: tuple[str, ...] = ("octile", "euclidean", "chebyshev")) -> None:
     grid = load_map(movingai / f"{name}.map")
     scen = load_scenarios(movingai / f"{name}.map.scen")
     if sample is not None:
         rng = np.random.default_rng(7)
         scen = [scen[i] for i in sorted(rng.choice(len(scen), size=sample, replace=False))]
     dijkstra = DijkstraPlanner()
-    astars = {h: AStarPlanner(AStarConfig(heuristic=h)) for h in ("octile", "euclidean", "chebyshev")}
+    astars = {h: AStarPlanner(AStarConfig(heuristic=h)) for h in heuristics}
     exp_astar = exp_dij = 0
     for s in scen:
         start, goal = scenario_problem_points(grid, s)
@@ -154,8 +155,9 @@ def _check_scenarios(movingai: Path, name: str, sample: int | None) -> None:
             r = planner.plan(problem)
             assert abs(r.cost - ref.cost) <= 1e-9, (name, s.line, h)
             assert r.length_m == pytest.approx(r.cost, abs=1e-9)
+            if h == "octile":
+                exp_astar += r.stats.expansions
         exp_dij += ref.stats.expansions
-        exp_astar += astars["octile"].plan(problem).stats.expansions
     assert exp_astar < exp_dij
 
 
@@ -177,7 +179,8 @@ def test_movingai_big_maps_sample(movingai, name):
 @pytest.mark.slow
 @pytest.mark.parametrize("name", BIG_MAPS)
 def test_movingai_big_maps_all_scenarios(movingai, name):
-    _check_scenarios(movingai, name, sample=None)
+    # every scenario (19,000+ in total); octile A* only, to keep this under ~15 minutes
+    _check_scenarios(movingai, name, sample=None, heuristics=("octile",))
 
 
 # ---------------------------------------------------------------- properties
