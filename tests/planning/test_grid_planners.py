@@ -16,7 +16,8 @@ from slamkit.maps.occupancy_grid import OccupancyGrid
 from slamkit.planning.astar import AStarConfig, AStarPlanner
 from slamkit.planning.dijkstra import DijkstraConfig, DijkstraPlanner
 from slamkit.planning.grid_search import costmap_to_cell_cost, search
-from slamkit.planning.protocols import PlanningProblem, PlanStatus
+from slamkit.planning.protocols import Planner, PlanningProblem, PlanStatus
+from slamkit.planning.registry import GRID_PLANNERS, make_planner
 
 SQRT2 = math.sqrt(2.0)
 ADMISSIBLE_8 = ("octile", "euclidean", "chebyshev", "zero")
@@ -89,8 +90,9 @@ def test_costmap_conversion():
 
 # ---------------------------------------------------------------- statuses and errors
 
-@pytest.mark.parametrize("planner", [AStarPlanner(), DijkstraPlanner()], ids=["astar", "dijkstra"])
-def test_invalid_and_unreachable(planner):
+@pytest.mark.parametrize("name", GRID_PLANNERS)
+def test_invalid_and_unreachable(name):
+    planner = make_planner(name)
     grid = _grid(["..#..",
                   "..#.#",
                   "..#.."])
@@ -100,8 +102,10 @@ def test_invalid_and_unreachable(planner):
     assert planner.plan(outside).status is PlanStatus.INVALID_GOAL
     r = planner.plan(_problem(grid, (0, 0), (4, 0)))
     assert r.status is PlanStatus.NO_PATH and r.cost == math.inf and r.path.shape == (0, 2)
-    # it proved unreachability by closing the whole left component (6 cells), nothing more
-    assert r.stats.expansions == 6
+    assert isinstance(planner, Planner) and r.planner == name
+    # A*/Dijkstra prove unreachability by closing the start's component (6 cells); D* Lite
+    # searches backwards and closes the goal's component (5 cells)
+    assert r.stats.expansions == (5 if name == "dstar-lite" else 6)
 
 
 def test_malformed_problems_raise():
