@@ -173,6 +173,7 @@ class FilterBase:
         self._nis_dof: list[int] = []
         self._latency: list[float] = []
         self._ignored = 0
+        self._pending: float | None = None
         self._reset(Prior(mean, cov))
         self._ready = True
 
@@ -180,6 +181,12 @@ class FilterBase:
         if not self._ready:
             raise EstimationError(f"{self.name}: step() called before reset(prior)")
         t0 = time.perf_counter()
+        stamp = float(event.stamp_s)
+        # The trajectory row of a stamp is the posterior after the *last* event at that stamp,
+        # so it is summarised lazily when the next stamp begins (or in estimate()): a predict
+        # followed by an update at the same stamp costs one summary, not two.
+        if self._pending is not None and self._pending != stamp:
+            self._finalize()
         if isinstance(event, Odometry):
             if not (event.dt_s >= 0 and np.isfinite(event.dt_s)):
                 raise EstimationError(f"{self.name}: Odometry at t={event.stamp_s} has dt_s={event.dt_s}")
@@ -190,19 +197,24 @@ class FilterBase:
             self._update_gps(event)
         else:
             self._ignored += 1
+        self._pending = stamp
+        self._latency.append(time.perf_counter() - t0)
+
+    def _finalize(self) -> None:
         mean, cov = self._pose_and_covariance()
-        stamp = float(event.stamp_s)
-        if self._stamps and self._stamps[-1] == stamp:
+        if self._stamps and self._stamps[-1] == self._pending:
             self._poses[-1], self._covs[-1] = mean, cov
         else:
-            self._stamps.append(stamp)
+            self._stamps.append(self._pending)
             self._poses.append(mean)
             self._covs.append(cov)
-        self._latency.append(time.perf_counter() - t0)
+        self._pending = None
 
     def estimate(self) -> Estimate:
         if not self._ready:
             raise EstimationError(f"{self.name}: estimate() called before reset(prior)")
+        if self._pending is not None:
+            self._finalize()
         poses = np.array(self._poses).reshape(-1, 3)
         lm, lm_cov = self._landmarks()
         return Estimate(
