@@ -348,8 +348,69 @@ def _simulate(world: Mapping[str, Any], seed: int):
     return sim
 
 
+@dataclass(frozen=True)
+class MclCheckConfig:
+    """Global localization on the built map: a second tour (seed ``seed_offset`` + run seed)
+    through the same world, MCL from a uniform prior for at most ``max_updates`` scans."""
+
+    seed_offset: int = 1000
+    max_updates: int = 100
+    #: "localized" means within these of the true pose
+    position_tol_m: float = 0.3
+    heading_tol_rad: float = float(np.deg2rad(10.0))
+    filter_seed: int = 0
+
+
+def localize_on_map(result: LidarSlamResult, sequence: Sequence, config: MclCheckConfig = MclCheckConfig()
+                    ) -> dict[str, float]:
+    """Run :class:`slamkit.estimation.lidar_mcl.LidarMCL` on ``result.map`` along ``sequence``;
+    ``mcl_converged_after_updates``: the number of scan updates after which the estimate stays
+    localized (NaN if it never settles within ``max_updates``); ``mcl_final_error_m``;
+    ``mcl_updates``: updates scored. Scoring stops where the true robot leaves the part of the
+    world the map observed (a map cannot localize a robot in rooms it never saw); the filter
+    starts, from the uniform prior, at the first scan taken inside it."""
+    from slamkit.data.estimate import Prior
+    from slamkit.estimation._common import NoiseParams
+    from slamkit.estimation.lidar_mcl import LidarMCL
+
+    if sequence.ground_truth is None:
+        raise ConfigError("localize_on_map needs a sequence with ground truth")
+    mcl = LidarMCL(result.map.occupancy_grid(), NoiseParams.from_metadata(sequence.metadata),
+                   rng=np.random.default_rng(config.filter_seed), free_mask=result.map.observed)
+    mcl.reset(Prior(np.zeros(3), np.eye(3)))
+    gt = sequence.ground_truth
+    known = result.map.observed & ~result.map.occupancy_grid().occupied
+    good: list[bool] = []
+    err = np.full(3, np.nan)
+    started = False
+    for ev in sequence:
+        if isinstance(ev, Scan):
+            truth = gt.xytheta()[min(np.searchsorted(gt.stamps_s, ev.stamp_s - 1e-9), len(gt) - 1)]
+            cell = np.floor((truth[:2] - result.map.origin_xy_m) / result.map.resolution_m).astype(int)
+            inside = 0 <= cell[0] < known.shape[1] and 0 <= cell[1] < known.shape[0]
+            if inside and known[cell[1], cell[0]]:
+                started = True  # the uniform prior starts here: odometry before it is moot
+            elif started:
+                break
+        if not started:
+            continue
+        mcl.step(ev)
+        if isinstance(ev, Scan):
+            err = se2.between(truth, mcl.estimate().trajectory.xytheta()[-1])
+            good.append(bool(np.hypot(err[0], err[1]) < config.position_tol_m
+                             and abs(err[2]) < config.heading_tol_rad))
+            if len(good) >= config.max_updates:
+                break
+    ok = np.array(good, dtype=bool)
+    bad = np.flatnonzero(~ok)
+    after = float("nan") if (len(ok) == 0 or not ok[-1]) else float(bad[-1] + 1 if len(bad) else 0)
+    return {"mcl_converged_after_updates": after, "mcl_final_error_m": float(np.hypot(err[0], err[1])),
+            "mcl_updates": float(len(ok))}
+
+
 def run(config: Mapping[str, Any], folder, progress, observer=None):
-    """The ``lidar_slam`` pipeline: every world x seed through :func:`run_slam`."""
+    """The ``lidar_slam`` pipeline: every world x seed through :func:`run_slam`; with an ``mcl``
+    mapping (fields of :class:`MclCheckConfig`) also global localization on each built map."""
     from slamkit.experiments.pipeline import PipelineOutput
 
     worlds = config.get("worlds")
@@ -358,6 +419,8 @@ def run(config: Mapping[str, Any], folder, progress, observer=None):
     seeds = list(config.get("seeds", [0]))
     slam_cfg = slam_config_from(config.get("slam"))
     variants = config.get("robust_variants") or [slam_cfg.robust]
+    mcl_cfg = None if not config.get("mcl") else _dataclass_from(
+        MclCheckConfig, config["mcl"] if isinstance(config["mcl"], Mapping) else {}, "lidar_slam.mcl")
     advance = progress.task("lidar_slam", len(worlds) * len(seeds) * len(variants))
     runs: list[RunRecord] = []
     results: list[LidarSlamResult] = []
@@ -365,13 +428,23 @@ def run(config: Mapping[str, Any], folder, progress, observer=None):
         for seed in seeds:
             sim = _simulate(world, int(seed))
             seq, grid = _sim_parts(sim)
+            second = None
+            if mcl_cfg is not None:
+                from slamkit.sim.grid_world import simulate_grid_sequence
+
+                second, _ = simulate_grid_sequence(sim.scenario, np.random.default_rng(int(seed) + mcl_cfg.seed_offset),
+                                                   grid=grid)
+                second = trim_to_free_space(second, grid)
             fe = None  # the front-end does not depend on the kernel: run it once per sequence
             for robust in variants:
                 res = run_slam(seq, grid, replace(slam_cfg, robust=robust), observer, frontend=fe)
                 fe = res.frontend
                 results.append(res)
                 label = f"lidar_slam/{robust}"
-                runs.append(RunRecord(seq.name, label, dict(res.metrics), seed=int(seed),
+                metrics = dict(res.metrics)
+                if second is not None:
+                    metrics.update(localize_on_map(res, second, mcl_cfg))
+                runs.append(RunRecord(seq.name, label, metrics, seed=int(seed),
                                       params={"robust": robust,
                                               "false_loop_closures": slam_cfg.false_loop_closures}))
                 _write_trajectory(folder, res, f"{seq.name}_s{seed}_{robust}")
@@ -418,16 +491,19 @@ def _write_trajectory(folder, res: LidarSlamResult, stem: str) -> None:
 def report_markdown(config: Mapping[str, Any], runs: list[RunRecord]) -> str:
     header = ["world", "seed", "estimator", "keyframes", "loops", "false loops", "ATE odometry (m)",
               "ATE before LC (m)", "ATE after LC (m)", "reduction", "map IoU", "precision", "recall",
-              "front-end map IoU"]
+              "front-end map IoU", "MCL converged after (updates)"]
     rows = [[r.dataset, r.seed, r.estimator, int(r.metrics["num_keyframes"]),
              int(r.metrics["num_loop_closures"]), int(r.metrics["num_false_loop_closures"]),
              r.metrics.get("ate_odometry_m"), r.metrics.get("ate_frontend_m"), r.metrics.get("ate_rmse_m"),
              r.metrics.get("ate_reduction"), r.metrics.get("map_iou"), r.metrics.get("map_precision"),
-             r.metrics.get("map_recall"), r.metrics.get("map_frontend_iou")] for r in runs]
+             r.metrics.get("map_recall"), r.metrics.get("map_frontend_iou"),
+             r.metrics.get("mcl_converged_after_updates")] for r in runs]
     text = f"# Lidar SLAM: {config.get('name', 'lidar_slam')}\n\n"
     text += ("ATE: RMSE over keyframes after SE(2) alignment; 'before LC' chains the ICP odometry, "
              "'after LC' is the optimised pose graph. Map IoU: occupied cells (p > 0.5) against the "
-             "ground truth max-pooled to the map resolution, on the cells the map observed.\n\n")
+             "ground truth max-pooled to the map resolution, on the cells the map observed. MCL: "
+             "global localization from a uniform prior on the built map along a second tour; "
+             "updates until it stays within 0.3 m / 10 deg (nan: not within the budget).\n\n")
     return text + markdown_table(header, rows) + "\n"
 
 

@@ -73,7 +73,8 @@ def test_loop_closure_halves_ate_of_a_drifting_frontend(world):
 TINY = {"pipeline": "lidar_slam", "name": "tiny", "seeds": [0],
         "worlds": [{"name": "wh", "world": "warehouse", "world_size_m": [20.0, 20.0], "num_goals": 2,
                     "duration_s": 40.0}],
-        "slam": {"false_loop_closures": 1}, "robust_variants": ["cauchy", "none"]}
+        "slam": {"false_loop_closures": 1}, "robust_variants": ["cauchy", "none"],
+        "mcl": {"max_updates": 20}}
 
 
 def test_pipeline_false_loop_closure_and_recording(tmp_path, verify_rrd):
@@ -87,6 +88,10 @@ def test_pipeline_false_loop_closure_and_recording(tmp_path, verify_rrd):
     assert cauchy["num_false_loop_closures"] == 1
     assert cauchy["ate_rmse_m"] < 0.01 and none["ate_rmse_m"] > 0.3
     assert cauchy["map_iou"] > 0.9 and none["map_iou"] < 0.5
+    # global localization on each built map along a second tour (scored while the robot stays
+    # in the mapped part of the world, at most 20 updates)
+    for m in (cauchy, none):
+        assert 1 <= m["mcl_updates"] <= 20 and "mcl_converged_after_updates" in m
     out = res.out_dir
     for name in ("config.yaml", "results.json", "report.md", "recording.rrd"):
         assert (out / name).is_file()
