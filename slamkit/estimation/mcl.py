@@ -38,7 +38,6 @@ from dataclasses import dataclass
 from typing import Mapping
 
 import numpy as np
-from scipy.special import logsumexp
 from scipy.stats import norm
 
 from slamkit.data.estimate import Prior
@@ -46,6 +45,7 @@ from slamkit.errors import ConfigError
 from slamkit.estimation._common import NoiseParams, weighted_pose_mean_cov
 from slamkit.estimation.particle_filter import (
     ParticleFilterLocalization,
+    log_sum_exp,
     multinomial_resample,
     normalize_log_weights,
     roughen,
@@ -177,7 +177,7 @@ class MonteCarloLocalization(ParticleFilterLocalization):
             loglik = loglik * (c.likelihood_sigma_scale / max(current, c.likelihood_sigma_scale)) ** 2
         # log of the (prior-weighted) mean likelihood, then per measurement (see module doc)
         keep = ~self._injected if not self._injected.all() else np.ones(len(loglik), dtype=bool)
-        log_avg = logsumexp(self.log_w[keep] + loglik[keep]) - logsumexp(self.log_w[keep])
+        log_avg = log_sum_exp(self.log_w[keep] + loglik[keep]) - log_sum_exp(self.log_w[keep])
         w_avg = float(np.exp(log_avg / max(n_measurements, 1)))
         if self.w_slow == 0.0:
             self.w_slow = self.w_fast = w_avg
