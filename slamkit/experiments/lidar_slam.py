@@ -88,7 +88,10 @@ class LidarSlamConfig:
 @dataclass(frozen=True)
 class LidarSlamResult:
     """Everything one run produced. Pose arrays are (K, 3) over the K keyframes;
-    ``keyframe_points[k]`` are keyframe k's despeckled scan end points in its body frame."""
+    ``keyframe_points[k]`` are keyframe k's despeckled scan end points in its body frame.
+    ``map`` / ``frontend_map`` are built from the optimised / front-end poses; when the world's
+    grid is known they are built after the SE(2) alignment to the ground truth that ATE uses
+    (so that they can be scored cell by cell), otherwise in the estimate's frame."""
 
     name: str
     stamps_s: np.ndarray
