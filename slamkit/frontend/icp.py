@@ -212,7 +212,10 @@ def _finish(src: np.ndarray, tgt: IcpTarget, T: np.ndarray, iterations: int, con
     J = _point_to_line_jacobian(moved[si], n)
     dof = max(len(e) - 3, 1)
     s2 = max(float(e @ e) / dof, config.sigma_floor_m ** 2)
-    cov_left = s2 * np.linalg.pinv(J.T @ J) * config.covariance_scale
+    A = J.T @ J
+    # a tiny ridge instead of a pseudo-inverse: a direction nothing constrains (all points on
+    # one line) must get a huge variance, whereas pinv would report it as perfectly known
+    cov_left = s2 * np.linalg.inv(A + 1e-9 * np.trace(A) * np.eye(3)) * config.covariance_scale
     # left perturbation exp(d) o T = T o exp(Ad(T^-1) d): move the covariance to the right
     Ad = se2.adjoint(se2.inverse(T))
     cov = Ad @ cov_left @ Ad.T

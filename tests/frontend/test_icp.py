@@ -160,3 +160,16 @@ def test_bad_input():
         icp(np.zeros((2, 2)), np.zeros((10, 2)))
     with pytest.raises(DataError):
         icp(np.zeros((10, 3)), np.zeros((10, 2)))
+
+
+def test_points_on_one_line_leave_the_line_direction_unconstrained():
+    # a single straight wall: nothing fixes the slide along it; the covariance must say so
+    # (a pseudo-inverse would report that direction as perfectly known)
+    x = np.linspace(0.0, 5.0, 100)
+    target = np.column_stack([x, np.full_like(x, 2.0)])
+    source = target + np.array([0.0, -0.05])
+    res = icp(source, target, np.zeros(3))
+    sx, sy = np.sqrt(np.diag(res.covariance))[:2]
+    assert abs(res.target_T_source[1] - 0.05) < 1e-9  # across the wall: exact
+    assert sx > 1e3 * max(sy, 1e-6)
+    assert np.all(np.isfinite(res.information))
