@@ -150,12 +150,15 @@ def test_soft_constraints_give_the_least_violating_plan(controller):
 @pytest.mark.parametrize("solver", SOLVERS)
 def test_bicycle_tracks_a_turn_within_steering_limits(solver):
     """Kinematic bicycle (L = 0.5 m, |steer| <= 0.5 rad, steer rate <= 1 rad/s) follows an L-shaped
-    path: ends within 0.3 m of the corner's far end with steering within limits to 1e-6."""
+    path, the plant being ``slamkit.models.bicycle`` (exact arc, not the MPC's midpoint model): ends
+    within 0.3 m of the corner's far end with steering within limits to 1e-6."""
+    from slamkit.models.bicycle import Bicycle
+
     cfg = MPCConfig(model="bicycle", solver=solver, u_min=(0.0, -0.5), u_max=(0.8, 0.5),
                     du_max_per_s=(1.0, 1.0))
     ctl = MPCController(cfg)
-    f = discrete_dynamics(cfg)
-    plant = lambda x, u: np.asarray(f(x, u)).ravel()  # noqa: E731
+    car = Bicycle(wheelbase_m=0.5, max_steer_rad=0.5)
+    plant = lambda x, u: car.motion(x, u, cfg.dt_s)  # noqa: E731
     ref = Reference([[0.0, 0.0], [3.0, 0.0], [3.0, 3.0]], speed_mps=0.5)
     xs, us, outs = _run(ctl, [0.0, 0.0, 0.0], ref, LocalWorld(), 170, plant=plant)
     assert np.linalg.norm(xs[-1, :2] - [3.0, 3.0]) < 0.3
