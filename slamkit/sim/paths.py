@@ -164,9 +164,15 @@ def pure_pursuit(path_xy: np.ndarray, closed: bool, duration_s: float, dt_s: flo
         dx, dy = target - pose[:2]
         c_, s_ = np.cos(pose[2]), np.sin(pose[2])
         alpha = np.arctan2(-s_ * dx + c_ * dy, c_ * dx + s_ * dy)
-        v = c.speed_mps * np.clip(np.cos(alpha), c.min_speed_fraction, 1.0)
-        ld = max(np.hypot(dx, dy), 1e-6)
-        omega = np.clip(2.0 * v * np.sin(alpha) / ld, -c.max_omega_radps, c.max_omega_radps)
+        if abs(alpha) > 0.5 * np.pi:
+            # target behind the robot (a route reversing at a goal): pure pursuit's sin(alpha)
+            # vanishes near +-pi and the robot would drive straight on, so turn in place
+            v = 0.0
+            omega = c.max_omega_radps if alpha >= 0 else -c.max_omega_radps
+        else:
+            v = c.speed_mps * np.clip(np.cos(alpha), c.min_speed_fraction, 1.0)
+            ld = max(np.hypot(dx, dy), 1e-6)
+            omega = np.clip(2.0 * v * np.sin(alpha) / ld, -c.max_omega_radps, c.max_omega_radps)
         u = np.array([v, omega])
         pose = diff_drive.motion(pose, u, dt_s)
         poses.append(pose)

@@ -9,14 +9,18 @@ NOTEBOOK = Path(__file__).resolve().parents[2] / "notebooks" / "lidar_slam.ipynb
 def test_lidar_slam_notebook_runs(run_notebook) -> None:
     nb = run_notebook(NOTEBOOK, timeout_s=120)
     text = "".join(o.get("text", "") for c in nb.cells if c.cell_type == "code" for o in c.outputs)
-    # office 20 m x 20 m, seed 1: 519 scans; ICP on scans 10/20: point-to-point 7 iterations,
-    # point-to-line 5 and about half the error (6.3 mm vs 3.9 mm)
-    assert "519 scans of 360 beams" in text
-    assert "point_to_point    7 iterations" in text and "point_to_line     5 iterations" in text
-    # 75 keyframes, 40 loop closures; ATE 0.096 (wheels) / 0.006 (ICP) / 0.004 m; IoU 0.945
-    assert "75 keyframes, 40 loop closures" in text
+    # office 20 m x 20 m, seed 1: 455 scans; ICP on scans 10/20 (0.8 m apart): point-to-point
+    # 14 iterations and 18 mm off (biased), point-to-line 7 iterations and 0.9 mm off
+    assert "455 scans of 360 beams" in text
+    assert "point_to_point   14 iterations, error 18.0 mm" in text
+    assert "point_to_line     7 iterations, error 0.9 mm" in text
+    # 72 keyframes, 39 loop closures; ATE 0.083 (wheels) / 0.016 (ICP) / 0.004 m; IoU 0.964
+    assert "72 keyframes, 39 loop closures" in text
     assert "after loop closure 0.004 m" in text
-    assert "map IoU 0.945" in text
+    assert "map IoU 0.964" in text
     assert "robust kernel keeps the map: True" in text
-    assert "MCL converged after 5 scan updates; particles 2000 -> 500" in text
+    # global localization: two of three runs lock on within 4 scans, one commits to a twin room
+    assert "MCL run 11: not converged in 100 updates" in text
+    assert "MCL run 12: converged after 4 scan updates" in text
+    assert "MCL run 13: converged after 2 scan updates" in text
     assert "recording written: lidar_slam.rrd True" in text

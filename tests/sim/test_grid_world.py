@@ -104,7 +104,9 @@ def test_lidar_matches_ray_casting_at_the_true_pose():
 
 
 def test_gps_error_has_the_configured_sigma():
-    cfg = GridScenario(**{**SMALL, "duration_s": 200.0}, lidar=None, imu_rate_hz=None, encoder=None)
+    # enough goals that the tour lasts well over 60 s of 1 Hz fixes
+    cfg = GridScenario(**{**SMALL, "duration_s": 200.0, "num_goals": 12}, lidar=None,
+                       imu_rate_hz=None, encoder=None)
     seq, _ = simulate_grid_sequence(cfg, np.random.default_rng(8))
     fixes = seq.of_type(Gps)
     gt = seq.ground_truth
