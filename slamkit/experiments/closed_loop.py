@@ -128,7 +128,8 @@ def _simplify(path: np.ndarray, every: int = 3) -> np.ndarray:
 def make_scenario(seed: int, kind: str = "office", n_obstacles: int = 3,
                   robot_radius_m: float = 0.2, distance_m: tuple[float, float] = (6.0, 14.0),
                   nominal_speed_mps: float = 0.5,
-                  obstacle_speed_mps: tuple[float, float] = (0.2, 0.5)) -> Scenario:
+                  obstacle_speed_mps: tuple[float, float] = (0.2, 0.5),
+                  obstacle_min_side_m: float = 0.5) -> Scenario:
     """A seeded scenario (same seed and kind -> same scenario)."""
     rng = np.random.default_rng(seed)
     grid = _map(kind, rng)
@@ -151,7 +152,7 @@ def make_scenario(seed: int, kind: str = "office", n_obstacles: int = 3,
         lead = path[min(5, len(path) - 1)] - path[0]
         start[2] = math.atan2(lead[1], lead[0]) + rng.uniform(-0.5, 0.5)
         obstacles = crossing_obstacles(path, n_obstacles, rng, grid=grid, speed_mps=obstacle_speed_mps,
-                                       nominal_speed_mps=nominal_speed_mps)
+                                       nominal_speed_mps=nominal_speed_mps, min_side_m=obstacle_min_side_m)
         distance = DistanceGrid(distance_field_m(grid), grid.resolution_m, grid.origin_xy_m)
         return Scenario(f"{kind}_{seed}", seed, grid, start, poses[1, :2].copy(), path, obstacles,
                         distance, cell_cost)
@@ -337,7 +338,13 @@ def scenario_list(config: Mapping[str, Any]) -> list[Scenario]:
             raise ConfigError(f"scenarios.kinds: unknown kind {k!r}; choose from {SCENARIO_KINDS}")
     seeds = _seeds(sc.get("seeds", 5))
     n_obs = int(sc.get("n_obstacles", 3))
-    return [make_scenario(seed, kinds[i % len(kinds)], n_obs) for i, seed in enumerate(seeds)]
+    speed = tuple(float(v) for v in sc.get("obstacle_speed_mps", (0.2, 0.5)))
+    # how far from the path a shuttling obstacle may turn round: measured on 30 scenarios, 0.5 m
+    # left 17 % collisions for DWA and MPC, nearly all obstacles reversing beside the robot (a
+    # constant-velocity prediction cannot foresee it); 1 m gave 0-3 % but fits fewer obstacles
+    side = float(sc.get("obstacle_min_side_m", 0.5))
+    return [make_scenario(seed, kinds[i % len(kinds)], n_obs, obstacle_speed_mps=speed,
+                          obstacle_min_side_m=side) for i, seed in enumerate(seeds)]
 
 
 class _PipelineStepAdapter:
