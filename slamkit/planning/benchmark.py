@@ -79,8 +79,13 @@ def grid_speed_cases(quick: bool) -> list[BenchCase]:
     s, g = 5 * n + 5, (n - 5) * n + (n - 5)
     t_py, ref = best_of(lambda: search_python(cost, s, g, 8, False, 3, 1.0), repeat=1)
     assert abs(ref.cost - ours.cost) < 1e-6, "heapq reference and compiled A* disagree"
+    from slamkit.planning import _native
+
+    compiled = _native.gridsearch() is not None
     cases = [compare(f"astar_{n}x{n}_walls_vs_heapq", 1e3 * t_ours, "ms", "plain heapq A* (Python)",
-                     1e3 * t_py, goal=">= 20", expansions=ours.stats.expansions, cost=ours.cost)]
+                     1e3 * t_py, goal=">= 20", expansions=ours.stats.expansions, cost=ours.cost,
+                     compiled_core=compiled,
+                     **({} if compiled else {"fallback_reason": _native.unavailable_reason()}))]
     try:
         import pyastar2d
     except ImportError:
