@@ -1,9 +1,13 @@
 """Shared machinery of the pose-graph text readers (g2o, TORO, iSAM).
 
 All three formats are "one record per line, first token is a tag". The readers here split the
-file once, group lines by tag and convert each group with one numpy call (numpy's C ``loadtxt``
-parser; city10000's 20k edges parse in tens of milliseconds); only when a bulk conversion fails
-do we walk that group line by line to name the one-based line and token at fault.
+file once, group lines by tag and convert each group in bulk: with the compiled scanner
+(``_textscan.c``, built on first use by :mod:`slamkit._native`) one C pass per tag over the
+file's bytes (w10000's 74k records in ~30 ms, 4x faster than the numpy path), otherwise one numpy
+``loadtxt`` call per tag. Both convert numbers with correct rounding, so they give the same bits;
+the scanner accepts only a subset of numpy's number syntax and hands any line it does not accept
+back to the numpy path. Only when a bulk conversion fails do we walk that group line by line to
+name the one-based line and token at fault, so errors read the same whichever path ran.
 
 The assembly step (:func:`assemble`) is where the documented bad-input outcomes live, so every
 reader behaves the same:
@@ -32,13 +36,13 @@ from __future__ import annotations
 
 import io
 import math
-from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
 from typing import Literal
 
 import numpy as np
 
+from slamkit._native import load_extension
 from slamkit.data.pose_graph import PoseGraph
 from slamkit.geometry import so3
 from slamkit.errors import DataError
@@ -49,13 +53,42 @@ POLICIES = ("keep", "repair", "reject")
 REPAIR_RELATIVE_FLOOR = 1e-9
 
 
-@dataclass
-class Block:
-    """All lines of one tag: one-based line numbers and the text after the tag on each line."""
+class FileBytes:
+    """The raw bytes of a file the native scanner split; the Python split of the same text is
+    made only when a slow path (error location, subsets, merged blocks) needs the line texts."""
 
-    tag: str
-    lines: np.ndarray
-    rests: list[str]
+    def __init__(self, data: bytes) -> None:
+        self.data = data
+
+    @cached_property
+    def python_blocks(self) -> dict[str, "Block"]:
+        # what Path.read_text() would give: only ASCII reaches here, and universal newlines
+        # turn "\r\n" and a lone "\r" into "\n"
+        text = self.data.decode("ascii").replace("\r\n", "\n").replace("\r", "\n")
+        return split_text(text)
+
+
+class Block:
+    """All lines of one tag: one-based line numbers and the text after the tag on each line.
+
+    A block from the native scanner holds only its line numbers and the file's bytes
+    (``source``); :func:`numeric` converts it in C, and ``rests`` is computed on demand."""
+
+    def __init__(self, tag: str, lines: np.ndarray, rests: list[str] | None = None,
+                 source: FileBytes | None = None) -> None:
+        if rests is None and source is None:
+            raise ValueError("a Block needs its line texts or the file bytes they come from")
+        self.tag = tag
+        self.lines = lines
+        self._rests = rests
+        self.source = source
+
+    @property
+    def rests(self) -> list[str]:
+        if self._rests is None:
+            assert self.source is not None
+            self._rests = self.source.python_blocks[self.tag].rests
+        return self._rests
 
     @property
     def rows(self) -> list[list[str]]:
@@ -69,7 +102,7 @@ class Block:
 
     def token_counts(self) -> np.ndarray:
         """Number of fields after the tag on each line, computed on bytes without a Python loop."""
-        if not self.rests:
+        if not len(self):
             return np.zeros(0, dtype=np.int64)
         data = self.payload.encode("utf-8", errors="replace")
         buf = np.frombuffer(data, dtype=np.uint8)
@@ -77,23 +110,50 @@ class Block:
         starts = ~space
         starts[1:] &= space[:-1]
         line_of_byte = np.cumsum(buf == 10)
-        return np.bincount(line_of_byte[starts], minlength=len(self.rests))[: len(self.rests)]
+        return np.bincount(line_of_byte[starts], minlength=len(self))[: len(self)]
 
     def subset(self, mask: np.ndarray) -> "Block":
         index = np.flatnonzero(mask)
-        return Block(self.tag, self.lines[index], [self.rests[k] for k in index])
+        rests = self.rests
+        return Block(self.tag, self.lines[index], [rests[k] for k in index])
 
     def __len__(self) -> int:
-        return len(self.rests)
+        return len(self.lines)
 
 
 def empty_block(tag: str) -> Block:
     return Block(tag, np.zeros(0, dtype=np.int64), [])
 
 
+TEXTSCAN_MODULE = "slamkit.data.formats._textscan"
+
+
+def textscan():
+    """The compiled scanner (``_textscan.c``), or None: then everything runs in Python/numpy
+    with the same results (``SLAMKIT_NO_NATIVE=1`` forces that)."""
+    return load_extension(TEXTSCAN_MODULE, Path(__file__).with_name("_textscan.c"))
+
+
 def read_records(path: str | Path) -> dict[str, Block]:
-    """Split a text file into blocks by first token; blank lines and ``#`` comments are skipped."""
+    """Split a text file into blocks by first token; blank lines and ``#`` comments are skipped.
+
+    With the native scanner, an ASCII file (only printable characters, tabs and line breaks) is
+    split in C and its blocks are converted in C by :func:`numeric`; anything else takes the
+    Python path (same blocks, same errors)."""
     path = Path(path)
+    scanner = textscan()
+    if scanner is not None:
+        try:
+            data = path.read_bytes()
+        except FileNotFoundError:
+            raise DataError("no such file", path) from None
+        except IsADirectoryError:
+            raise DataError("is a directory, not a file", path) from None
+        found = scanner.tags(data) if data.isascii() else None
+        if found is not None:
+            source = FileBytes(data)
+            return {tag: Block(tag, np.frombuffer(lines, dtype=np.int64), source=source)
+                    for tag, lines in found.items()}
     try:
         text = path.read_text()
     except FileNotFoundError:
@@ -102,6 +162,11 @@ def read_records(path: str | Path) -> dict[str, Block]:
         raise DataError(f"not a text file ({exc.reason} at byte {exc.start})", path) from None
     except IsADirectoryError:
         raise DataError("is a directory, not a file", path) from None
+    return split_text(text)
+
+
+def split_text(text: str) -> dict[str, Block]:
+    """The Python splitter of :func:`read_records` (per-line ``str.partition``)."""
     lines = text.splitlines()
     # partition(" ") is the cheap common case (tag at column 0, then a space); lines that start
     # with whitespace or use other separators take the general split
@@ -127,18 +192,28 @@ def numeric(path: str | Path, tag: str, block: Block, n_ids: int,
             n_values: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Convert a block to line numbers (K,), integer ids (K, n_ids) and finite floats (K, n_values).
 
-    Fast path: one ``np.loadtxt`` (numpy's C parser, which also checks that every row has the
-    same number of fields) over the whole block; any failure falls back to a line-by-line scan
-    that names the line and field at fault."""
+    Fast paths: the native scanner for a block it split (exactly ``n_ids + n_values`` plain
+    decimal numbers per line, correctly rounded like numpy), else one ``np.loadtxt`` (numpy's C
+    parser, which also checks that every row has the same number of fields) over the whole
+    block; any failure falls back to a line-by-line scan that names the line and field at
+    fault."""
     expected = n_ids + n_values
     lines = np.asarray(block.lines, dtype=np.int64)
     if not len(block):
         return lines, np.zeros((0, n_ids), np.int64), np.zeros((0, n_values))
     table = None
-    try:
-        table = np.loadtxt(io.StringIO(block.payload), dtype=float, comments=None, ndmin=2)
-    except ValueError:
-        table = None
+    scanner = textscan() if block.source is not None else None
+    if scanner is not None:
+        scanned = scanner.scan(block.source.data, tag, expected)
+        if scanned is not None:
+            table = np.frombuffer(scanned[0], dtype=float).reshape(-1, expected)
+            if len(table) != len(block):  # pragma: no cover - tags() and scan() split alike
+                table = None
+    if table is None:
+        try:
+            table = np.loadtxt(io.StringIO(block.payload), dtype=float, comments=None, ndmin=2)
+        except ValueError:
+            table = None
     if table is None or table.shape != (len(block), expected):
         _locate_bad_line(path, tag, block, expected)
     id_part = table[:, :n_ids]

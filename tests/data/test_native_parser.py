@@ -1,0 +1,247 @@
+"""The compiled text scanner (``slamkit/data/formats/_textscan.c``) against the Python/numpy path
+it replaces: identical arrays (bit for bit) on every shared pose-graph file, identical DataError
+messages on malformed input, and identical numbers for any decimal spelling (property test).
+
+Each comparison reads the same file twice, once with ``SLAMKIT_NO_NATIVE=1``."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from slamkit import _native
+from slamkit.data.formats import load_pose_graph, read_g2o, read_isam_with_landmarks, read_toro
+from slamkit.data.formats._records import TEXTSCAN_MODULE, read_records, textscan
+from slamkit.errors import DataError
+
+ROOT = Path(__file__).resolve().parents[2]
+SHARED = ROOT.parent / "shared" / "datasets"
+GTSAM_DATA = Path(sys.prefix) / "lib" / f"python{sys.version_info.major}.{sys.version_info.minor}" \
+    / "site-packages" / "gtsam" / "Data"
+FIELDS = ("vertex_ids", "poses", "edge_from", "edge_to", "measurements", "information")
+
+
+def _pose_graph_files() -> list[Path]:
+    files: list[Path] = []
+    for folder in ("pose_graph_2d", "pose_graph_2d_kitti", "pose_graph_3d", "landmark_2d", "landmark_3d"):
+        if (SHARED / folder).is_dir():
+            files += sorted(p for p in (SHARED / folder).iterdir()
+                            if p.suffix in (".g2o", ".graph", ".txt") and "groundtruth" not in p.name)
+    if GTSAM_DATA.is_dir():
+        files += sorted(p for p in GTSAM_DATA.iterdir() if p.suffix in (".g2o", ".graph", ".txt"))
+    return files
+
+
+needs_native = pytest.mark.skipif(textscan() is None,
+                                  reason=f"no compiled scanner: {_native.unavailable_reason(TEXTSCAN_MODULE)}")
+
+
+def _outcome(monkeypatch, native: bool, reader, path):
+    """The reader's result, or the (type, message, line) of the DataError it raised."""
+    if native:
+        monkeypatch.delenv("SLAMKIT_NO_NATIVE", raising=False)
+        assert textscan() is not None
+    else:
+        monkeypatch.setenv("SLAMKIT_NO_NATIVE", "1")
+        assert textscan() is None
+    try:
+        return reader(path)
+    except DataError as exc:
+        return {"error": type(exc).__name__, "message": str(exc), "line": exc.line}
+    finally:
+        monkeypatch.delenv("SLAMKIT_NO_NATIVE", raising=False)
+
+
+def _assert_same(a, b) -> None:
+    if isinstance(a, dict) or isinstance(b, dict):  # a DataError on either side
+        assert a == b
+        return
+    if isinstance(a, tuple):  # read_isam_with_landmarks' (graph, landmarks)
+        (a, marks_a), (b, marks_b) = a, b
+        assert (marks_a is None) == (marks_b is None)
+        if marks_a is not None:
+            for field in ("pose_id", "landmark_id", "body_p_landmark", "information"):
+                assert getattr(marks_a, field).tobytes() == getattr(marks_b, field).tobytes()
+    for field in FIELDS:
+        x, y = getattr(a, field), getattr(b, field)
+        assert x.dtype == y.dtype and x.shape == y.shape, field
+        assert x.tobytes() == y.tobytes(), field  # bit for bit, NaN-safe, -0.0-aware
+    assert (a.dim, a.has_initial, a.notes, a.name) == (b.dim, b.has_initial, b.notes, b.name)
+
+
+def _params(files: list[Path]) -> list:
+    """Files over 1.5 MB (except the benchmark's w10000.graph) only run with ``-m slow``."""
+    return [pytest.param(p, id=f"{p.parent.name}/{p.name}",
+                         marks=[pytest.mark.slow] if p.stat().st_size > 1_500_000
+                         and p.name != "w10000.graph" else [])
+            for p in files]
+
+
+@needs_native
+@pytest.mark.parametrize("path", _params(_pose_graph_files()))
+def test_every_shared_pose_graph_loads_identically_with_and_without_native(monkeypatch, path):
+    fast = _outcome(monkeypatch, True, load_pose_graph, path)
+    slow = _outcome(monkeypatch, False, load_pose_graph, path)
+    _assert_same(fast, slow)
+
+
+INFO6 = "1 0 0 1 0 1"
+GOOD_V = "VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0\n"
+MALFORMED_G2O = [
+    GOOD_V + f"EDGE_SE2 0 1 1 0 0 {INFO6} 7\n",             # one field too many
+    GOOD_V + "EDGE_SE2 0 1 1 0 0 1 0 0 1 0\n",              # one too few
+    GOOD_V + f"EDGE_SE2 0 1 1 x 0 {INFO6}\n",
+    GOOD_V + f"EDGE_SE2 0 1 1 1_0 0 {INFO6}\n",             # float() takes it, numpy does not
+    GOOD_V + f"EDGE_SE2 0 1 0x10 0 0 {INFO6}\n",            # strtod takes hex, numpy does not
+    GOOD_V + f"EDGE_SE2 0 1 1e 0 0 {INFO6}\n",
+    GOOD_V + f"EDGE_SE2 0 1 . 0 0 {INFO6}\n",
+    GOOD_V + f"EDGE_SE2 0 1 nan(1) 0 0 {INFO6}\n",
+    GOOD_V + f"EDGE_SE2 0 1 1 0 0 {INFO6} # trailing comment\n",
+    GOOD_V + f"EDGE_SE2 0 1 -nan 0 0 {INFO6}\n",
+    GOOD_V + f"EDGE_SE2 0 1 Infinity 0 0 {INFO6}\n",
+    GOOD_V + f"EDGE_SE2 0 1 1e400 0 0 {INFO6}\n",           # overflows to inf in both parsers
+    GOOD_V + f"EDGE_SE2 0.5 1 1 0 0 {INFO6}\n",
+    GOOD_V + f"EDGE_SE2 0 1e20 1 0 0 {INFO6}\n",            # integral but beyond 2^53
+    GOOD_V + "EDGE_SE2\n",
+    GOOD_V + f"EDGE_SE2 0 7 1 0 0 {INFO6}\n",
+    "VERTEX_SE2 0 0 0 0\nVERTEX_SE2 0 1 0 0\n",
+    "VERTEX_SE2 0 0 0\r\nVERTEX_SE2 1 0 0 0\r\n",            # CRLF, bad line 1
+    "VERTEX_SE2 0 0 0 0\rVERTEX_SE2 1 0 0 0\rVERTEX_SE2 1 0 0 0\r",  # old-Mac line ends
+    "VERTEX_SE2 0 0 0 0\x0cVERTEX_SE2 0 0 0 0\n",           # form feed: a line break for Python
+    "VERTEX_SE2 0 0 0 0\x1fVERTEX_SE2 1 0 0 0\n",
+    "VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 0 0 0 é\n",           # non-ASCII: the Python path decides
+    "VERTEX_SE2 0 0 0 0\n\n   \n\t# c\nVERTEX_SE2\t1 0 x 0\n",
+    "0 1 2 3\n",
+    "",
+    "# only a comment\n",
+    "VERTEX_SE2 0 0 0 0\nVERTEX_SE3:QUAT 1 0 0 0 0 0 0 1\n",
+    "VERTEX_SE3:QUAT 0 0 0 0 0 0 0 0\n",
+]
+MALFORMED_OTHER = [
+    (read_toro, "VERTEX2 0 0 0 0\nVERTEX2 1 0 0 0\nEDGE2 0 1 0 0 0 1 0 1 1 0\n"),
+    (read_toro, "VERTEX2 0 0 0 0\nEDGE2 0 3 0 0 0 1 0 1 1 0 0\n"),
+    (read_toro, "VERTEX3 0 0 0 0 0 0 0\nVERTEX3 1 0 0 0 0 0 0\nEDGE3 0 1 0 0 0 0 0 0 1 2\n"),
+    (read_toro, "VERTEX2 0 0 0 0\nVERTEX3 0 0 0 0 0 0 0\n"),
+    (read_isam_with_landmarks, "EDGE2 0 1 0 0 0 1 0 0 1 0 1\nODOMETRY 1 2 0 0 0 1 0 0 1 0 nan\n"),
+    (read_isam_with_landmarks, "EDGE2 0 1 0 0 0 1 0 0 1 0 1\nLANDMARK 5 1 0 0 1 0 1\n"),
+    (read_isam_with_landmarks, "EDGE2 0 1 0 0 0 1 0 0 1 0 1\nLANDMARK 1 1 0 0 1 0\n"),
+]
+
+
+@needs_native
+@pytest.mark.parametrize("reader, text", [(read_g2o, t) for t in MALFORMED_G2O] + MALFORMED_OTHER)
+def test_malformed_input_gives_the_same_error_either_way(tmp_path, monkeypatch, reader, text):
+    path = tmp_path / "g.txt"
+    path.write_bytes(text.encode("utf-8"))
+    fast = _outcome(monkeypatch, True, reader, path)
+    slow = _outcome(monkeypatch, False, reader, path)
+    _assert_same(fast, slow)
+
+
+VALID = [
+    # tabs, leading blanks, comments, blank lines, CRLF, trailing blanks, ignored tags
+    "# header\n\n  VERTEX_SE2 0 0 0 0\t\r\nVERTEX_SE2\t1\t1.5e+00\t-0.\t+.25  \r\nFIX 0\n"
+    f"\tEDGE_SE2 0 1 1 0 0 {INFO6}\n#EDGE_SE2 9 9\nEQUIV 0 1\n",
+    # no vertices: chained initial poses; no newline at the end
+    f"EDGE_SE2 0 1 1 0 0.5 {INFO6}\nEDGE_SE2 1 2 1 0 4 {INFO6}",
+    # numbers at the edges of the exact fast path (15/16/17/20 significant digits, 1e+-22/23)
+    "VERTEX_SE2 0 0.123456789012345 1.2345678901234567 123456789012345678901\n"
+    "VERTEX_SE2 1 1e22 1e23 1e-22\nVERTEX_SE2 2 1e-23 4.9e-324 2.2250738585072011e-308\n"
+    "VERTEX_SE2 3 0.000000000000000000000000123 9007199254740993 -0.0\n",
+]
+
+
+@needs_native
+@pytest.mark.parametrize("text", VALID)
+def test_valid_edge_cases_read_identically(tmp_path, monkeypatch, text):
+    path = tmp_path / "g.g2o"
+    path.write_bytes(text.encode())
+    fast = _outcome(monkeypatch, True, read_g2o, path)
+    slow = _outcome(monkeypatch, False, read_g2o, path)
+    assert not isinstance(fast, dict), fast
+    _assert_same(fast, slow)
+
+
+@pytest.mark.parametrize("no_native", ["", "1"])
+def test_crlf_and_comment_line_numbers_worked_example(tmp_path, monkeypatch, no_native):
+    # line 1 comment, 2 blank, 3 vertex, 4 vertex, 5 bad edge: the error names line 5 either way
+    monkeypatch.setenv("SLAMKIT_NO_NATIVE", no_native)
+    path = tmp_path / "g.g2o"
+    path.write_bytes(b"# c\r\n\r\nVERTEX_SE2 0 0 0 0\r\nVERTEX_SE2 1 0 0 0\rEDGE_SE2 0 1 1 0 0 1 0 0\n")
+    with pytest.raises(DataError, match="EDGE_SE2 needs 11 fields after the tag, got 8") as info:
+        read_g2o(path)
+    assert info.value.line == 5
+    blocks = read_records(path)
+    assert {t: b.lines.tolist() for t, b in blocks.items()} == {"VERTEX_SE2": [3, 4], "EDGE_SE2": [5]}
+
+
+FORMATS = ["{!r}", "{:.6g}", "{:e}", "{:+.3f}", "{:.17g}", "{:.20e}", "{:.25f}", "{:.0f}.", "{:E}"]
+
+
+@needs_native
+@settings(max_examples=60, deadline=None)
+@given(values=st.lists(st.floats(allow_nan=False, allow_infinity=False, width=64), min_size=3,
+                       max_size=3),
+       formats=st.lists(st.sampled_from(FORMATS), min_size=3, max_size=3))
+def test_any_decimal_spelling_converts_to_the_same_bits(tmp_path_factory, values, formats):
+    tokens = [fmt.format(v) for fmt, v in zip(formats, values)]
+    data = f"VERTEX_SE2 0 {' '.join(tokens)}\n".encode()
+    scanned = textscan().scan(data, "VERTEX_SE2", 4)
+    assert scanned is not None
+    ours = np.frombuffer(scanned[0], dtype=float)[1:]
+    expected = np.array([float(t) for t in tokens])  # correctly rounded, like numpy's parser
+    assert ours.tobytes() == expected.tobytes()
+    assert np.frombuffer(scanned[1], dtype=np.int64).tolist() == [1]
+
+
+@needs_native
+def test_scanner_hands_unusual_lines_back_to_python():
+    scanner = textscan()
+    assert scanner.tags("A 1\nB 2\r\nA 3\n\n# x\n".encode()) is not None
+    assert {k: np.frombuffer(v, np.int64).tolist() for k, v in scanner.tags(b"A 1\nB 2\r\nA 3\n# x\n").items()} \
+        == {"A": [1, 3], "B": [2]}
+    assert scanner.tags(b"A 1\x0b2\n") is None
+    assert scanner.tags("A é\n".encode()) is None
+    assert scanner.scan(b"A 1 2\nA 1 x\n", "A", 2) is None
+    assert scanner.scan(b"A 1 2\nA 1\n", "A", 2) is None
+    values, lines = scanner.scan(b"B x\nA 1 2\n  A\t3 -4e-1\n", "A", 2)
+    assert np.frombuffer(values).tolist() == [1.0, 2.0, 3.0, -0.4]
+    assert np.frombuffer(lines, np.int64).tolist() == [2, 3]
+
+
+def test_loader_reports_compile_failure_and_caches_by_hash(tmp_path, monkeypatch):
+    monkeypatch.delenv("SLAMKIT_NO_NATIVE", raising=False)
+    monkeypatch.setenv("SLAMKIT_CACHE", str(tmp_path / "cache"))
+    bad = tmp_path / "_broken_ext.c"
+    bad.write_text("this is not C\n")
+    assert _native.load_extension("slamkit_test_pkg._broken_ext", bad) is None
+    assert "compiling _broken_ext.c failed" in _native.unavailable_reason("slamkit_test_pkg._broken_ext")
+    monkeypatch.setenv("SLAMKIT_NO_NATIVE", "1")
+    assert _native.load_extension(TEXTSCAN_MODULE, Path("unused.c")) is None
+    assert _native.unavailable_reason(TEXTSCAN_MODULE) == "disabled by SLAMKIT_NO_NATIVE"
+
+
+def test_loader_compiles_a_fresh_module_into_the_cache(tmp_path, monkeypatch):
+    try:
+        _native._compiler()
+    except RuntimeError:
+        pytest.skip("no C compiler on this machine")
+    monkeypatch.delenv("SLAMKIT_NO_NATIVE", raising=False)
+    monkeypatch.setenv("SLAMKIT_CACHE", str(tmp_path / "cache"))
+    src = tmp_path / "_answer.c"
+    src.write_text(
+        "#define PY_SSIZE_T_CLEAN\n#include <Python.h>\n"
+        "static PyObject *answer(PyObject *s, PyObject *a) { return PyLong_FromLong(42); }\n"
+        "static PyMethodDef M[] = {{\"answer\", answer, METH_NOARGS, NULL}, {NULL, NULL, 0, NULL}};\n"
+        "static struct PyModuleDef D = {PyModuleDef_HEAD_INIT, \"_answer\", NULL, -1, M};\n"
+        "PyMODINIT_FUNC PyInit__answer(void) { return PyModule_Create(&D); }\n")
+    module = _native.load_extension("slamkit_test_pkg._answer", src)
+    assert module is not None and module.answer() == 42
+    built = list((tmp_path / "cache").iterdir())
+    assert len(built) == 1 and built[0].name.startswith("_answer_")  # no temporary left behind
+    assert _native.unavailable_reason("slamkit_test_pkg._answer") is None
