@@ -19,7 +19,7 @@ def test_python_reference_step_equals_vectorised_step():
     noise = NoiseParams()
     particles = rng.normal(0, 0.2, (300, 3))
     # reference: consumes standard normals (n, 2), then one uniform for the resampling offset
-    out = _python_loop_step(particles.tolist(), lm, z, noise, (odo.v_mps, odo.omega_radps), odo.dt_s,
+    out = _python_loop_step(tuple(particles[:, k].tolist() for k in range(3)), lm, z, noise, (odo.v_mps, odo.omega_radps), odo.dt_s,
                             np.random.default_rng(5))
     draws = np.random.default_rng(5)
     eps = draws.standard_normal((300, 2))
@@ -28,7 +28,7 @@ def test_python_reference_step_equals_vectorised_step():
     ll, _ = range_bearing_log_likelihood(moved, lm, z, noise.range_bearing_cov)
     w = np.exp(ll - ll.max())
     idx = systematic_resample(w / w.sum(), offset=draws.random() / 300)
-    np.testing.assert_allclose(np.array(out), moved[idx], atol=1e-9)
+    np.testing.assert_allclose(np.array(out).T, moved[idx], atol=1e-9)
 
 
 def test_latency_cases_ratio_against_reference():
