@@ -102,10 +102,12 @@ class LandmarkSLAMConfig:
     to ``isam2`` and the incremental fixed-lag smoother."""
 
     noise: SmootherNoise | None = None
-    odometry_floor_sigma: tuple[float, float, float] = (1e-4, 1e-4, 1e-5)
+    odometry_floor_sigma: tuple[float, float, float] = (1e-3, 1e-3, 1e-4)
     max_iterations: int = 100
     relative_error_tol: float = 1e-5
     absolute_error_tol: float = 1e-5
+    #: LM gives up when its damping reaches this; GTSAM's 1e5 default stops early here
+    lambda_upper_bound: float = 1e10
     relinearize_threshold: float = 0.01
     relinearize_skip: int = 1
     lag_s: float = 5.0
@@ -358,6 +360,9 @@ class BatchLandmarkSLAM(_LandmarkSmootherBase):
             params.setMaxIterations(self.config.max_iterations)
             params.setRelativeErrorTol(self.config.relative_error_tol)
             params.setAbsoluteErrorTol(self.config.absolute_error_tol)
+            # GTSAM's default lambda ceiling (1e5) makes LM give up early from a drifted
+            # dead-reckoning start (measured: error 17672 after 3 iterations vs 3822 after 16)
+            params.setlambdaUpperBound(self.config.lambda_upper_bound)
             t0 = time.perf_counter()
             optimizer = gtsam.LevenbergMarquardtOptimizer(self._graph, self._initial, params)
             self._solution = gtsam.Values(optimizer.optimize())
@@ -372,13 +377,22 @@ class BatchLandmarkSLAM(_LandmarkSmootherBase):
         n = len(self._stamps)
         poses = np.array([_xytheta(solution.atPose2(X(k))) for k in range(n)])
         covs, cov_of = None, None
+        info = dict(self._result_info)
         if self.config.compute_covariances:
-            marginals = gtsam.Marginals(self._graph, solution)
-            covs = np.stack([_world_cov(poses[k], marginals.marginalCovariance(X(k)))
-                             for k in range(n)])
-            cov_of = marginals.marginalCovariance
+            try:
+                marginals = gtsam.Marginals(self._graph, solution)
+                covs = np.stack([_world_cov(poses[k], marginals.marginalCovariance(X(k)))
+                                 for k in range(n)])
+                cov_of = marginals.marginalCovariance
+            except RuntimeError as exc:
+                # the LM solve is damped, the marginals' Cholesky is not: very confident
+                # odometry (lateral sigma at the floor) can leave the information too poorly
+                # conditioned to factor; report the estimate without covariances
+                covs, cov_of = None, None
+                info["warnings"] = [f"marginal covariances unavailable: "
+                                    f"{str(exc).strip().splitlines()[0]}"]
         landmarks, landmark_covs = self._landmark_output(solution, cov_of)
-        return poses, covs, landmarks, landmark_covs, dict(self._result_info)
+        return poses, covs, landmarks, landmark_covs, info
 
 
 # ---- iSAM2 ---------------------------------------------------------------------------------------

@@ -20,7 +20,7 @@ SUITES: dict[str, str] = {
     "raycast": "slamkit.maps.benchmark:run",
     "filters": "slamkit.estimation.benchmark:run",
     "planning": "slamkit.planning.benchmark:run",
-    "control": "slamkit.control.benchmark:run",
+    "control": "slamkit.experiments.control_benchmark:run",
     "scan-matching": "slamkit.frontend.benchmark:run",
 }
 

@@ -158,15 +158,17 @@ def test_accuracy_batch_isam2_fixed_lag(noisy_runs):
 
 def test_batch_covariances_are_consistent(noisy_runs):
     """Mean pose NEES (x, y, theta; 3 dof) of the batch solution over 3 seeds x 301 poses is
-    near 3 (measured per seed 3.46, 1.95, 4.84; mean 3.42): the marginals describe the actual
-    error. Poses along one run are strongly correlated, so the band is wide."""
+    near 3 (measured mean 3.21 with the default odometry floor of 1 mm / 1 mm / 1e-4 rad per
+    step; 3.42 with the earlier 0.1 mm floor, which left the information too ill-conditioned
+    for the marginals on strongly nonlinear runs): the marginals describe the actual error.
+    Poses along one run are strongly correlated, so the band is wide."""
     nees = []
     for seq, est in noisy_runs.values():
         e = errors(est["batch"], seq)
         P = est["batch"].pose_covariances
         nees.append(np.einsum("ni,ni->n", e, np.linalg.solve(P, e[..., None])[..., 0]))
     mean = float(np.mean(np.concatenate(nees)))
-    assert mean == pytest.approx(3.42, abs=0.02)
+    assert mean == pytest.approx(3.21, abs=0.02)
     assert 1.5 < mean < 6.0
 
 

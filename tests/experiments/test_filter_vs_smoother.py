@@ -114,11 +114,12 @@ def test_ekf_nees_inside_its_band_when_mild_and_outside_when_strong() -> None:
 def test_smoothers_beat_ekf_slam_over_twenty_seeds() -> None:
     """Mean ATE batch <= iSAM2 <= EKF-SLAM over 20 seeds, iSAM2 within 2% of batch.
 
-    Both solve the same MAP problem; iSAM2 reaches it up to its relinearisation threshold, and ATE
-    against the truth is not the objective, so per seed either may score lower by a fraction of a
-    percent (measured over seeds 0-19, 30 s: batch 9.82 mm, iSAM2 9.72 mm, batch converged --
-    tightening LM's tolerances to 1e-10 changes no digit). "batch <= iSAM2" is therefore
-    asserted within the issue's own 2% tolerance."""
+    Both solve the same MAP problem; batch LM reaches the lower objective on every seed 0-19
+    (after raising LM's lambda ceiling: with GTSAM's default 1e5 it gave up on seed 16 at error
+    17672 vs 3822), but ATE against the truth is not the objective, so per seed either may
+    score lower by a fraction of a percent (measured over seeds 0-19, 30 s: batch 9.69 mm,
+    iSAM2 9.68 mm; seed 16: batch 8.84 mm at error 3822, iSAM2 8.60 mm at error 7002).
+    "batch <= iSAM2" is therefore asserted within the issue's own 2% tolerance."""
     missing = [n for n in ("batch", "isam2", "ekf_slam") if not registry.is_available(n)]
     if missing:
         pytest.skip(f"estimators not in this installation yet: {missing}")
@@ -133,5 +134,5 @@ def test_smoothers_beat_ekf_slam_over_twenty_seeds() -> None:
     assert mean["batch"] <= 1.02 * mean["isam2"]
     assert mean["isam2"] <= mean["ekf_slam"]
     assert abs(mean["isam2"] - mean["batch"]) <= 0.02 * mean["batch"]
-    # Not asserted: per seed the two differ by more than 2% on some seeds (one seed of 0-19 at
-    # 30 s: iSAM2 9.04 mm, batch 11.14 mm); the issue's 2% holds for the mean over seeds.
+    # Not asserted: per seed the two can differ by more than 2% (seed 16 above: 2.8%); the
+    # issue's 2% holds for the mean over seeds.
