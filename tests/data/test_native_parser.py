@@ -16,7 +16,13 @@ from hypothesis import strategies as st
 
 from slamkit import _native
 from slamkit.data.formats import load_pose_graph, read_g2o, read_isam_with_landmarks, read_toro
-from slamkit.data.formats._records import TEXTSCAN_MODULE, read_records, textscan
+from slamkit.data.formats._records import (
+    TEXTSCAN_MODULE,
+    read_records,
+    smallest_eigenvalue_positive,
+    textscan,
+    vertex_rows,
+)
 from slamkit.errors import DataError
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -245,3 +251,43 @@ def test_loader_compiles_a_fresh_module_into_the_cache(tmp_path, monkeypatch):
     built = list((tmp_path / "cache").iterdir())
     assert len(built) == 1 and built[0].name.startswith("_answer_")  # no temporary left behind
     assert _native.unavailable_reason("slamkit_test_pkg._answer") is None
+
+
+# --- assemble's fast paths: Gershgorin pre-check and contiguous-id lookup ---------------------
+
+
+@settings(max_examples=60, deadline=None)
+@given(n=st.sampled_from([3, 6]), seed=st.integers(0, 2**32 - 1),
+       log_scale=st.floats(-300, 300), shift=st.floats(-2.0, 2.0))
+def test_positive_definite_precheck_agrees_with_eigvalsh(n, seed, log_scale, shift):
+    rng = np.random.default_rng(seed)
+    a = rng.normal(size=(40, n, n))
+    sym = a @ np.swapaxes(a, 1, 2) / n + shift * np.eye(n)  # eigenvalues straddle 0 for shift < 0
+    sym[::3] = np.diag(rng.uniform(0.5, 2.0, n)) + 0.1 * (a[::3] + np.swapaxes(a[::3], 1, 2))
+    sym[1::5, -1, -1] = 0.0
+    sym[2::7] = np.eye(n)
+    sym *= 10.0 ** log_scale
+    sym[0, 0, 1] += 1.0  # an asymmetric entry above the diagonal: both read the lower triangle
+    expected = np.linalg.eigvalsh(sym)[:, 0] > 0.0
+    assert np.array_equal(smallest_eigenvalue_positive(sym), expected)
+
+
+def test_vertex_rows_worked_examples():
+    ends = np.array([5, 7, 3, 8])
+    (rows,) = vertex_rows(np.array([5, 6, 7]), ends)  # contiguous: subtraction, then clipped
+    assert rows.tolist() == [0, 2, 0, 2]
+    (rows,) = vertex_rows(np.array([3, 5, 7]), ends)  # gaps: binary search
+    assert rows.tolist() == [1, 2, 0, 2]
+    assert vertex_rows(np.array([5, 3, 7]), ends) is None
+
+
+@pytest.mark.parametrize("ids, missing", [("0 1 2", 7), ("5 6 7", 3), ("0 2 4", 1), ("0 2 4", 5)])
+def test_edge_to_an_undeclared_vertex_is_found_with_or_without_gaps(tmp_path, ids, missing):
+    text = "".join(f"VERTEX_SE2 {i} 0 0 0\n" for i in ids.split())
+    first = ids.split()[0]
+    text += f"EDGE_SE2 {first} {first} 1 0 0 {INFO6}\nEDGE_SE2 {first} {missing} 1 0 0 {INFO6}\n"
+    path = tmp_path / "g.g2o"
+    path.write_text(text)
+    with pytest.raises(DataError, match=f"edge refers to vertex {missing},") as info:
+        read_g2o(path)
+    assert info.value.line == 5
