@@ -49,6 +49,7 @@ from slamkit.estimation.particle_filter import (
     multinomial_resample,
     normalize_log_weights,
     roughen,
+    roughening_sigma,
     sample_gaussian_poses,
 )
 
@@ -110,7 +111,8 @@ class MCLConfig:
     #: sharp likelihood, but it does hold many under a flattened one.
     anneal_updates: int = 10
     anneal_start_scale: float = 10.0
-    #: roughening constant K (Gordon et al. 1993) applied to the resampled, non-injected particles
+    #: roughening constant K (Gordon et al. 1993) applied to the resampled, non-injected
+    #: particles, with the spread E floored at one KLD bin
     roughening_k: float = 0.2
 
     def __post_init__(self) -> None:
@@ -207,6 +209,13 @@ class MonteCarloLocalization(ParticleFilterLocalization):
                 size = min(c.n_max, 2 * size)
         self.particles = new
         self._injected = injected
+        # The belief carried forward is the roughened set: its covariance includes the
+        # roughening kernel. Without it a weight collapsed onto one particle reports a zero
+        # covariance (NEES ~1e90 in the first global-localization updates).
+        mean, cov = self._posterior
+        keep = ~injected if not injected.all() else np.ones(len(new), dtype=bool)
+        h = roughening_sigma(new[keep], c.roughening_k, np.array([False, False, True]), self._bin)
+        self._posterior = (mean, cov + np.diag(h**2))
         self.log_w = np.full(len(new), -np.log(len(new)))
         self.n_resamples += 1
         self.particle_counts.append(len(new))
@@ -216,7 +225,10 @@ class MonteCarloLocalization(ParticleFilterLocalization):
         """n i.i.d. draws from the weighted set, roughened, each replaced by a uniform random
         pose with probability p_inject (Table 8.3 lines 11-13); returns (poses, injected mask)."""
         new = self.particles[multinomial_resample(w, self.rng, n)]
-        new = roughen(new, self.mcl_config.roughening_k, self.rng, np.array([False, False, True]))
+        # spread floored at one KLD bin: after a weight collapse every draw is a copy of one
+        # particle and spread-based roughening alone would stop (and report a zero covariance)
+        new = roughen(new, self.mcl_config.roughening_k, self.rng, np.array([False, False, True]),
+                      min_spread=self._bin)
         inject = self.rng.random(n) < p_inject
         if inject.any():
             new[inject] = self.uniform_poses(int(inject.sum()))

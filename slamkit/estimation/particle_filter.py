@@ -131,19 +131,31 @@ def resample(scheme: str, weights: np.ndarray, rng: np.random.Generator, n: int 
     return fn(weights, rng, n)
 
 
+def roughening_sigma(particles: np.ndarray, k: float, angle_mask: np.ndarray | None = None,
+                     min_spread: np.ndarray | None = None) -> np.ndarray:
+    """Per-dimension standard deviation K E N^(-1/d) that :func:`roughen` applies; E is floored
+    at ``min_spread`` (a set of identical copies would otherwise never be roughened again)."""
+    n, d = particles.shape
+    if k <= 0 or n < 1:
+        return np.zeros(d)
+    spread = particles.max(axis=0) - particles.min(axis=0)
+    if min_spread is not None:
+        spread = np.maximum(spread, min_spread)
+    if angle_mask is not None and np.any(angle_mask):
+        spread[angle_mask] = np.minimum(spread[angle_mask], np.pi)
+    return k * spread * n ** (-1.0 / d)
+
+
 def roughen(particles: np.ndarray, k: float, rng: np.random.Generator,
-            angle_mask: np.ndarray | None = None) -> np.ndarray:
+            angle_mask: np.ndarray | None = None, min_spread: np.ndarray | None = None) -> np.ndarray:
     """Roughening (Gordon, Salmond & Smith 1993, section 4.1): jitter resampled particles with
     zero-mean Gaussian noise of standard deviation K E N^(-1/d) per dimension, E the spread
     (max - min) of that dimension. It counters sample impoverishment when the process noise is
     small compared with the likelihood's width."""
     n, d = particles.shape
-    if k <= 0 or n < 2:
+    if k <= 0 or n < 1:
         return particles
-    spread = particles.max(axis=0) - particles.min(axis=0)
-    if angle_mask is not None and np.any(angle_mask):
-        spread[angle_mask] = np.minimum(spread[angle_mask], np.pi)
-    out = particles + rng.standard_normal((n, d)) * (k * spread * n ** (-1.0 / d))
+    out = particles + rng.standard_normal((n, d)) * roughening_sigma(particles, k, angle_mask, min_spread)
     if angle_mask is not None and np.any(angle_mask):
         out[:, angle_mask] = wrap_angle(out[:, angle_mask])
     return out

@@ -201,7 +201,10 @@ class UKFLocalization(FilterBase):
         R = np.kron(np.eye(m), self.noise.range_bearing_cov)
         self.x, self.P, nu, S = ukf_update(self.x, self.P, X, Wm, Wc, np.asarray(Z, float), z, R,
                                            _POSE_ANGLES, z_mask)
-        self._record_nis(nu, S)
+        # one NIS per measurement (dof 2) from the diagonal blocks of the joint S, as the EKF
+        # records it, so NIS statistics compare across filters
+        k = np.arange(m)
+        self._record_nis(nu.reshape(m, 2), S.reshape(m, 2, m, 2)[k, :, k, :])
 
     def _update_gps(self, gps: Gps) -> None:
         X, Wm, Wc = sigma_points(self.x, self.P, self.config.sigma_points, _POSE_ANGLES)
