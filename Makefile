@@ -5,8 +5,8 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
-PIPELINE ?= pipelines/quickstart.yaml
-OUT ?= runs/quickstart
+PIPELINE ?= pipelines/filter_vs_smoother.yaml
+OUT ?= runs/filter_vs_smoother
 
 .PHONY: setup run test test-all bench clean
 
