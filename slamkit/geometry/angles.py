@@ -17,12 +17,20 @@ def wrap_angle(angle_rad):
     Scalars in give a float out; arrays in give an array of the same shape out.
     """
     a = np.asarray(angle_rad, dtype=float)
-    wrapped = np.mod(a + np.pi, TWO_PI) - np.pi
-    # np.mod can return exactly 2*pi for tiny negative inputs through rounding; fold it back
-    # so the upper bound stays open.
-    wrapped = np.where(wrapped >= np.pi, wrapped - TWO_PI, wrapped)
-    wrapped = np.where(wrapped < -np.pi, -np.pi, wrapped)
-    return float(wrapped) if wrapped.ndim == 0 else wrapped
+    # one floor instead of np.mod (several times cheaper on large arrays: particle filters wrap
+    # N x m bearings every step)
+    wrapped = a - TWO_PI * np.floor((a + np.pi) * (1.0 / TWO_PI))
+    if wrapped.ndim == 0:
+        w = float(wrapped)
+        # rounding can land exactly on +pi or a hair below -pi; fold back so [-pi, pi) holds
+        return w - TWO_PI if w >= np.pi else (-np.pi if w < -np.pi else w)
+    high = wrapped >= np.pi
+    if high.any():
+        wrapped[high] -= TWO_PI
+    low = wrapped < -np.pi
+    if low.any():
+        wrapped[low] = -np.pi
+    return wrapped
 
 
 def angle_diff(a_rad, b_rad):

@@ -51,7 +51,12 @@ def observe(world_xytheta_body, world_p_landmark):
     x, m = _pose_landmark(world_xytheta_body, world_p_landmark)
     dx = m[..., 0] - x[..., 0]
     dy = m[..., 1] - x[..., 1]
-    return np.stack([np.hypot(dx, dy), wrap_angle(np.arctan2(dy, dx) - x[..., 2])], axis=-1)
+    out = np.empty(dx.shape + (2,))
+    # sqrt of the sum of squares, not hypot: ranges are far from overflow and hypot's scaling
+    # costs several times more on particle-sized arrays
+    out[..., 0] = np.sqrt(dx * dx + dy * dy)
+    out[..., 1] = wrap_angle(np.arctan2(dy, dx) - x[..., 2])
+    return out
 
 
 def observe_jacobians(world_xytheta_body, world_p_landmark):
