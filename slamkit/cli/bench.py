@@ -18,7 +18,7 @@ from slamkit.cli.app import app
 SUITES: dict[str, str] = {
     "pose-graph": "slamkit.backend.benchmark:run",
     "raycast": "slamkit.maps.benchmark:run",
-    "filters": "slamkit.estimation.benchmark:run",
+    "filters": "slamkit.experiments.filters_benchmark:run",
     "planning": "slamkit.planning.benchmark:run",
     "control": "slamkit.experiments.control_benchmark:run",
     "scan-matching": "slamkit.frontend.benchmark:run",

@@ -1,11 +1,10 @@
 """Estimator registry: the names users type in configs -> factories that build an estimator for
 one ``Sequence``.
 
-One table spans the filters of ``slamkit.estimation`` and the smoothers of ``slamkit.backend``
-(ARCHITECTURE.md section 6 names: ``ekf``, ``ukf``, ``pf``, ``mcl``, ``ekf_slam``, ``fastslam``,
-``batch``, ``isam2``, ``fixed_lag``). Modules are imported only when an estimator is built, so
-listing the registry stays cheap, and an estimator whose module is not installed is reported as
-unavailable instead of breaking the others.
+One table spans the filters of ``slamkit.estimation`` (their rows and construction come from
+``slamkit.estimation.registry``) and the smoothers of ``slamkit.backend`` (ARCHITECTURE.md
+section 6 names: ``ekf``, ``ukf``, ``pf``, ``mcl``, ``histogram``, ``ekf_slam``, ``fastslam``,
+``batch``, ``isam2``, ``fixed_lag``). Smoother modules are imported only when one is built.
 
 Every factory reads the noise the filter should assume from ``Sequence.metadata``
 (``odometry_sigma``, ``range_bearing_sigma``; see ``slamkit.sim.landmark_world``) unless the
@@ -50,26 +49,27 @@ class EstimatorSpec:
     description: str
 
 
-REGISTRY: dict[str, EstimatorSpec] = {s.name: s for s in [
-    EstimatorSpec("ekf", "filter", "slamkit.estimation.ekf:EKFLocalization", True,
-                  "EKFLocalizationConfig", False, "EKF localisation on the known landmark map"),
-    EstimatorSpec("ukf", "filter", "slamkit.estimation.ukf:UKFLocalization", True,
-                  "UKFLocalizationConfig", False, "UKF localisation on the known landmark map"),
-    EstimatorSpec("pf", "filter", "slamkit.estimation.particle_filter:ParticleFilterLocalization",
-                  True, "ParticleFilterConfig", True, "bootstrap particle filter localisation"),
-    EstimatorSpec("mcl", "filter", "slamkit.estimation.mcl:MonteCarloLocalization", True,
-                  "MCLConfig", True, "Monte Carlo localisation (KLD-sampling, augmented MCL)"),
-    EstimatorSpec("ekf_slam", "filter", "slamkit.estimation.ekf_slam:EKFSLAM", False,
-                  "EKFSLAMConfig", False, "EKF-SLAM"),
-    EstimatorSpec("fastslam", "filter", "slamkit.estimation.fastslam:FastSlam", False,
-                  "FastSlamConfig", True, "FastSLAM 1.0"),
+#: the GTSAM smoothers (slamkit.backend); the filters' rows come from slamkit.estimation.registry
+SMOOTHERS: tuple[EstimatorSpec, ...] = (
     EstimatorSpec("batch", "batch", "slamkit.backend.landmark_slam:BatchLandmarkSLAM", False,
                   "LandmarkSLAMConfig", False, "batch Levenberg-Marquardt over the whole sequence"),
     EstimatorSpec("isam2", "smoother", "slamkit.backend.landmark_slam:Isam2LandmarkSLAM", False,
                   "LandmarkSLAMConfig", False, "iSAM2 incremental smoothing"),
     EstimatorSpec("fixed_lag", "smoother", "slamkit.backend.landmark_slam:FixedLagLandmarkSLAM",
                   False, "LandmarkSLAMConfig", False, "fixed-lag smoother (lag in seconds)"),
-]}
+)
+
+
+def _filter_rows() -> dict[str, EstimatorSpec]:
+    """The filters as registered by the estimation layer (one table, not a copy of it)."""
+    from slamkit.estimation import registry as filters
+
+    return {name: EstimatorSpec(name, "filter", f"{f.cls.__module__}:{f.cls.__name__}",
+                                f.needs_landmark_map, f.config_cls.__name__, f.random, f.description)
+            for name, f in filters.REGISTRY.items()}
+
+
+REGISTRY: dict[str, EstimatorSpec] = {**_filter_rows(), **{s.name: s for s in SMOOTHERS}}
 
 
 def names() -> list[str]:
@@ -101,13 +101,6 @@ def available() -> list[str]:
     return [n for n in REGISTRY if is_available(n)]
 
 
-def _noise(sequence: Sequence, params: Mapping[str, Any]):
-    from slamkit.estimation._common import NoiseParams
-
-    overrides = {k: float(params[k]) for k in NOISE_FIELDS if k in params}
-    return NoiseParams.from_metadata(sequence.metadata, **overrides)
-
-
 def _smoother_noise(module: Any, sequence: Sequence, overrides: Mapping[str, Any]) -> Any:
     noise = module.SmootherNoise.from_metadata(sequence.metadata)
     return dataclasses.replace(noise, **{k: float(v) for k, v in overrides.items()}) if overrides else noise
@@ -137,27 +130,17 @@ def factory(name: str, params: Mapping[str, Any] | None = None, seed: int = 0) -
     config_cls = getattr(module, s.config, None) if s.config else None
 
     def build(sequence: Sequence):
-        kwargs: dict[str, Any] = {}
         if s.kind == "filter":
-            kwargs["noise"] = _noise(sequence, noise_params)
-            if config_cls is not None:
-                kwargs["config"] = _config(config_cls, params, f"estimator {name!r}")
-            else:
-                kwargs.update(params)
-        else:
-            # smoothers carry their noise inside their config (slamkit.backend.landmark_slam)
-            kwargs["config"] = _config(config_cls, {"noise": _smoother_noise(module, sequence, noise_params),
-                                                    **params}, f"estimator {name!r}")
-        if s.random:
-            kwargs["rng"] = np.random.default_rng(seed)
-        if s.needs_landmark_map:
-            if not sequence.world_p_landmarks:
-                raise ConfigError(f"estimator {name!r} localises against a known landmark map, but "
-                                  f"sequence {sequence.name!r} has none")
-            return cls(sequence.world_p_landmarks, **kwargs)
+            from slamkit.estimation.registry import make_estimator
+
+            rng = np.random.default_rng(seed) if s.random else None
+            return make_estimator(name, sequence, {**noise_params, **params}, rng=rng)
+        # smoothers carry their noise inside their config (slamkit.backend.landmark_slam)
+        config = _config(config_cls, {"noise": _smoother_noise(module, sequence, noise_params),
+                                      **params}, f"estimator {name!r}")
         if hasattr(cls, "from_sequence"):
-            return cls.from_sequence(sequence, **kwargs)
-        return cls(**kwargs)
+            return cls.from_sequence(sequence, config=config)
+        return cls(config=config)
 
     build.estimator_name = name  # type: ignore[attr-defined]
     build.kind = s.kind  # type: ignore[attr-defined]
