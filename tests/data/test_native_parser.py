@@ -272,6 +272,16 @@ def test_positive_definite_precheck_agrees_with_eigvalsh(n, seed, log_scale, shi
     assert np.array_equal(smallest_eigenvalue_positive(sym), expected)
 
 
+@pytest.mark.parametrize("matrix, positive", [
+    (np.eye(3), True), (np.diag([1.0, 1.0, 0.0]), False), ([[1.0, 2.0], [2.0, 1.0]], False),
+    ([[2.0, 1.0], [1.0, 2.0]], True), ([[1.0, 5.0], [0.0, 1.0]], True),  # upper triangle unread
+])
+def test_positive_definite_precheck_on_one_matrix_for_every_edge(matrix, positive):
+    batch = np.tile(np.asarray(matrix, dtype=float), (1000, 1, 1))
+    assert smallest_eigenvalue_positive(batch).tolist() == [positive] * 1000
+    assert (np.linalg.eigvalsh(batch)[:, 0] > 0).tolist() == [positive] * 1000
+
+
 def test_vertex_rows_worked_examples():
     ends = np.array([5, 7, 3, 8])
     (rows,) = vertex_rows(np.array([5, 6, 7]), ends)  # contiguous: subtraction, then clipped
