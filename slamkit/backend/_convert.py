@@ -41,8 +41,18 @@ def to_pose(dim: int, row: np.ndarray):
 
 def values_from_poses(dim: int, vertex_ids: np.ndarray, poses: np.ndarray) -> gtsam.Values:
     values = gtsam.Values()
-    for vid, row in zip(vertex_ids.tolist(), poses):
-        values.insert(pose_key(vid), to_pose(dim, row))
+    # X(id) is ('x' << 56) | id for every id at once; the keyword picks Values.insert's Pose2 /
+    # Pose3 overload directly (positionally, pybind11 first tries the vector and matrix
+    # overloads on every call: 3.2 us instead of 1.7 us per pose)
+    keys = (pose_key(0) + np.asarray(vertex_ids, dtype=np.int64)).tolist()
+    insert = values.insert
+    if dim == 2:
+        Pose2 = gtsam.Pose2
+        for key, (x, y, theta) in zip(keys, np.asarray(poses, dtype=float).tolist()):
+            insert(key, pose2=Pose2(x, y, theta))
+    else:
+        for key, row in zip(keys, poses):
+            insert(key, pose3=to_pose(3, row))
     return values
 
 

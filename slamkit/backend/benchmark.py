@@ -4,7 +4,8 @@ Cases (ratio = reference time / slamkit time, so >= 0.91 means slamkit is within
 
 * ``lm_end_to_end_<file>``: slamkit's TORO reader + ``build_graph`` + ``optimize`` (LM, file
   init) against ``gtsam.load2D`` + a prior + ``LevenbergMarquardtOptimizer.optimize()`` on the
-  gtsam wheel's ``w10000.graph`` (``w100.graph`` with ``quick``).
+  gtsam wheel's ``w10000.graph`` (``w100.graph`` with ``quick``). ``extra`` says whether the
+  reader ran its compiled scanner (``_textscan.c``) or the numpy fallback, and why.
 * ``lm_backend_only_<file>``: the same without file reading on either side (slamkit's
   build_graph + initial values + optimize against LevenbergMarquardtOptimizer.optimize() on an
   already-loaded graph): the back-end's own overhead.
@@ -26,7 +27,9 @@ import time
 import gtsam
 import numpy as np
 
+from slamkit._native import unavailable_reason
 from slamkit.backend.solvers import OptimizeConfig, optimize
+from slamkit.data.formats._records import TEXTSCAN_MODULE, textscan
 from slamkit.data.formats.toro import read_toro
 from slamkit.data.pose_graph import PoseGraph
 from slamkit.timing import BenchCase, compare
@@ -157,7 +160,9 @@ def run(quick: bool = False, repeat: int | None = None, isam2_poses: int = 2000)
         t_raw, goal=">= 0.91", final_error=err_sk, reference_final_error=err_raw,
         iterations=it_sk, reference_iterations=it_raw,
         final_error_rel_diff=abs(err_sk - err_raw) / max(abs(err_raw), 1e-300),
-        slamkit_parts_last_run_s=parts, reference_parts_last_run_s=raw_parts, **_cpu_extra()))
+        slamkit_parts_last_run_s=parts, reference_parts_last_run_s=raw_parts,
+        reader_compiled_scanner=textscan() is not None,
+        reader_scanner_unavailable=unavailable_reason(TEXTSCAN_MODULE), **_cpu_extra()))
     # the back-end alone: build_graph + initial values + optimize on an already-read graph
     # against LevenbergMarquardtOptimizer on an already-loaded graph
     graph = read_toro(path)
