@@ -66,9 +66,14 @@ def load_extension(module_name: str, source: Path) -> ModuleType | None:
         if module_name not in _loaded:
             module = None
             try:
-                module = _import_built(module_name) or _compile_and_load(module_name, Path(source))
-            except Exception as exc:  # any failure means: use the Python fallback
-                _reasons[module_name] = f"{type(exc).__name__}: {exc}"
+                module = _import_built(module_name)
+            except Exception:  # a broken build-step copy: compile our own instead
+                module = None
+            if module is None:
+                try:
+                    module = _compile_and_load(module_name, Path(source))
+                except Exception as exc:  # any failure means: use the Python fallback
+                    _reasons[module_name] = f"{type(exc).__name__}: {exc}"
             _loaded[module_name] = module
     return _loaded[module_name]
 
