@@ -19,10 +19,11 @@ BEAMS = np.linspace(-np.pi, np.pi, 360, endpoint=False)
 
 
 def test_keyframes_by_distance_and_rotation():
-    # 0.1 m steps along x: a keyframe every 5 steps (0.5 m); then a turn on the spot in 5 degree
-    # steps: a keyframe every 4 steps (20 degrees)
+    # 0.1 m steps along x: a keyframe every 5 steps (0.5 m); then a turn on the spot in 5.01
+    # degree steps: a keyframe every 4 steps (20.04 degrees; exactly 20 would sit on the
+    # threshold, where the last bit of the angle difference decides)
     straight = np.column_stack([np.arange(21) * 0.1, np.zeros(21), np.zeros(21)])
-    turn = np.column_stack([np.full(12, 2.0), np.zeros(12), np.deg2rad(5.0) * np.arange(1, 13)])
+    turn = np.column_stack([np.full(12, 2.0), np.zeros(12), np.deg2rad(5.01) * np.arange(1, 13)])
     poses = np.vstack([straight, turn])
     idx = select_keyframes(np.arange(len(poses)) * 0.1, poses)
     np.testing.assert_array_equal(idx, [0, 5, 10, 15, 20, 24, 28, 32])
