@@ -35,6 +35,7 @@ Vertices are returned sorted by id (GTSAM's ``Values`` order), edges in file ord
 from __future__ import annotations
 
 import io
+import warnings
 import math
 from functools import cached_property
 from pathlib import Path
@@ -211,7 +212,10 @@ def numeric(path: str | Path, tag: str, block: Block, n_ids: int,
                 table = None
     if table is None:
         try:
-            table = np.loadtxt(io.StringIO(block.payload), dtype=float, comments=None, ndmin=2)
+            with warnings.catch_warnings():
+                # a block of tags with no numbers is reported below, naming its line
+                warnings.simplefilter("ignore", UserWarning)
+                table = np.loadtxt(io.StringIO(block.payload), dtype=float, comments=None, ndmin=2)
         except ValueError:
             table = None
     if table is None or table.shape != (len(block), expected):
