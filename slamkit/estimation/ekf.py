@@ -15,14 +15,10 @@ from typing import Callable, Mapping
 
 import numpy as np
 
-from slamkit.data.estimate import Prior
 from slamkit.data.sequence import Gps, Odometry, RangeBearing
-from slamkit.errors import ConfigError
+from slamkit.estimation._gaussian_localization import GaussianLocalization
 from slamkit.estimation._common import (
-    FilterBase,
     NoiseParams,
-    chi2_gate,
-    landmark_array,
     observation_rows,
     range_bearing_residual,
 )
@@ -90,25 +86,14 @@ class EKFLocalizationConfig:
     sequential_updates: bool = False
 
 
-class EKFLocalization(FilterBase):
+class EKFLocalization(GaussianLocalization):
     """EKF localization (registry name ``ekf``) on a known landmark map."""
 
     name = "ekf"
 
     def __init__(self, world_p_landmarks: Mapping[int, np.ndarray], noise: NoiseParams = NoiseParams(),
                  config: EKFLocalizationConfig = EKFLocalizationConfig()) -> None:
-        super().__init__()
-        self.landmark_ids, self.landmarks = landmark_array(world_p_landmarks)
-        if len(self.landmark_ids) == 0:
-            raise ConfigError("EKF localization needs a non-empty landmark map")
-        self._index = {int(i): k for k, i in enumerate(self.landmark_ids)}
-        self.noise, self.config = noise, config
-        self._gate = chi2_gate(config.gate_probability, 2)
-
-    def _reset(self, prior: Prior) -> None:
-        self.x = prior.pose_xytheta.copy()
-        self.P = prior.covariance.copy()
-        self._rejected = 0
+        super().__init__(world_p_landmarks, noise, config)
 
     def _predict(self, odometry: Odometry) -> None:
         u = np.array([odometry.v_mps, odometry.omega_radps])

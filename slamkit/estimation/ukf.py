@@ -25,14 +25,11 @@ from typing import Mapping
 import numpy as np
 from scipy.linalg import block_diag, cholesky
 
-from slamkit.data.estimate import Prior
 from slamkit.data.sequence import Gps, Odometry, RangeBearing
 from slamkit.errors import ConfigError, EstimationError
+from slamkit.estimation._gaussian_localization import GaussianLocalization
 from slamkit.estimation._common import (
-    FilterBase,
     NoiseParams,
-    chi2_gate,
-    landmark_array,
     observation_rows,
 )
 from slamkit.geometry.angles import wrap_angle
@@ -133,25 +130,14 @@ class UKFLocalizationConfig:
 _POSE_ANGLES = np.array([False, False, True])
 
 
-class UKFLocalization(FilterBase):
+class UKFLocalization(GaussianLocalization):
     """UKF localization (registry name ``ukf``) on a known landmark map."""
 
     name = "ukf"
 
     def __init__(self, world_p_landmarks: Mapping[int, np.ndarray], noise: NoiseParams = NoiseParams(),
                  config: UKFLocalizationConfig = UKFLocalizationConfig()) -> None:
-        super().__init__()
-        self.landmark_ids, self.landmarks = landmark_array(world_p_landmarks)
-        if len(self.landmark_ids) == 0:
-            raise ConfigError("UKF localization needs a non-empty landmark map")
-        self._index = {int(i): k for k, i in enumerate(self.landmark_ids)}
-        self.noise, self.config = noise, config
-        self._gate = chi2_gate(config.gate_probability, 2)
-
-    def _reset(self, prior: Prior) -> None:
-        self.x = prior.pose_xytheta.copy()
-        self.P = prior.covariance.copy()
-        self._rejected = 0
+        super().__init__(world_p_landmarks, noise, config)
 
     def _predict(self, odometry: Odometry) -> None:
         u = np.array([odometry.v_mps, odometry.omega_radps])

@@ -28,7 +28,6 @@ from :func:`slamkit.sim.moving_obstacles.crossing_obstacles` timed to meet the r
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping, Protocol

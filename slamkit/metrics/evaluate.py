@@ -16,7 +16,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
 
-import numpy as np
 
 from slamkit.data.formats.g2o import read_g2o
 from slamkit.data.formats.kitti import read_kitti
