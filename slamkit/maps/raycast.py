@@ -14,6 +14,13 @@ and rays that hit, leave the maximum range or leave the grid for good drop out o
 set. Ties (a ray through a cell corner) step in x first, as :func:`cast_ray_loop` does, so the
 vectorised and the per-beam reference agree to the last bit.
 
+Compiled core: when a C compiler is available, :class:`RayCaster` walks each beam in
+``_raycast.c`` (built on first use by :mod:`slamkit._native`): the same per-beam walk as
+:func:`cast_ray_loop`, with the same float operations on the same numpy-computed origins and
+directions, so it returns the same bits as both Python paths without needing the distance field.
+The vectorised numpy walk above is the fallback (``SLAMKIT_NO_NATIVE=1``, no compiler, or an
+origin 2^52 cells or more away); ``RayCaster.last_path`` says which one ran.
+
 Conventions: the range is measured from the ray origin to the boundary where the ray enters the
 first occupied cell (0 if the origin's own cell is occupied); beams that hit nothing within
 ``max_range_m`` return ``no_hit`` (NaN by default, the ``Scan`` convention). Cells outside the
@@ -23,10 +30,13 @@ grid are free space: rays may start outside and enter it.
 from __future__ import annotations
 
 import math
+from functools import cached_property
+from pathlib import Path
 
 import numpy as np
 from scipy import ndimage
 
+from slamkit._native import load_extension
 from slamkit.errors import DataError
 from slamkit.maps.occupancy_grid import OccupancyGrid
 
@@ -41,19 +51,41 @@ def _prepare(grid: OccupancyGrid, origins_xy_m: np.ndarray, angles_rad: np.ndarr
     return o, a
 
 
-class RayCaster:
-    """Ray caster bound to one grid; holds the grid's distance field (in cells) so that rays
-    can leap through open space (sphere tracing, Hart 1996) before walking the last cells
-    exactly. Build once per map; casting is then nearly independent of the free-space extent.
+RAYCAST_MODULE = "slamkit.maps._raycast"
 
-    Every iteration, each active ray either leaps by the clearance of its current cell (which
-    cannot skip an obstacle, see ``__init__``) when that is at least ``min_leap_cells``, or
-    walks ``chunk`` exact cell steps."""
+
+def native_raycast():
+    """The compiled walk (``_raycast.c``), or None: then :class:`RayCaster` runs its numpy walk
+    with the same results (``SLAMKIT_NO_NATIVE=1`` forces that)."""
+    return load_extension(RAYCAST_MODULE, Path(__file__).with_name("_raycast.c"))
+
+
+class RayCaster:
+    """Ray caster bound to one grid. Build once per map and cast repeatedly.
+
+    With the compiled core each beam is walked cell by cell in C (``chunk`` and
+    ``min_leap_cells`` then do not matter). The numpy fallback holds the grid's distance field
+    (in cells, built with the caster when the compiled core is unavailable, else on the
+    first numpy cast) so that rays can leap through open space (sphere
+    tracing, Hart 1996) before walking the last cells exactly: every iteration, each active ray
+    either leaps by the clearance of its current cell (which cannot skip an obstacle, see
+    ``_tables``) when that is at least ``min_leap_cells``, or walks ``chunk`` exact cell steps."""
 
     def __init__(self, grid: OccupancyGrid, chunk: int = 8, min_leap_cells: float = 2.0):
         self.grid = grid
         self.chunk = max(1, int(chunk))
         self.min_leap_cells = float(min_leap_cells)
+        #: "native" or "numpy": the walk the last :meth:`cast` used (None before the first)
+        self.last_path: str | None = None
+        # the compiled walk reads the grid as bytes (bool is one byte, 0 or 1)
+        self._occ_bytes = memoryview(np.ascontiguousarray(grid.occupied).view(np.uint8)).cast("B")
+        if native_raycast() is None:
+            self._tables  # the numpy walk will need them: pay at build time, not in a cast
+
+    @cached_property
+    def _tables(self) -> tuple[np.ndarray, np.ndarray]:
+        # Built on first use by the numpy walk only: the compiled walk needs no distance field.
+        grid = self.grid
         occ = grid.occupied
         height, width = occ.shape
         if occ.any():
@@ -69,10 +101,9 @@ class RayCaster:
         # there is 0 because the field is unknown).
         leap = np.zeros((height + 2, width + 2))
         leap[1:-1, 1:-1] = np.maximum(clearance - math.sqrt(2.0) - 1e-9, 0.0)
-        self._leap_pad = leap.ravel()
         occ_pad = np.zeros((height + 2, width + 2), dtype=bool)
         occ_pad[1:-1, 1:-1] = occ
-        self._occ_pad = occ_pad.ravel()
+        return occ_pad.ravel(), leap.ravel()
 
     def cast(self, origins_xy_m: np.ndarray, angles_rad: np.ndarray, max_range_m: float,
              no_hit: float = np.nan) -> np.ndarray:
@@ -80,17 +111,29 @@ class RayCaster:
         grid = self.grid
         origins, angles = _prepare(grid, origins_xy_m, angles_rad)
         n = len(origins)
-        out = np.full(n, float(no_hit))
-        if n == 0:
-            return out
         res = grid.resolution_m
         height, width = grid.occupied.shape
-        stride = width + 2
-        occ_pad, leap_pad = self._occ_pad, self._leap_pad
         max_t = float(max_range_m) / res  # the walk runs in cell units
-
+        # both walks start from these doubles, so they agree bit for bit
         g = (origins - grid.origin_xy_m) / res
         dx, dy = np.cos(angles), np.sin(angles)
+        if n == 0:
+            return np.full(0, float(no_hit))
+        native = native_raycast()
+        if native is not None:
+            d = np.column_stack([dx, dy])
+            # ufunc results keep the input's memory order: a Fortran-ordered origins array
+            # gives a Fortran-ordered g, so make it C-contiguous for the buffer (same values)
+            g_c = np.ascontiguousarray(g)
+            ranges = native.cast(self._occ_bytes, height, width, memoryview(g_c).cast("B"),
+                                 memoryview(d).cast("B"), max_t, res, float(no_hit))
+            if ranges is not None:
+                self.last_path = "native"
+                return np.frombuffer(ranges, dtype=np.float64)
+        self.last_path = "numpy"
+        out = np.full(n, float(no_hit))
+        stride = width + 2
+        occ_pad, leap_pad = self._tables
         ix0 = np.floor(g[:, 0]).astype(np.int64)
         iy0 = np.floor(g[:, 1]).astype(np.int64)
         stepx = np.where(dx > 0, 1, -1)
