@@ -17,11 +17,15 @@ resampling are all array operations over the particle axis.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
+from pathlib import Path
+from types import ModuleType
 from typing import Callable, Mapping
 
 import numpy as np
 
+from slamkit._native import load_extension
 from slamkit.data.estimate import Prior
 from slamkit.data.sequence import Gps, Odometry, RangeBearing
 from slamkit.errors import ConfigError
@@ -34,6 +38,20 @@ from slamkit.estimation._common import (
 )
 from slamkit.geometry.angles import wrap_angle
 from slamkit.models import diff_drive, range_bearing
+
+PFKERNEL_MODULE = "slamkit.estimation._pfkernel"
+_KERNEL_SOURCE = Path(__file__).with_name("_pfkernel.c")
+
+
+def _kernel() -> ModuleType | None:
+    """The fused C kernels (``_pfkernel.c``, compiled on first use), or None: then the numpy
+    expressions below run instead (``SLAMKIT_NO_NATIVE=1``, no compiler). Both paths compute
+    the same arithmetic; they agree to rounding (~1e-15 relative), see tests/estimation."""
+    return load_extension(PFKERNEL_MODULE, _KERNEL_SOURCE)
+
+
+def _f64(a: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(a, dtype=float)
 
 
 # --------------------------------------------------------------------------------------------
@@ -98,6 +116,12 @@ def systematic_resample(weights: np.ndarray, rng: np.random.Generator | None = N
         offset = rng.random() / n
     if not 0.0 <= offset < 1.0 / n:
         raise ConfigError(f"systematic_resample offset must lie in [0, 1/n) = [0, {1.0 / n}), got {offset}")
+    kernel = _kernel()
+    if kernel is not None and n == len(weights) and n > 0:
+        # the same cumulative sum and merge as _cumulative/_pick, in one pass over sorted positions
+        idx = np.empty(n, dtype=np.int64)
+        kernel.systematic(_f64(weights), float(offset), idx)
+        return idx
     return _pick(_cumulative(weights), offset + np.arange(n) / n)
 
 
@@ -169,6 +193,15 @@ def sample_motion(particles: np.ndarray, u: np.ndarray, dt_s: float, control_cov
     """Propagate (N, 3) particles through the exact-arc model with per-particle noisy (v, omega)
     (Probabilistic Robotics, Table 5.3, with the Gaussian velocity noise of the sequence)."""
     n = len(particles)
+    kernel = _kernel()
+    if kernel is not None and np.shape(u) == (2,) and np.ndim(dt_s) == 0 and np.shape(particles) == (n, 3):
+        # same draws from the same rng, then the exact arc fused per particle
+        draws = rng.standard_normal((n, 2))
+        sigma = np.sqrt(np.diag(control_cov))
+        out = np.empty((n, 3))
+        kernel.motion(_f64(particles), draws, out, float(u[0]), float(u[1]), float(sigma[0]),
+                      float(sigma[1]), float(dt_s))
+        return out
     noisy_u = u + rng.standard_normal((n, 2)) * np.sqrt(np.diag(control_cov))
     return np.asarray(diff_drive.motion(particles, noisy_u, dt_s), dtype=float)
 
@@ -205,11 +238,23 @@ def range_bearing_log_likelihood(particles: np.ndarray, landmarks: np.ndarray, z
     """Log-likelihood (N,) of m measurements z (m, 2) of known landmarks (m, 2) for every particle,
     and the residuals z - h(x_p, m) (N, m, 2), bearing wrapped."""
     m = len(landmarks)
+    r00, r01, r10, r11 = np.asarray(R, dtype=float).ravel().tolist()
+    det = r00 * r11 - r01 * r10  # written out: np.linalg.det costs ~5 us per call
+    const = m * (math.log(2.0 * math.pi) + 0.5 * math.log(det))
+    kernel = _kernel()
+    if kernel is not None and m > 0 and np.shape(particles)[1:] == (3,) and np.shape(z) == (m, 2) \
+            and np.shape(landmarks) == (m, 2):
+        # per particle: predicted range/bearing, wrapped residual and Mahalanobis sum in one pass
+        # (numpy needs ~15 temporaries of N x m for the same)
+        n = len(particles)
+        loglik, nu = np.empty(n), np.empty((n, m, 2))
+        kernel.rb_loglik(_f64(particles), _f64(landmarks), _f64(z), r11 / det, -r01 / det, r00 / det,
+                         const, loglik, nu)
+        return loglik, nu
     z_hat = np.asarray(range_bearing.observe(particles[:, None, :], landmarks[None]), dtype=float)
     nu = z[None] - z_hat
     nu[..., 1] = _wrap_for_square(nu[..., 1])
     maha = _maha_2d(nu, R).sum(axis=1)
-    const = m * (np.log(2.0 * np.pi) + 0.5 * np.log(np.linalg.det(R)))
     return -0.5 * maha - const, nu
 
 
@@ -234,6 +279,11 @@ def predictive_innovations(residuals: np.ndarray, weights: np.ndarray,
     weighted mean and S their weighted covariance plus R. Working with wrapped residuals (small
     for a tracking filter) instead of predicted bearings avoids a circular mean."""
     n, m = residuals.shape[:2]
+    kernel = _kernel()
+    if kernel is not None and n > 0 and m > 0 and residuals.shape[2:] == (2,) and np.shape(weights) == (n,):
+        nu, S = np.empty((m, 2)), np.empty((m, 2, 2))
+        kernel.innovations(_f64(residuals), _f64(weights), m, nu, S)
+        return nu, S + R
     flat = residuals.reshape(n, 2 * m)
     nu = weights @ flat
     d = flat - nu
@@ -243,6 +293,18 @@ def predictive_innovations(residuals: np.ndarray, weights: np.ndarray,
     k = np.arange(m)
     S = M.reshape(m, 2, m, 2)[k, :, k, :]
     return nu.reshape(m, 2), S + R
+
+
+def pose_mean_cov(poses: np.ndarray, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`slamkit.estimation._common.weighted_pose_mean_cov` (circular heading mean, wrapped
+    heading residuals), in one C pass over the particles when the kernel is available."""
+    kernel = _kernel()
+    n = len(poses)
+    if kernel is None or n == 0 or np.shape(poses) != (n, 3) or np.shape(weights) != (n,):
+        return weighted_pose_mean_cov(poses, weights)
+    out = np.empty(12)
+    kernel.pose_mean_cov(_f64(poses), _f64(weights), out)
+    return out[:3].copy(), out[3:].reshape(3, 3)
 
 
 _POSE_ANGLES = np.array([False, False, True])
@@ -303,18 +365,23 @@ class ParticleFilterLocalization(FilterBase):
         """(log-likelihood (N,), number of measurements used), recording NIS on the way."""
         ids, zs = observation_rows(observation)
         R = self.noise.range_bearing_cov
-        known = np.array([int(i) in self._index for i in ids], dtype=bool)
-        unknown = ids < 0
-        loglik = np.zeros(len(self.particles))
-        if known.any():
-            lm = self.landmarks[[self._index[int(i)] for i in ids[known]]]
-            ll, residuals = range_bearing_log_likelihood(self.particles, lm, zs[known], R)
-            loglik += ll
+        # plain-Python bookkeeping over the m ids: at N = 1000 a handful of tiny numpy calls here
+        # cost as much as the likelihood itself
+        id_list = ids.tolist()
+        rows = [k for k, i in enumerate(id_list) if i in self._index]
+        n_unknown = sum(1 for i in id_list if i < 0)
+        loglik = None
+        if rows:
+            lm = self.landmarks[[self._index[id_list[k]] for k in rows]]
+            ll, residuals = range_bearing_log_likelihood(self.particles, lm,
+                                                         zs if len(rows) == len(id_list) else zs[rows], R)
+            loglik = ll
             nu, S = predictive_innovations(residuals, np.exp(self.log_w), R)
             self._record_nis(nu, S)
-        if unknown.any():
-            loglik += range_bearing_log_likelihood_ml(self.particles, self.landmarks, zs[unknown], R)
-        used = int(known.sum() + unknown.sum())
+        if n_unknown:
+            ml = range_bearing_log_likelihood_ml(self.particles, self.landmarks, zs[ids < 0], R)
+            loglik = ml if loglik is None else loglik + ml
+        used = len(rows) + n_unknown
         return (loglik, used) if used else None
 
     def _update(self, observation: RangeBearing) -> None:
@@ -342,7 +409,7 @@ class ParticleFilterLocalization(FilterBase):
             self.n_resamples += 1
 
     def _pose_and_covariance(self) -> tuple[np.ndarray, np.ndarray]:
-        return weighted_pose_mean_cov(self.particles, np.exp(self.log_w))
+        return pose_mean_cov(self.particles, np.exp(self.log_w))
 
     def _extras(self) -> dict:
         return {"n_resamples": self.n_resamples, "n_particles_final": len(self.particles)}
