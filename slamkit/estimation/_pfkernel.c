@@ -13,8 +13,9 @@
  *       known-correspondence range-bearing log-likelihood: per particle and landmark the
  *       predicted range/bearing, wrapped residual nu = z - h(x, m) and nu^T R^-1 nu with
  *       R^-1 = [[a, b], [b, c]]; loglik = -0.5 sum maha - const, residuals (N, m, 2).
- *   innovations(resid, weights, m, nu_out, s_out)
- *       weighted mean (m, 2) and weighted 2 x 2 covariance (m, 2, 2) of the residuals.
+ *   innovations(resid, weights, m, r00, r01, r10, r11, nu_out, s_out, nis_out)
+ *       weighted mean nu (m, 2) and weighted 2 x 2 covariance of the residuals plus R (m, 2, 2),
+ *       and the NIS nu^T S^-1 nu (m,).
  *   pose_mean_cov(poses, weights, out)
  *       weighted planar pose mean (circular heading mean) and covariance: out = [mean(3), cov(9)].
  *   systematic(weights, offset, idx_out)
@@ -225,9 +226,11 @@ done:
 }
 
 static PyObject *innovations(PyObject *self, PyObject *args) {
-    Py_buffer rb, wb, nb, sb;
+    Py_buffer rb, wb, nb, sb, qb;
     Py_ssize_t m;
-    if (!PyArg_ParseTuple(args, "y*y*nw*w*", &rb, &wb, &m, &nb, &sb)) return NULL;
+    double r00, r01, r10, r11;
+    if (!PyArg_ParseTuple(args, "y*y*nddddw*w*w*", &rb, &wb, &m, &r00, &r01, &r10, &r11, &nb, &sb, &qb))
+        return NULL;
     PyObject *res = NULL;
     Py_ssize_t n = wb.len / (Py_ssize_t)sizeof(double);
     if (m < 1) {
@@ -235,10 +238,11 @@ static PyObject *innovations(PyObject *self, PyObject *args) {
         goto done;
     }
     if (!check_len(&wb, n, "weights") || !check_len(&rb, 2 * m * n, "residuals") ||
-        !check_len(&nb, 2 * m, "nu_out") || !check_len(&sb, 4 * m, "s_out"))
+        !check_len(&nb, 2 * m, "nu_out") || !check_len(&sb, 4 * m, "s_out") ||
+        !check_len(&qb, m, "nis_out"))
         goto done;
     const double *e = (const double *)rb.buf, *w = (const double *)wb.buf;
-    double *mean = (double *)nb.buf, *S = (double *)sb.buf;
+    double *mean = (double *)nb.buf, *S = (double *)sb.buf, *nis = (double *)qb.buf;
     Py_BEGIN_ALLOW_THREADS
     for (Py_ssize_t j = 0; j < 2 * m; j++) mean[j] = 0.0;
     for (Py_ssize_t j = 0; j < 4 * m; j++) S[j] = 0.0;
@@ -257,7 +261,18 @@ static PyObject *innovations(PyObject *self, PyObject *args) {
             S[4 * k + 3] += wd1 * d1;
         }
     }
-    for (Py_ssize_t k = 0; k < m; k++) S[4 * k + 2] = S[4 * k + 1];
+    for (Py_ssize_t k = 0; k < m; k++) {
+        double *Sk = S + 4 * k;
+        Sk[2] = Sk[1];
+        Sk[0] += r00;
+        Sk[1] += r01;
+        Sk[2] += r10;
+        Sk[3] += r11;
+        /* NIS nu^T S^-1 nu with the 2 x 2 inverse written out */
+        double n0 = mean[2 * k], n1 = mean[2 * k + 1];
+        double det = Sk[0] * Sk[3] - Sk[1] * Sk[2];
+        nis[k] = (Sk[3] * n0 * n0 - (Sk[1] + Sk[2]) * n0 * n1 + Sk[0] * n1 * n1) / det;
+    }
     Py_END_ALLOW_THREADS
     res = Py_NewRef(Py_None);
 done:
@@ -265,6 +280,7 @@ done:
     PyBuffer_Release(&wb);
     PyBuffer_Release(&nb);
     PyBuffer_Release(&sb);
+    PyBuffer_Release(&qb);
     return res;
 }
 
@@ -369,8 +385,8 @@ static PyMethodDef METHODS[] = {
      "rb_loglik(particles, landmarks, z, a, b, c, const, loglik_out, resid_out): range-bearing "
      "log-likelihood (N,) and wrapped residuals (N, m, 2) for R^-1 = [[a, b], [b, c]]."},
     {"innovations", innovations, METH_VARARGS,
-     "innovations(resid, weights, m, nu_out, s_out): weighted mean (m, 2) and weighted "
-     "covariance (m, 2, 2) of residuals (N, m, 2)."},
+     "innovations(resid, weights, m, r00, r01, r10, r11, nu_out, s_out, nis_out): weighted "
+     "mean (m, 2) and weighted covariance plus R (m, 2, 2) of residuals (N, m, 2), and NIS (m,)."},
     {"pose_mean_cov", pose_mean_cov, METH_VARARGS,
      "pose_mean_cov(poses, weights, out): out[:3] weighted pose mean (circular heading), "
      "out[3:] the 3 x 3 weighted covariance with wrapped heading residuals."},
