@@ -13,6 +13,15 @@ sample size, and particle-filter localization on a landmark map -- vectorised ov
 Weights are kept as log weights normalised with log-sum-exp, so many landmarks or a kidnapped
 robot underflow nothing. No per-particle Python: motion sampling, likelihoods, statistics and
 resampling are all array operations over the particle axis.
+
+Speed: numpy is near its floor on this step (~15 N x m temporaries per update), so the hot path
+-- exact-arc motion with the rng's draws, the known-correspondence range-bearing likelihood and
+residuals, the predictive innovations and their NIS, the posterior mean/covariance and
+systematic resampling -- runs in fused C loops (``_pfkernel.c``, compiled on first use through
+:mod:`slamkit._native`). The numpy expressions stay as the fallback (``SLAMKIT_NO_NATIVE=1``, no
+compiler) and the ML-association path uses them always. The two paths draw the same random
+numbers and agree to ~1e-15 (the kernel's atan2 is Cephes' rational approximation, a few ulp
+from numpy's; tests/estimation/test_pf_kernel.py).
 """
 
 from __future__ import annotations
