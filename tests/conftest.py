@@ -57,17 +57,33 @@ def shared_datasets() -> Path:
 
 
 @pytest.fixture(scope="session")
-def run_notebook():
-    """``run_notebook(path, timeout_s=300) -> NotebookNode``: execute a notebook top to bottom in
-    a kernel running this interpreter (fails the test on the first cell error)."""
+def run_notebook(tmp_path_factory):
+    """``run_notebook(path, timeout_s=300) -> str``: execute a notebook top to bottom in a kernel
+    running this interpreter (fails the test on the first cell error) and return everything its
+    cells printed, for the test to state numbers against."""
+    import json
+
     import nbformat
+    from jupyter_client.kernelspec import KernelSpecManager
     from nbclient import NotebookClient
 
-    def _run(path: str | Path, timeout_s: int = 300):
+    if "python3" not in KernelSpecManager().find_kernel_specs():
+        # ipykernel installs one into the venv; where it is missing, write one into a temporary
+        # Jupyter path instead of installing anything into the user's home
+        root = tmp_path_factory.mktemp("jupyter")
+        spec = root / "kernels" / "python3"
+        spec.mkdir(parents=True)
+        (spec / "kernel.json").write_text(json.dumps({
+            "argv": [sys.executable, "-m", "ipykernel_launcher", "-f", "{connection_file}"],
+            "display_name": "Python 3 (slamkit tests)", "language": "python"}))
+        os.environ["JUPYTER_PATH"] = str(root)
+
+    def _run(path: str | Path, timeout_s: int = 300) -> str:
         nb = nbformat.read(str(path), as_version=4)
         client = NotebookClient(nb, timeout=timeout_s, kernel_name="python3",
                                 resources={"metadata": {"path": str(Path(path).parent)}})
         client.execute()
-        return nb
+        return "".join(out.get("text", "") for cell in nb.cells if cell.cell_type == "code"
+                       for out in cell.get("outputs", []) if out.get("output_type") == "stream")
 
     return _run
