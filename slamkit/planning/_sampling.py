@@ -8,8 +8,20 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from slamkit.planning.protocols import PlanningProblem, PlanStatus, failed
+from slamkit.planning.protocols import Hook, PlanningProblem, PlanStatus, failed
 from slamkit.planning.worlds import as_world
+
+
+class SamplingPlanner:
+    """What every sampling planner holds: its frozen config, its own seeded generator and an
+    optional observation hook."""
+
+    name = "sampling"
+
+    def __init__(self, config, rng: np.random.Generator | None = None, hook: Hook | None = None):
+        self.config = config
+        self.rng = np.random.default_rng(0) if rng is None else rng
+        self.hook = hook
 
 
 class Tree:

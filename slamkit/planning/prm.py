@@ -30,7 +30,7 @@ from scipy.sparse.csgraph import connected_components, dijkstra
 from scipy.spatial import cKDTree
 
 from slamkit.errors import PlanningError
-from slamkit.planning._sampling import check_endpoints
+from slamkit.planning._sampling import SamplingPlanner, check_endpoints
 from slamkit.planning.protocols import Hook, PlanEvent, PlanResult, PlanStats, PlanStatus, PlanningProblem
 from slamkit.planning.worlds import as_world
 
@@ -134,7 +134,7 @@ def build_roadmap(world, cfg: PRMConfig, rng: np.random.Generator) -> Roadmap:
     return Roadmap(nodes, edges, weights, labels, time.perf_counter() - t0, len(pairs), tree)
 
 
-class PRMPlanner:
+class PRMPlanner(SamplingPlanner):
     """Multi-query: the roadmap of a world is built on its first query and reused afterwards
     (``roadmap_reused`` in the stats says which happened)."""
 
@@ -142,9 +142,7 @@ class PRMPlanner:
 
     def __init__(self, config: PRMConfig = PRMConfig(), rng: np.random.Generator | None = None,
                  hook: Hook | None = None):
-        self.config = config
-        self.rng = np.random.default_rng(0) if rng is None else rng
-        self.hook = hook
+        super().__init__(config, rng, hook)
         self._roadmaps: dict[int, tuple[object, object, Roadmap]] = {}
 
     def roadmap(self, world) -> tuple[object, Roadmap, bool]:

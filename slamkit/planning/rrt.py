@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from slamkit.errors import PlanningError
-from slamkit.planning._sampling import Budget, Tree, check_endpoints, default_step, steer
+from slamkit.planning._sampling import SamplingPlanner, Budget, Tree, check_endpoints, default_step, steer
 from slamkit.planning.protocols import Hook, PlanEvent, PlanResult, PlanStats, PlanStatus, PlanningProblem
 
 
@@ -37,14 +37,12 @@ class RRTConfig:
             raise PlanningError(f"max_step must be positive, got {self.max_step}")
 
 
-class RRTPlanner:
+class RRTPlanner(SamplingPlanner):
     name = "rrt"
 
     def __init__(self, config: RRTConfig = RRTConfig(), rng: np.random.Generator | None = None,
                  hook: Hook | None = None):
-        self.config = config
-        self.rng = np.random.default_rng(0) if rng is None else rng
-        self.hook = hook
+        super().__init__(config, rng, hook)
 
     def plan(self, problem: PlanningProblem) -> PlanResult:
         cfg = self.config

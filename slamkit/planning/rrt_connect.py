@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from slamkit.errors import PlanningError
-from slamkit.planning._sampling import Budget, Tree, check_endpoints, default_step, steer
+from slamkit.planning._sampling import SamplingPlanner, Budget, Tree, check_endpoints, default_step, steer
 from slamkit.planning.protocols import Hook, PlanEvent, PlanResult, PlanStats, PlanStatus, PlanningProblem
 
 
@@ -41,14 +41,12 @@ def _extend(world, tree: Tree, target: np.ndarray, eta: float) -> tuple[int, boo
     return j, bool(d[i] <= eta)
 
 
-class RRTConnectPlanner:
+class RRTConnectPlanner(SamplingPlanner):
     name = "rrt-connect"
 
     def __init__(self, config: RRTConnectConfig = RRTConnectConfig(), rng: np.random.Generator | None = None,
                  hook: Hook | None = None):
-        self.config = config
-        self.rng = np.random.default_rng(0) if rng is None else rng
-        self.hook = hook
+        super().__init__(config, rng, hook)
 
     def plan(self, problem: PlanningProblem) -> PlanResult:
         cfg = self.config

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from slamkit.errors import PlanningError
-from slamkit.planning._sampling import Budget, Tree, check_endpoints, default_step
+from slamkit.planning._sampling import SamplingPlanner, Budget, Tree, check_endpoints, default_step
 from slamkit.planning.protocols import Hook, PlanEvent, PlanResult, PlanStats, PlanStatus, PlanningProblem
 
 
@@ -53,14 +53,12 @@ def gamma_rrt_star(measure: float, d: int, rewire_factor: float = 1.1) -> float:
     return rewire_factor * 2.0 * (1.0 + 1.0 / d) ** (1.0 / d) * (measure / unit_ball_volume(d)) ** (1.0 / d)
 
 
-class RRTStarPlanner:
+class RRTStarPlanner(SamplingPlanner):
     name = "rrt-star"
 
     def __init__(self, config: RRTStarConfig = RRTStarConfig(), rng: np.random.Generator | None = None,
                  hook: Hook | None = None):
-        self.config = config
-        self.rng = np.random.default_rng(0) if rng is None else rng
-        self.hook = hook
+        super().__init__(config, rng, hook)
 
     # Informed RRT* overrides this (the only difference between the two)
     def _sample(self, world, start: np.ndarray, goal: np.ndarray, best_cost: float) -> np.ndarray:
