@@ -139,7 +139,7 @@ def _file(path: str) -> DatasetFile:
     size, sha, repo, src_path, commit, blob = table.SHARED_FILES[path]
     return DatasetFile(
         path=path, sha256=sha, size_bytes=size,
-        source=f"{repo}:{src_path} @ {commit} (git blob {blob})",
+        source=f"{repo}:{src_path} @ {commit}" + (f" (git blob {blob})" if blob else ""),
         url=f"https://raw.githubusercontent.com/{repo}/{commit}/{src_path}",
     )
 

@@ -138,6 +138,28 @@ SHARED_FILES: dict[str, tuple[int, str, str, str, str, str]] = {
         "THeK3nger/movingai-rust", "tests/maze512-32-9.map", "78ceba7fd281", "222fd9cbb2ad"),
     "grid_planning/movingai/maze/maze512-32-9.map.scen": (462_285, "1c7b51a3ee6fe4d79db9c878e5529f477bb866187634a9f1b15e9de901fabbf5",
         "THeK3nger/movingai-rust", "tests/maze512-32-9.map.scen", "78ceba7fd281", "22b2e052cea1"),
+    "vision/kitti_vo_a/poses.txt": (8_205, "da9f1248f88cc264d995a2890e6e78d0432d73e982420000345aeae47147e8ab",
+        "niconielsen32/ComputerVision", "VisualOdometry/KITTI_sequence_1/poses.txt", "37b279fa44e2", ""),
+    "vision/kitti_vo_a/calib.txt": (456, "6935f9fa72a67b60a89277d3044e4a164c507156de37b0a55212f08bbb551fc1",
+        "niconielsen32/ComputerVision", "VisualOdometry/KITTI_sequence_1/calib.txt", "37b279fa44e2", ""),
+    "reference_trajectories/KITTI_00_gt.txt": (728_871, "90791a4113df979b149fa9e1104e960ea59f525a8318a202dbb6aec1a3d88793",
+        "MichaelGrupp/evo", "test/data/KITTI_00_gt.txt", "26d0953d4da0", ""),
+    "reference_trajectories/KITTI_00_gt_times.txt": (59_033, "99a2899466cdc28dd292b4856d214a8b0aab035b91b02bb6afcb4ff363e7d421",
+        "MichaelGrupp/evo", "test/data/KITTI_00_gt_times.txt", "26d0953d4da0", ""),
+    "reference_trajectories/KITTI_00_ORB.txt": (689_230, "13437093039ccd585d03feb327a6f809a5e12a05a3be33d26192025411eded10",
+        "MichaelGrupp/evo", "test/data/KITTI_00_ORB.txt", "26d0953d4da0", ""),
+    "reference_trajectories/V101_gt.txt": (239_010, "6d2f961334ff3069105be0aacf118d3c7e82bf3ab0e238acd5f40f1d897573d1",
+        "MichaelGrupp/evo", "test/data/V101_gt.txt", "19ba625c3ddb", ""),
+    "reference_trajectories/V101_openvins.txt": (564_165, "1d2b1985115366dc825f7411c13d3fa1c2ff5abca7bf3ff26bca0390717ea50e",
+        "MichaelGrupp/evo", "test/data/V101_openvins.txt", "19ba625c3ddb", ""),
+    "reference_trajectories/freiburg1_xyz-groundtruth.txt": (201_100, "aac0319a6ef4e1cdf61e779d2152b95aa7e9f7b1749d6d18717b43ddabffede2",
+        "MichaelGrupp/evo", "test/data/freiburg1_xyz-groundtruth.txt", "26d0953d4da0", ""),
+    "reference_trajectories/freiburg1_xyz-rgbdslam.txt": (65_489, "bbcd66c6e19e6037ee550c66d307c9a008ed29ef8bd9baa6bbda119a1a51a3ee",
+        "MichaelGrupp/evo", "test/data/freiburg1_xyz-rgbdslam.txt", "26d0953d4da0", ""),
+    "maps_ros/willow-2010-02-18-0.10.pgm": (344_182, "d7644ea5eabbbc77dcb6f136774f9b159a6514151f9c411bbd6c383f592bd6e0",
+        "turtlebot/turtlebot_apps", "turtlebot_navigation/maps/willow-2010-02-18-0.10.pgm", "4bbafc7bfdfc", ""),
+    "maps_ros/willow-2010-02-18-0.10.yaml": (145, "e10d1ba93e8f204a581641a5da85d6803c89c4216e619637a2fcfe0317d290af",
+        "turtlebot/turtlebot_apps", "turtlebot_navigation/maps/willow-2010-02-18-0.10.yaml", "4bbafc7bfdfc", ""),
 }
 
 #: files of the gtsam 4.3.0 wheel's Data folder we register: name -> (bytes, sha256 of the wheel's
@@ -247,6 +269,12 @@ SESYNC_PAPER = ("Rosen, Carlone, Bandeira, Leonard, 'SE-Sync: A certifiably corr
 def sesync(fstar: float, table: int = 1) -> tuple:
     return ("sesync_fstar", fstar, "sesync_F", True,
             f"{SESYNC_PAPER}, Table {table} (certified global optimum, 4 significant digits)")
+
+LIC_EVO_DATA = ("evo's test data (MichaelGrupp/evo, GPL-3.0 repository); the trajectories keep their datasets' "
+                "terms: KITTI CC BY-NC-SA 3.0 (non-commercial), EuRoC research terms, TUM RGB-D CC BY 4.0.")
+LIC_KITTI_IMAGES = ("CC BY-NC-SA 3.0 (KITTI; NON-COMMERCIAL). Copied from niconielsen32/ComputerVision "
+                    "VisualOdometry/KITTI_sequence_1, which states no licence of its own.")
+LIC_WILLOW = "BSD (turtlebot/turtlebot_apps package.xml)."
 
 
 # --- the datasets ---------------------------------------------------------------------------
@@ -526,4 +554,42 @@ ENTRIES: dict[str, dict] = {
         counts=counts, notes="Ground truth is the GT table inside the .mat file (MAT v5).")
        for k, counts in [(1, dict(gt_poses=9658, beacons=4, ranges=3529)),
                          (2, dict(gt_poses=4091, beacons=4, ranges=1816))]},
+    # ---- camera images, reference trajectories, ROS maps (raw recordings, MANIFEST 2026-11-23) ----
+    "kitti-vo-a": dict(
+        kind="image_sequence", format="kitti_vo",
+        files=["vision/kitti_vo_a/poses.txt", "vision/kitti_vo_a/calib.txt"],
+        title="51 KITTI odometry frames (left grey, 1226 x 370) with ground-truth poses and calibration",
+        licence=LIC_KITTI_IMAGES, counts=dict(frames=51),
+        ground_truth=("vision/kitti_vo_a/poses.txt", "kitti"),
+        notes="Images in vision/kitti_vo_a/image_l/000000.png .. 000050.png beside poses.txt "
+              "(51 files, checksummed together in MANIFEST.md); frames 0.1 s apart; 59.9 m driven."),
+    "kitti00-gt": dict(
+        kind="trajectory", format="kitti",
+        files=["reference_trajectories/KITTI_00_gt.txt", "reference_trajectories/KITTI_00_gt_times.txt"],
+        title="KITTI odometry 00 ground truth (4,541 poses) with frame times", licence=LIC_EVO_DATA,
+        counts=dict(poses=4541)),
+    "kitti00-orbslam": dict(
+        kind="trajectory", format="kitti", files=["reference_trajectories/KITTI_00_ORB.txt"],
+        title="ORB-SLAM's estimate of KITTI odometry 00", licence=LIC_EVO_DATA,
+        refs=[("ape_rmse_m", 1.30345, "ape_translation_se3", True,
+               "evo's stored result (test/data): APE translation RMSE after SE(3) Umeyama alignment"),
+              ("rpe_rmse_10m", 0.22626, "rpe_translation_10m", True,
+               "evo's stored result (test/data): RPE translation RMSE over 10 m")]),
+    "v101-gt": dict(
+        kind="trajectory", format="tum", files=["reference_trajectories/V101_gt.txt"],
+        title="EuRoC V1_01_easy ground truth at camera times", licence=LIC_EVO_DATA),
+    "v101-openvins": dict(
+        kind="trajectory", format="tum", files=["reference_trajectories/V101_openvins.txt"],
+        title="OpenVINS estimate of EuRoC V1_01_easy", licence=LIC_EVO_DATA),
+    "fr1-xyz-gt": dict(
+        kind="trajectory", format="tum", files=["reference_trajectories/freiburg1_xyz-groundtruth.txt"],
+        title="TUM RGB-D fr1/xyz ground truth", licence=LIC_EVO_DATA),
+    "fr1-xyz-rgbdslam": dict(
+        kind="trajectory", format="tum", files=["reference_trajectories/freiburg1_xyz-rgbdslam.txt"],
+        title="RGBD-SLAM's estimate of TUM RGB-D fr1/xyz", licence=LIC_EVO_DATA),
+    "willow": dict(
+        kind="grid_map", format="ros_map",
+        files=["maps_ros/willow-2010-02-18-0.10.yaml", "maps_ros/willow-2010-02-18-0.10.pgm"],
+        title="Willow Garage office, ROS map_server map built from real laser data (566 x 608 at 0.1 m)",
+        licence=LIC_WILLOW, counts=dict(width=566, height=608)),
 }
