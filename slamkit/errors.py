@@ -36,6 +36,11 @@ class ConfigError(SlamkitError):
     """A pipeline or algorithm config has an unknown key or an invalid value."""
 
 
+class OutputError(SlamkitError):
+    """An output path cannot be written safely (a folder slamkit did not write, a regular file,
+    another run writing to the same folder)."""
+
+
 class BackendError(SlamkitError):
     """The factor-graph back-end could not build or solve a problem."""
 

@@ -29,7 +29,7 @@ ALLOWED = {
             "planning", "control", "metrics", "experiments"},
     "cli": None,  # may import everything
 }
-BASE_MODULES = {"errors", "timing", "config", "_native", "__init__"}
+BASE_MODULES = {"errors", "timing", "config", "paths", "_native", "__init__"}
 # third-party packages confined to one slamkit package
 CONFINED = {
     "gtsam": {"backend"},

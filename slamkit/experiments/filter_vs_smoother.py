@@ -41,6 +41,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from slamkit.data.sequence import Sequence
+from slamkit.paths import file_in, path_component
 from slamkit.errors import ConfigError, DataError
 from slamkit.experiments.estimators import REGISTRY, factory
 from slamkit.experiments.results import RunRecord, markdown_table, summarise, summary_markdown
@@ -87,7 +88,8 @@ def parse_scenarios(config: Mapping[str, Any]) -> list[ScenarioSpec]:
         if "preset" in item and item["preset"] not in ("mild", "strong"):
             raise ConfigError(f"filter_vs_smoother: scenarios[{k}].preset must be mild or strong, "
                               f"got {item['preset']!r}")
-        name = str(item.get("name") or item.get("preset") or item.get("dataset"))
+        name = path_component(str(item.get("name") or item.get("preset") or item.get("dataset")),
+                              f"filter_vs_smoother: scenarios[{k}] name")
         out.append(ScenarioSpec(name, item.get("preset"), item.get("dataset"), dict(item.get("params") or {})))
     names = [s.name for s in out]
     if len(set(names)) != len(names):
@@ -119,7 +121,7 @@ def parse_estimators(config: Mapping[str, Any]) -> list[EstimatorChoice]:
         if kind not in REGISTRY:
             raise ConfigError(f"filter_vs_smoother: unknown estimator {kind!r} (for {label!r}); known: "
                               f"{', '.join(REGISTRY)}")
-        out.append(EstimatorChoice(label, kind, params))
+        out.append(EstimatorChoice(path_component(label, "filter_vs_smoother: estimator label"), kind, params))
     return out
 
 
@@ -217,7 +219,8 @@ def run_task(task: Task, observer: Any = None) -> TaskResult:
         if task.trajectories_dir is not None and run.estimate is not None:
             from slamkit.data.formats.tum import write_tum
 
-            write_tum(Path(task.trajectories_dir) / f"{task.scenario.name}_{choice.label}_seed{task.seed}.tum",
+            write_tum(file_in(task.trajectories_dir, f"{task.scenario.name}_{choice.label}_seed{task.seed}", ".tum",
+                              "scenario name / estimator label"),
                       run.estimate.trajectory)
     return TaskResult(task.scenario.name, task.seed, records, series, notes, reference_name,
                       sequence if task.keep_full else None, runs if task.keep_full else None)
@@ -393,11 +396,11 @@ def plot_all(plots: Path, payload: FilterVsSmootherPayload, summary: list[dict[s
     for outcome in payload.scenarios:
         if outcome.series:
             fig = plot_errors(outcome, plt)
-            fig.savefig(plots / f"error_{outcome.name}.png", dpi=100)
+            fig.savefig(file_in(plots, f"error_{outcome.name}", ".png", "scenario name"), dpi=100)
             plt.close(fig)
         if outcome.anees:
             fig = plot_nees(outcome, plt)
-            fig.savefig(plots / f"nees_{outcome.name}.png", dpi=100)
+            fig.savefig(file_in(plots, f"nees_{outcome.name}", ".png", "scenario name"), dpi=100)
             plt.close(fig)
     fig = plot_ate(summary, plt)
     if fig is not None:

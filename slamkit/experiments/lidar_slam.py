@@ -45,6 +45,7 @@ from slamkit.backend.solvers import OptimizeConfig, optimize
 from slamkit.data.pose_graph import PoseGraph
 from slamkit.data.sequence import Odometry, Scan, Sequence
 from slamkit.data.trajectory import Trajectory
+from slamkit.paths import file_in
 from slamkit.errors import ConfigError
 from slamkit.experiments.observers import StepSnapshot
 from slamkit.experiments.results import RunRecord, markdown_table
@@ -487,8 +488,10 @@ def trim_to_free_space(sequence: Sequence, grid: OccupancyGrid | None) -> Sequen
 def _write_trajectory(folder, res: LidarSlamResult, stem: str) -> None:
     from slamkit.data.formats.tum import write_tum
 
-    write_tum(folder.trajectories / f"{stem}.tum", Trajectory.from_se2(res.stamps_s, res.optimised_poses))
-    write_tum(folder.trajectories / f"{stem}_frontend.tum", Trajectory.from_se2(res.stamps_s, res.frontend_poses))
+    write_tum(file_in(folder.trajectories, stem, ".tum", "world name"),
+              Trajectory.from_se2(res.stamps_s, res.optimised_poses))
+    write_tum(file_in(folder.trajectories, f"{stem}_frontend", ".tum", "world name"),
+              Trajectory.from_se2(res.stamps_s, res.frontend_poses))
 
 
 def report_markdown(config: Mapping[str, Any], runs: list[RunRecord]) -> str:
@@ -540,5 +543,5 @@ def _plot(plots, results: list[LidarSlamResult]) -> None:
                      f"{res.metrics.get('ate_rmse_m', float('nan')):.3f} m ATE, "
                      f"IoU {res.metrics.get('map_iou', float('nan')):.3f}")
         fig.tight_layout()
-        fig.savefig(plots / f"map_{k:02d}_{res.name}.png", dpi=100)
+        fig.savefig(file_in(plots, f"map_{k:02d}_{res.name}", ".png", "world name"), dpi=100)
         plt.close(fig)

@@ -20,6 +20,7 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from slamkit.errors import ConfigError
+from slamkit.paths import path_component
 from slamkit.experiments.observers import NullObserver, PipelineObserver
 from slamkit.experiments.results import ResultsFolder, RunRecord
 
@@ -112,8 +113,9 @@ def run_pipeline(config: str | Path | Mapping[str, Any], out_dir: str | Path | N
     if "pipeline" not in cfg:
         raise ConfigError("a pipeline config needs a 'pipeline' key")
     fn = resolve_pipeline(cfg["pipeline"])
-    out = Path(out_dir) if out_dir is not None else Path("runs") / str(cfg.get("name", cfg["pipeline"]))
-    with ResultsFolder(out) as folder, ProgressReporter(enabled=progress) as reporter:
+    if out_dir is None:
+        out_dir = Path("runs") / path_component(cfg.get("name", cfg["pipeline"]), "the config's name")
+    with ResultsFolder(out_dir, pipeline=str(cfg["pipeline"])) as folder, ProgressReporter(enabled=progress) as reporter:
         folder.write_config(cfg)
         record = observer_factory is not None and bool(cfg.get("record", True))
         observer = observer_factory(cfg["pipeline"], folder.recording_path) if record else NullObserver()

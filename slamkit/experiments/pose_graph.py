@@ -23,6 +23,7 @@ from slamkit.data.formats.g2o import write_g2o
 from slamkit.data.formats.tum import write_tum
 from slamkit.data.pose_graph import PoseGraph
 from slamkit.data.trajectory import Trajectory
+from slamkit.paths import file_in
 from slamkit.errors import ConfigError
 from slamkit.experiments.results import ResultsFolder, RunRecord, markdown_table
 from slamkit.metrics.alignment import associate
@@ -117,15 +118,15 @@ def optimize_source(source: str | Path, config: OptimizeConfig = OptimizeConfig(
             folder.write_config({"source": str(source), **asdict(config)})
             write_outputs(folder.trajectories, report)
             folder.write_json("metrics.json", report.summary())
-            folder.finalize()
+            folder.finalize("optimize")
     return report
 
 
 def write_outputs(trajectories: Path, report: OptimizeReport, stem: str | None = None) -> None:
     """The optimised graph (g2o) and its trajectory (TUM, stamps = vertex ids)."""
     stem = stem or report.dataset
-    write_g2o(trajectories / f"{stem}.g2o", _with_poses(report.graph, report.result.poses))
-    write_tum(trajectories / f"{stem}.tum", report.estimate_trajectory())
+    write_g2o(file_in(trajectories, stem, ".g2o", "dataset name"), _with_poses(report.graph, report.result.poses))
+    write_tum(file_in(trajectories, stem, ".tum", "dataset name"), report.estimate_trajectory())
 
 
 # --------------------------------------------------------------------------- pipeline
@@ -228,5 +229,5 @@ def _plot(plots: Path, reports: list[OptimizeReport]) -> None:
         ax.set_title(r.dataset)
         ax.legend(loc="best", fontsize=8)
         fig.tight_layout()
-        fig.savefig(plots / f"trajectory_{r.dataset}.png", dpi=110)
+        fig.savefig(file_in(plots, f"trajectory_{r.dataset}", ".png", "dataset name"), dpi=110)
         plt.close(fig)

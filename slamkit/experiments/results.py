@@ -1,8 +1,8 @@
 """The one shape every run leaves behind (ARCHITECTURE.md section 6), written atomically.
 
-A run is assembled in a hidden sibling folder ``.<name>.partial-<id>`` and renamed onto
+A run is assembled in a hidden sibling folder ``.<name>.partial-<id>`` and swapped onto
 ``<out>`` only when complete, so a crashed or interrupted run never leaves a folder that looks
-finished. ``results.json`` holds ``runs`` (one record per dataset x estimator x seed) and
+finished, and only folders slamkit wrote are ever replaced (see :class:`ResultsFolder`). ``results.json`` holds ``runs`` (one record per dataset x estimator x seed) and
 ``summary`` (mean and 95% confidence interval per dataset x estimator x metric).
 """
 
@@ -13,6 +13,7 @@ import json
 import math
 import os
 import shutil
+import sys
 import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -23,6 +24,7 @@ import yaml
 from scipy import stats as _stats
 
 import slamkit
+from slamkit.errors import OutputError
 
 
 @dataclass(frozen=True)
@@ -114,19 +116,151 @@ def summary_markdown(summary: list[dict[str, Any]]) -> str:
     return markdown_table(["dataset", "estimator"] + metrics, rows)
 
 
+#: the file that proves a folder is a slamkit results folder (written first, into the partial)
+MARKER = ".slamkit-results"
+
+
+def _rename_exchange():
+    """``renameat2(..., RENAME_EXCHANGE)`` from libc, or None where the kernel/libc lack it."""
+    import ctypes
+    import ctypes.util
+
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
+        fn = libc.renameat2
+    except (OSError, AttributeError):
+        return None
+    fn.argtypes = [ctypes.c_int, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_uint]
+    fn.restype = ctypes.c_int
+    at_fdcwd, rename_exchange = -100, 2
+
+    def exchange(a: Path, b: Path) -> bool:
+        """Atomically swap two existing paths; False when the file system refuses (EINVAL...)."""
+        if fn(at_fdcwd, os.fsencode(a), at_fdcwd, os.fsencode(b), rename_exchange) == 0:
+            return True
+        err = ctypes.get_errno()
+        if err in (22, 38, 95):  # EINVAL, ENOSYS, EOPNOTSUPP: not supported here
+            return False
+        raise OSError(err, os.strerror(err), str(b))
+
+    return exchange
+
+
+_EXCHANGE = _rename_exchange() if sys.platform.startswith("linux") else None
+
+
+def is_results_folder(path: Path) -> bool:
+    return path.is_dir() and not path.is_symlink() and (path / MARKER).is_file()
+
+
+def check_output_folder(out: str | Path) -> Path:
+    """The absolute path of ``out`` if slamkit may (re)place a results folder there: it does not
+    exist, or is an empty folder, or is a results folder slamkit wrote (it holds the marker).
+    Anything else -- a regular file, a symbolic link, a folder of someone else's files -- is an
+    OutputError, and nothing is touched."""
+    final = Path(os.path.abspath(out))
+    if final.is_symlink():
+        raise OutputError(f"{final} is a symbolic link; slamkit writes results only to a real "
+                          "folder: choose another --out")
+    if not final.exists():
+        return final
+    if not final.is_dir():
+        raise OutputError(f"{final} is a file, not a results folder; slamkit will not replace it: "
+                          "choose another --out")
+    if is_results_folder(final) or not any(final.iterdir()):
+        return final
+    raise OutputError(f"{final} exists and is not a slamkit results folder (no {MARKER} marker); "
+                      "slamkit only replaces folders it wrote: remove it or choose another --out")
+
+
 class ResultsFolder:
-    """Assemble a run folder under a temporary name; ``commit`` renames it into place.
+    """Assemble a run folder under a temporary name; ``commit`` swaps it into place.
+
+    The rules (issue 10: never lose a user's files):
+
+    * only a folder slamkit can prove it wrote (the :data:`MARKER` file) or an empty folder is
+      replaced; anything else is refused with an :class:`~slamkit.errors.OutputError`;
+    * a run holds ``.<name>.lock`` (``flock``) beside the folder for its whole life; a second run
+      into the same folder is refused with a clear message while the first is running;
+    * the folder is assembled in ``.<name>.partial-<id>`` (marker first) and swapped with the
+      previous result by ``renameat2(RENAME_EXCHANGE)``, so ``<out>`` holds the old complete
+      result or the new complete one at every instant; where the exchange is unavailable the
+      old result is renamed aside (``.<name>.old-<id>``) first, and a run killed between the two
+      renames is repaired by the next run, which renames it back;
+    * leftovers of killed runs (hidden partial or old folders that carry the marker) are removed
+      by the next run into the same folder, while it holds the lock.
 
     Use as a context manager: on an exception the partial folder is removed and any earlier
     complete folder at ``out`` is left untouched.
     """
 
-    def __init__(self, out: str | Path):
-        self.final = Path(out).resolve()
+    def __init__(self, out: str | Path, pipeline: str = ""):
+        self.final = check_output_folder(out)
         self.final.parent.mkdir(parents=True, exist_ok=True)
-        self.path = self.final.parent / f".{self.final.name}.partial-{uuid.uuid4().hex[:8]}"
-        self.path.mkdir()
+        self._lock_fd = self._acquire_lock()
         self.committed = False
+        try:
+            self.final = check_output_folder(self.final)  # again, now that we hold the lock
+            self._clean_leftovers()
+            self.path = self.final.parent / f".{self.final.name}.partial-{uuid.uuid4().hex[:8]}"
+            self.path.mkdir()
+            self._write_marker(pipeline, complete=False)
+        except BaseException:
+            self._release_lock()
+            raise
+
+    # -- bookkeeping ---------------------------------------------------------------------------
+
+    @property
+    def _lock_path(self) -> Path:
+        return self.final.parent / f".{self.final.name}.lock"
+
+    def _acquire_lock(self) -> int:
+        import fcntl
+
+        while True:
+            fd = os.open(self._lock_path, os.O_RDWR | os.O_CREAT, 0o666)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                os.close(fd)
+                raise OutputError(f"another slamkit run is writing {self.final} (it holds "
+                                  f"{self._lock_path}); wait for it to finish or choose another "
+                                  "--out") from None
+            # the holder before us may have unlinked the lock file after we opened it: make
+            # sure we locked the file that is at the path now
+            try:
+                same = os.fstat(fd).st_ino == os.stat(self._lock_path).st_ino
+            except FileNotFoundError:
+                same = False
+            if same:
+                return fd
+            os.close(fd)
+
+    def _release_lock(self) -> None:
+        if self._lock_fd is None:
+            return
+        self._lock_path.unlink(missing_ok=True)
+        os.close(self._lock_fd)
+        self._lock_fd = None
+
+    def _leftovers(self, kind: str) -> list[Path]:
+        return sorted(p for p in self.final.parent.glob(f".{glob_escape(self.final.name)}.{kind}-*")
+                      if is_results_folder(p))
+
+    def _clean_leftovers(self) -> None:
+        olds = self._leftovers("old")
+        if olds and not self.final.exists():
+            # killed between the two renames of the fallback path: put the old result back
+            os.replace(olds.pop(), self.final)
+        for p in olds + self._leftovers("partial"):
+            shutil.rmtree(p, ignore_errors=True)
+
+    def _write_marker(self, pipeline: str, complete: bool) -> None:
+        marker = {"slamkit_version": slamkit.__version__, "pipeline": pipeline, "complete": complete}
+        (self.path / MARKER).write_text(json.dumps(marker) + "\n")
+
+    # -- contents ------------------------------------------------------------------------------
 
     @property
     def plots(self) -> Path:
@@ -162,29 +296,38 @@ class ResultsFolder:
             results.update(_jsonable(dict(extra)))
         (self.path / "results.json").write_text(json.dumps(results, indent=2, allow_nan=False))
         (self.path / "report.md").write_text(report_md)
-        return self.finalize()
+        return self.finalize(pipeline)
 
     def write_json(self, name: str, data: Mapping[str, Any]) -> Path:
         path = self.path / name
         path.write_text(json.dumps(_jsonable(dict(data)), indent=2, allow_nan=False))
         return path
 
-    def finalize(self) -> Path:
-        """Move the assembled folder onto its final name (replacing an earlier one)."""
+    def finalize(self, pipeline: str = "") -> Path:
+        """Put the assembled folder at its final name, replacing an earlier result atomically."""
+        self._write_marker(pipeline, complete=True)
+        _fsync_tree(self.path)
         if self.final.exists():
-            # keep the previous complete result until the new one is in place
-            old = self.final.parent / f".{self.final.name}.old-{uuid.uuid4().hex[:8]}"
-            os.replace(self.final, old)
-            os.replace(self.path, self.final)
-            shutil.rmtree(old, ignore_errors=True)
+            if _EXCHANGE is not None and _EXCHANGE(self.path, self.final):
+                shutil.rmtree(self.path)  # now holds the previous result
+            else:
+                self._replace_by_two_renames()
         else:
             os.replace(self.path, self.final)
         self.committed = True
+        self._release_lock()
         return self.final
+
+    def _replace_by_two_renames(self) -> None:
+        old = self.final.parent / f".{self.final.name}.old-{uuid.uuid4().hex[:8]}"
+        os.replace(self.final, old)
+        os.replace(self.path, self.final)
+        shutil.rmtree(old, ignore_errors=True)
 
     def discard(self) -> None:
         if not self.committed:
             shutil.rmtree(self.path, ignore_errors=True)
+        self._release_lock()
 
     def __enter__(self) -> "ResultsFolder":
         return self
@@ -192,3 +335,22 @@ class ResultsFolder:
     def __exit__(self, exc_type, exc, tb) -> None:
         if exc_type is not None or not self.committed:
             self.discard()
+
+
+def glob_escape(name: str) -> str:
+    """``name`` with glob metacharacters escaped (a folder may be called ``runs[1]``)."""
+    import glob
+
+    return glob.escape(name)
+
+
+def _fsync_tree(root: Path) -> None:
+    """Flush the assembled files before the rename makes them the result (a power cut must not
+    leave a complete-looking folder of empty files)."""
+    for dirpath, _, files in os.walk(root):
+        for name in files:
+            fd = os.open(os.path.join(dirpath, name), os.O_RDONLY)
+            try:
+                os.fsync(fd)
+            finally:
+                os.close(fd)

@@ -20,6 +20,7 @@ import numpy as np
 import yaml
 
 from slamkit.data.sequence import Sequence
+from slamkit.paths import path_component
 from slamkit.errors import ConfigError, SlamkitError
 from slamkit.maps.occupancy_grid import OccupancyGrid
 from slamkit.models.gps import Gps
@@ -88,6 +89,9 @@ def scenario_from_dict(data: Mapping[str, Any], source: str = "<scenario>") -> S
     if not isinstance(data, Mapping):
         raise ConfigError(f"{source}: a scenario must be a mapping, got {type(data).__name__}")
     values = dict(data)
+    if "name" in values:
+        # a scenario's name becomes file names (trajectories, plots, recordings)
+        path_component(values["name"], f"{source}: name")
     kind = values.pop("kind", None)
     preset = values.pop("preset", None)
     if kind == "landmark":

@@ -32,7 +32,7 @@ def test_optimize_json_on_ring_matches_reference(shared_datasets, tmp_path) -> N
     assert (data["num_poses"], data["num_factors"]) == (434, 460)
     # ground truth exists for ring: the optimum sits 1.43 m RMS from it after SE(2) alignment
     assert data["ate_rmse_m"] == pytest.approx(1.4316, abs=1e-3)
-    assert sorted(p.name for p in out.iterdir()) == ["config.yaml", "metrics.json", "trajectories"]
+    assert sorted(p.name for p in out.iterdir()) == [".slamkit-results", "config.yaml", "metrics.json", "trajectories"]
     assert json.loads((out / "metrics.json").read_text())["final_error"] == data["final_error"]
 
 

@@ -51,7 +51,9 @@ def test_run_pipeline_writes_the_documented_shape(tmp_path, monkeypatch) -> None
     cfg.write_text(yaml.safe_dump({"pipeline": "toy", "seeds": 2}))
     result = run_pipeline(cfg, tmp_path / "out", progress=False)
     out = result.out_dir
-    assert sorted(p.name for p in out.iterdir()) == ["config.yaml", "plots", "report.md", "results.json"]
+    assert sorted(p.name for p in out.iterdir()) == [".slamkit-results", "config.yaml", "plots", "report.md",
+                                                     "results.json"]
+    assert json.loads((out / ".slamkit-results").read_text())["complete"] is True
     data = json.loads((out / "results.json").read_text())
     assert data["pipeline"] == "toy" and len(data["runs"]) == 2
     assert data["summary"][0]["mean"] == 1.5

@@ -6,6 +6,8 @@ import os
 import tempfile
 from pathlib import Path
 
+from slamkit.paths import publish_umask_mode
+
 
 def atomic_write_text(path: str | Path, text: str) -> Path:
     """Write ``text`` to ``path`` via a temporary file in the same folder and ``os.replace``."""
@@ -15,6 +17,7 @@ def atomic_write_text(path: str | Path, text: str) -> Path:
     try:
         with os.fdopen(fd, "w") as handle:
             handle.write(text)
+        publish_umask_mode(Path(tmp))  # mkstemp creates 0600; the file is meant to be shared
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)

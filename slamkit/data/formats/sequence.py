@@ -50,6 +50,7 @@ from slamkit.data.sequence import (Event, Gps, Imu, Odometry, RangeBearing, Scan
                                    WheelEncoders)
 from slamkit.data.trajectory import Trajectory
 from slamkit.errors import DataError
+from slamkit.paths import check_output_file, temporary_sibling
 
 FORMAT = "slamkit-sequence"
 VERSION = 1
@@ -154,6 +155,15 @@ def _npy_bytes(a: np.ndarray) -> bytes:
     return buf.getvalue()
 
 
+def is_sequence_file(path: Path) -> bool:
+    """True for a zip whose ``header.json`` names this format (a file slamkit may overwrite)."""
+    try:
+        with zipfile.ZipFile(path) as zf:
+            return json.loads(zf.read("header.json")).get("format") == FORMAT
+    except (zipfile.BadZipFile, KeyError, ValueError, OSError, AttributeError, RuntimeError):
+        return False
+
+
 def save_sequence(path: str | Path, sequence, compress: bool = False) -> Path:
     """Write ``sequence`` (a ``Sequence`` or a :class:`SequenceReader`) to ``path`` atomically
     (a ``.partial`` file renamed when complete). Returns the path."""
@@ -188,8 +198,9 @@ def save_sequence(path: str | Path, sequence, compress: bool = False) -> Path:
         members.append(("initial_pose_xytheta.npy",
                         _npy_bytes(np.asarray(sequence.initial_pose_xytheta, float).reshape(3))))
     method = zipfile.ZIP_DEFLATED if compress else zipfile.ZIP_STORED
+    path = check_output_file(path, is_sequence_file, "sequence file")
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".partial")
+    tmp = temporary_sibling(path)
     try:
         with zipfile.ZipFile(tmp, "w", allowZip64=True) as zf:
             _write_member(zf, "header.json",
