@@ -138,6 +138,18 @@ SHARED_FILES: dict[str, tuple[int, str, str, str, str, str]] = {
         "THeK3nger/movingai-rust", "tests/maze512-32-9.map", "78ceba7fd281", "222fd9cbb2ad"),
     "grid_planning/movingai/maze/maze512-32-9.map.scen": (462_285, "1c7b51a3ee6fe4d79db9c878e5529f477bb866187634a9f1b15e9de901fabbf5",
         "THeK3nger/movingai-rust", "tests/maze512-32-9.map.scen", "78ceba7fd281", "22b2e052cea1"),
+    "lidar_2d/intel.clf.bz2": (2_277_279, "d9ce4addefc9405d5e78fd883d2214766552537d262009f8e6f0137885f9f72a",
+        "MOLAorg/mola_test_datasets", "datasets/radish/intel.clf.bz2", "13a2ed141116", "cecd24be8927"),
+    "lidar_2d/intel.relations": (265_713, "330378f153eeae652d6756c1746f335801f66c3e097d90611548e6c4f593c359",
+        "xiaofeng419/SLAM-2D-LIDAR-SCAN", "DataSet/RawData/intel.relations", "d469252f5b33", ""),
+    "lidar_2d/fr079.clf.bz2": (1_522_745, "9c3930e17957889c24986390dc7fe3eeddd3d7019a8172085dbed8a28a0e6b77",
+        "MOLAorg/mola_test_datasets", "datasets/radish/fr079.clf.bz2", "13a2ed141116", "8301cf13d4d8"),
+    "lidar_2d/fr079.relations": (133_044, "7e7f06b4aca455cb68f1f23d04e7c7316c5e17773e872734c860ed7a274cdfc7",
+        "xiaofeng419/SLAM-2D-LIDAR-SCAN", "DataSet/RawData/fr079.relations", "d469252f5b33", ""),
+    "lidar_2d/mit-csail.clf.bz2": (539_615, "e010703e450a20e71a97b0e8de88d9474040c8106e547ff894d885e67a309b47",
+        "MOLAorg/mola_test_datasets", "datasets/radish/mit-csail.clf.bz2", "13a2ed141116", "cbb019a9b55e"),
+    "lidar_2d/fr-clinic_robotlaser.clf.bz2": (1_719_679, "f1123753be7308178547d487df96dfc230669a55c21253c3225c7627b124d6d8",
+        "MOLAorg/mola_test_datasets", "datasets/radish/fr-clinic_robotlaser.clf.bz2", "13a2ed141116", "e684a099abec"),
     "vision/kitti_vo_a/poses.txt": (8_205, "da9f1248f88cc264d995a2890e6e78d0432d73e982420000345aeae47147e8ab",
         "niconielsen32/ComputerVision", "VisualOdometry/KITTI_sequence_1/poses.txt", "37b279fa44e2", ""),
     "vision/kitti_vo_a/calib.txt": (456, "6935f9fa72a67b60a89277d3044e4a164c507156de37b0a55212f08bbb551fc1",
@@ -270,6 +282,8 @@ def sesync(fstar: float, table: int = 1) -> tuple:
     return ("sesync_fstar", fstar, "sesync_F", True,
             f"{SESYNC_PAPER}, Table {table} (certified global optimum, 4 significant digits)")
 
+LIC_RADISH = ("CC-BY-3.0 (Freiburg SLAM-evaluation page; MOLAorg/mola_test_datasets datasets/radish README and "
+              "LICENSE). Cite Kuemmerle et al., 'On measuring the accuracy of SLAM algorithms', Autonomous Robots 2009.")
 LIC_EVO_DATA = ("evo's test data (MichaelGrupp/evo, GPL-3.0 repository); the trajectories keep their datasets' "
                 "terms: KITTI CC BY-NC-SA 3.0 (non-commercial), EuRoC research terms, TUM RGB-D CC BY 4.0.")
 LIC_KITTI_IMAGES = ("CC BY-NC-SA 3.0 (KITTI; NON-COMMERCIAL). Copied from niconielsen32/ComputerVision "
@@ -554,6 +568,20 @@ ENTRIES: dict[str, dict] = {
         counts=counts, notes="Ground truth is the GT table inside the .mat file (MAT v5).")
        for k, counts in [(1, dict(gt_poses=9658, beacons=4, ranges=3529)),
                          (2, dict(gt_poses=4091, beacons=4, ranges=1816))]},
+    # ---- raw 2D laser logs (CARMEN) with the SLAM benchmark's relations ----
+    **{f"{name}-log": dict(
+        kind="laser_log_2d", format="carmen", files=[f"lidar_2d/{file}"] + ([f"lidar_2d/{rel}"] if rel else []),
+        title=title, licence=LIC_RADISH, counts=counts,
+        notes=("Relations (t1 t2 x y z roll pitch yaw) are stamped with the FLASER ipc_timestamp. " if rel else
+               "No relations are published for this log. ") + "Readings at the maximum range mean no return.")
+       for name, file, rel, title, counts in [
+           ("intel", "intel.clf.bz2", "intel.relations", "Intel Research Lab (Seattle), raw CARMEN log",
+            dict(flaser=13631, odom=26915, relations=2984)),
+           ("fr079", "fr079.clf.bz2", "fr079.relations", "Freiburg building 079, raw CARMEN log",
+            dict(flaser=4934, odom=8951, relations=1685)),
+           ("mit-csail", "mit-csail.clf.bz2", None, "MIT CSAIL, raw CARMEN log", dict(flaser=1988)),
+           ("fr-clinic", "fr-clinic_robotlaser.clf.bz2", None, "Freiburg University Hospital, raw CARMEN log (ROBOTLASER1)",
+            dict(robotlaser1=6917))]},
     # ---- camera images, reference trajectories, ROS maps (raw recordings, MANIFEST 2026-11-23) ----
     "kitti-vo-a": dict(
         kind="image_sequence", format="kitti_vo",
