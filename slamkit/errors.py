@@ -41,6 +41,11 @@ class OutputError(SlamkitError):
     another run writing to the same folder)."""
 
 
+class NoResultError(SlamkitError):
+    """A valid request has no answer: no path exists, a solve failed, a result is not finite.
+    The CLI exits with code 3 (bad input is 2)."""
+
+
 class BackendError(SlamkitError):
     """The factor-graph back-end could not build or solve a problem."""
 

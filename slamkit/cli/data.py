@@ -13,7 +13,6 @@ from rich.table import Table
 
 from slamkit.cli.app import app
 from slamkit.data import registry
-from slamkit.errors import SlamkitError
 
 data_app = typer.Typer(
     name="data",
@@ -82,11 +81,7 @@ def info_cmd(
     as_json: bool = typer.Option(False, "--json", help="print one JSON object on stdout"),
 ) -> None:
     """Everything recorded about a dataset: files, sources, licence, counts, reference values."""
-    try:
-        info = registry.describe(name)
-    except SlamkitError as exc:
-        typer.echo(f"error: {exc}", err=True)
-        raise typer.Exit(2) from None
+    info = registry.describe(name)
     if as_json:
         typer.echo(json.dumps(info))
         return
@@ -125,9 +120,5 @@ def fetch_cmd(
                                    "~/.cache/slamkit)"),
 ) -> None:
     """Download a dataset into the cache, verifying every file's sha256."""
-    try:
-        path = registry.fetch(name, url_override=url, cache_dir=cache_dir)
-    except SlamkitError as exc:
-        typer.echo(f"error: {exc}", err=True)
-        raise typer.Exit(1) from None
+    path = registry.fetch(name, url_override=url, cache_dir=cache_dir)
     typer.echo(str(path))

@@ -15,8 +15,7 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from slamkit.cli.app import app
-from slamkit.errors import SlamkitError
+from slamkit.cli.app import app, non_negative, positive
 
 eval_app = typer.Typer(
     name="eval",
@@ -60,8 +59,9 @@ FORMAT = typer.Option(Format.auto, "--format", help="file format of both files (
 ALIGN = typer.Option(Align.none, "--align", help="alignment of the estimate before scoring")
 RELATION = typer.Option(Relation.trans, "--relation", help="what the statistics measure: translation "
                         "(m) or rotation angle (deg / rad)")
-MAX_DIFF = typer.Option(0.01, "--max-diff", help="max. stamp difference (s) for association")
-N_FIRST = typer.Option(None, "--n-first", help="align using only the first N pose pairs")
+MAX_DIFF = typer.Option(0.01, "--max-diff", help="max. stamp difference (s) for association",
+                        callback=non_negative)
+N_FIRST = typer.Option(None, "--n-first", help="align using only the first N pose pairs", min=1)
 JSON = typer.Option(False, "--json", help="print one JSON object on stdout")
 
 
@@ -69,13 +69,9 @@ def _run(metric: str, ref: Path, est: Path, fmt: Format, align: Align, relation:
          max_diff: float, n_first: int | None, as_json: bool, **rpe_args) -> None:
     from slamkit.metrics import evaluate_files
 
-    try:
-        result = evaluate_files(ref, est, metric=metric, fmt=fmt.value, align=align.value,
-                                relation=relation.value, max_diff_s=max_diff, n_first=n_first,
-                                **rpe_args)
-    except SlamkitError as exc:
-        typer.echo(f"error: {exc}", err=True)
-        raise typer.Exit(2)
+    result = evaluate_files(ref, est, metric=metric, fmt=fmt.value, align=align.value,
+                            relation=relation.value, max_diff_s=max_diff, n_first=n_first,
+                            **rpe_args)
     out = result.to_dict()
     if as_json:
         print(json.dumps(out))
@@ -112,7 +108,7 @@ def ate_command(
 def rpe_command(
     ref: Path = REF, est: Path = EST, fmt: Format = FORMAT, align: Align = ALIGN,
     relation: Relation = RELATION, max_diff: float = MAX_DIFF, n_first: int = N_FIRST,
-    delta: float = typer.Option(1.0, "--delta", help="pose-pair spacing, in --delta-unit"),
+    delta: float = typer.Option(1.0, "--delta", help="pose-pair spacing, in --delta-unit", callback=positive),
     delta_unit: DeltaUnit = typer.Option(DeltaUnit.frames, "--delta-unit", help="frames or metres of path"),
     all_pairs: bool = typer.Option(False, "--all-pairs", help="every pair delta apart, not only consecutive ones"),
     as_json: bool = JSON,

@@ -9,8 +9,7 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from slamkit.cli.app import app
-from slamkit.errors import SlamkitError
+from slamkit.cli.app import app, positive
 
 
 @app.command()
@@ -19,8 +18,8 @@ def optimize(
     solver: str = typer.Option("lm", help="lm | gn | dogleg | isam2"),
     init: str = typer.Option("file", help="file | odometry | lago (2D) | chordal (3D)"),
     robust: str = typer.Option("none", help="none | huber | cauchy"),
-    robust_k: float = typer.Option(None, "--robust-k", help="kernel width (default: GTSAM's)"),
-    max_iterations: int = typer.Option(100, "--max-iterations"),
+    robust_k: float = typer.Option(None, "--robust-k", help="kernel width (default: GTSAM's)", callback=positive),
+    max_iterations: int = typer.Option(100, "--max-iterations", min=1),
     marginals: bool = typer.Option(False, "--marginals", help="compute marginal covariances"),
     out: Path = typer.Option(None, "--out", help="folder for the optimised graph, TUM trajectory, config and metrics.json"),
     rrd: Path = typer.Option(None, "--rrd", help="write a Rerun recording"),
@@ -31,17 +30,13 @@ def optimize(
     from slamkit.backend.solvers import OptimizeConfig
     from slamkit.experiments.pose_graph import optimize_source
 
-    try:
-        config = OptimizeConfig(solver=solver, init=init, robust=robust, robust_k=robust_k,
-                                max_iterations=max_iterations, compute_marginals=marginals)
-        report = optimize_source(source, config, out=out, keep_iterates=rrd is not None or spawn)
-        if rrd is not None or spawn:
-            from slamkit.viz.pose_graph import record_optimization
+    config = OptimizeConfig(solver=solver, init=init, robust=robust, robust_k=robust_k,
+                            max_iterations=max_iterations, compute_marginals=marginals)
+    report = optimize_source(source, config, out=out, keep_iterates=rrd is not None or spawn)
+    if rrd is not None or spawn:
+        from slamkit.viz.pose_graph import record_optimization
 
-            record_optimization(report, rrd, spawn)
-    except SlamkitError as exc:
-        typer.echo(f"error: {exc}", err=True)
-        raise typer.Exit(2)
+        record_optimization(report, rrd, spawn)
     summary = report.summary()
     if as_json:
         print(json.dumps(summary))

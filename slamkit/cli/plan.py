@@ -14,8 +14,8 @@ import numpy as np
 import typer
 from rich.console import Console
 
-from slamkit.cli.app import app
-from slamkit.errors import DataError, SlamkitError
+from slamkit.cli.app import EXIT_NO_RESULT, app, non_negative, positive
+from slamkit.errors import DataError
 
 
 def load_grid(map_name_or_path: str):
@@ -24,6 +24,9 @@ def load_grid(map_name_or_path: str):
     from slamkit.maps.movingai import load_map
 
     found = registry.resolve(map_name_or_path)
+    note = registry.resolution_note(map_name_or_path)
+    if note:
+        typer.echo(f"note: {note}", err=True)
     if isinstance(found, Path):
         return load_map(found)
     if found.format != "movingai":
@@ -57,6 +60,8 @@ def _xy(text: str, what: str) -> tuple[float, float]:
         x, y = (float(v) for v in text.split(","))
     except ValueError:
         raise typer.BadParameter(f"{what} must be 'X,Y' in metres, got {text!r}") from None
+    if not (np.isfinite(x) and np.isfinite(y)):
+        raise typer.BadParameter(f"{what} must be finite, got {text!r}")
     return x, y
 
 
@@ -67,10 +72,12 @@ def plan(
     goal: str = typer.Option(..., "--goal", help="X,Y in metres"),
     planner: str = typer.Option("astar", "--planner",
                                 help="astar|dijkstra|dstar-lite|prm|rrt|rrt-connect|rrt-star|informed-rrt-star"),
-    inflate_m: float = typer.Option(0.0, "--inflate", help="inflate obstacles by this robot radius (m)"),
+    inflate_m: float = typer.Option(0.0, "--inflate", help="inflate obstacles by this robot radius (m)",
+                                    callback=non_negative),
     seed: int = typer.Option(0, "--seed", help="seed of the sampling planners' rng"),
-    max_iterations: int = typer.Option(None, "--max-iterations", help="sampling planners' iteration budget"),
-    time_limit_s: float = typer.Option(None, "--time-limit", help="sampling planners' time budget (s)"),
+    max_iterations: int = typer.Option(None, "--max-iterations", help="sampling planners' iteration budget", min=1),
+    time_limit_s: float = typer.Option(None, "--time-limit", help="sampling planners' time budget (s)",
+                                       callback=positive),
     as_json: bool = typer.Option(False, "--json", help="print one JSON object"),
     rrd: Path = typer.Option(None, "--rrd", help="write a Rerun recording of the search here"),
 ) -> None:
@@ -80,12 +87,8 @@ def plan(
         cfg["max_iterations"] = max_iterations
     if time_limit_s is not None:
         cfg["time_limit_s"] = time_limit_s
-    try:
-        grid, result = plan_on_map(map_, _xy(start, "--start"), _xy(goal, "--goal"), planner,
-                                   inflate_m, seed, rrd, **cfg)
-    except SlamkitError as exc:
-        typer.echo(f"error: {exc}", err=True)
-        raise typer.Exit(2) from None
+    grid, result = plan_on_map(map_, _xy(start, "--start"), _xy(goal, "--goal"), planner,
+                               inflate_m, seed, rrd, **cfg)
     # strict JSON has no Infinity: an unsolved cost/length is null
     out = {k: (None if isinstance(v, float) and not np.isfinite(v) else v) for k, v in result.to_dict().items()}
     out.update({"map": map_, "inflate_m": inflate_m, "path_points": int(len(result.path)),
@@ -97,3 +100,6 @@ def plan(
                         f"{out['status']}  cost {result.cost:.4f}  length {result.length_m:.4f} m  "
                         f"time {1e3 * out['time_s']:.2f} ms  expansions {out['expansions']}  "
                         f"samples {out['samples']}")
+    if not result.solved:
+        # the answer was printed above; the exit code says there is no path (see `slamkit --help`)
+        raise typer.Exit(EXIT_NO_RESULT)

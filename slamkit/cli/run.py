@@ -8,7 +8,6 @@ import typer
 from rich.console import Console
 
 from slamkit.cli.app import app
-from slamkit.errors import SlamkitError
 
 
 @app.command("run")
@@ -22,12 +21,8 @@ def run_command(
     from slamkit.experiments.pipeline import run_pipeline
     from slamkit.viz.pipelines import observer_for
 
-    try:
-        result = run_pipeline(pipeline, out, progress=not quiet,
-                              observer_factory=lambda kind, path: observer_for(kind, path, spawn))
-    except SlamkitError as exc:
-        typer.echo(f"error: {exc}", err=True)
-        raise typer.Exit(2)
+    result = run_pipeline(pipeline, out, progress=not quiet,
+                          observer_factory=lambda kind, path: observer_for(kind, path, spawn))
     if not quiet:
         # plain Markdown: tables stay readable at any terminal width and in logs
         typer.echo(result.report_md)

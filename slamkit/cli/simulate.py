@@ -16,7 +16,6 @@ import typer
 from rich.console import Console
 
 from slamkit.cli.app import app
-from slamkit.errors import SlamkitError
 
 
 def simulate_to_files(scenario_path: Path, seed: int, out: Path, rrd: Path | None = None) -> dict:
@@ -56,11 +55,7 @@ def simulate(
     as_json: bool = typer.Option(False, "--json", help="print the summary as one JSON object"),
 ) -> None:
     """Simulate a scenario into a sequence file with ground truth (same seed, same bytes)."""
-    try:
-        summary = simulate_to_files(scenario, seed, out, rrd)
-    except SlamkitError as exc:
-        typer.echo(f"error: {exc}", err=True)
-        raise typer.Exit(code=2) from None
+    summary = simulate_to_files(scenario, seed, out, rrd)
     if as_json:
         print(json.dumps(summary, indent=2))
         return

@@ -264,19 +264,33 @@ def get(name: str) -> DatasetEntry:
 
 
 def resolve(name_or_path: str | Path) -> DatasetEntry | Path:
-    """A registry entry for a known name, else the path if such a file exists."""
+    """The file if ``name_or_path`` names an existing file, else the registry entry of that name.
+
+    A file on disk wins over a registry name of the same spelling (the user pointed at it);
+    :func:`resolution_note` says so, for the command to print."""
     if isinstance(name_or_path, Path):
         if name_or_path.is_file():
             return name_or_path
         raise DatasetNotFoundError(f"no such file: {name_or_path}")
+    path = Path(name_or_path).expanduser()
+    if path.is_file():
+        return path
     try:
         return get(name_or_path)
     except DatasetNotFoundError as exc:
-        path = Path(name_or_path).expanduser()
-        if path.is_file():
-            return path
         raise DatasetNotFoundError(f"{name_or_path!r} is neither an existing file nor a registry "
                                    f"name ({exc})") from None
+
+
+def resolution_note(name_or_path: str | Path) -> str | None:
+    """A one-line note when ``name_or_path`` is both an existing file and a registry name."""
+    if isinstance(name_or_path, Path) or str(name_or_path) not in REGISTRY:
+        return None
+    path = Path(name_or_path).expanduser()
+    if not path.is_file():
+        return None
+    return (f"{str(name_or_path)!r} is both a file here and a registry dataset: using the file "
+            f"{path.resolve()} (pass the registry name from another folder to use the dataset)")
 
 
 def _select(entry: DatasetEntry, file: str | None) -> DatasetFile:

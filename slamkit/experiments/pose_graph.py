@@ -91,6 +91,7 @@ def optimize_source(source: str | Path, config: OptimizeConfig = OptimizeConfig(
     poses after every iteration in ``report.iterates`` (for recordings)."""
     t0 = time.perf_counter()
     graph, entry = registry.load_pose_graph_source(source)
+    note = registry.resolution_note(source)
     ground_truth = registry.ground_truth(entry.name) if entry is not None else None
     time_load_s = time.perf_counter() - t0
 
@@ -107,7 +108,7 @@ def optimize_source(source: str | Path, config: OptimizeConfig = OptimizeConfig(
         sesync_objective=float(sesync_objective(graph, result.poses)),
         iterations=result.iterations, converged=result.converged, time_load_s=time_load_s,
         time_init_s=result.time_init_s, time_solve_s=result.time_solve_s,
-        time_total_s=time_total_s, linear_solver=result.linear_solver, warnings=result.warnings,
+        time_total_s=time_total_s, linear_solver=result.linear_solver, warnings=((note,) if note else ()) + tuple(result.warnings),
         graph=graph, result=result, ground_truth=ground_truth, iterates=tuple(iterates),
     )
     if ground_truth is not None:

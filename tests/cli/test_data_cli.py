@@ -90,5 +90,5 @@ def test_fetch_command(server, tmp_path):
     bad_cache = tmp_path / "bad-cache"
     bad = runner.invoke(app, ["data", "fetch", "tinygrid3d", "--url", server + "bad/tiny.g2o",
                               "--cache-dir", str(bad_cache)])
-    assert bad.exit_code == 1 and "sha256 mismatch" in bad.output
+    assert bad.exit_code == 2 and "sha256 mismatch" in bad.output  # bad input (issue 10 exit codes)
     assert not bad_cache.exists() or not any(bad_cache.rglob("*"))

@@ -1,0 +1,98 @@
+"""One error handler for every command (issue 10): no traceback for any input, documented exit
+codes (0 done, 2 bad input, 3 no result, 1 internal error), ``--debug`` for the traceback,
+non-finite options refused, a file on disk wins over a registry name of the same spelling."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import pytest
+from typer.testing import CliRunner
+
+from slamkit.cli import app
+from slamkit.data import registry
+from slamkit.errors import BackendError
+
+runner = CliRunner()
+
+
+def _run(*args: str):
+    result = runner.invoke(app, list(args))
+    assert "Traceback" not in result.output
+    return result
+
+
+def test_help_documents_the_exit_codes() -> None:
+    out = " ".join(_run("--help").output.replace("│", " ").split())  # rich wraps and boxes the text
+    assert "Exit codes: 0 done, 2 bad input" in out and "3 no result" in out and "1 internal error" in out
+
+
+@pytest.mark.parametrize("args, message", [
+    (["eval", "rpe", "--ref", "a", "--est", "b", "--delta", "nan"], "Invalid value for '--delta': must be a finite number, got nan"),
+    (["eval", "rpe", "--ref", "a", "--est", "b", "--delta", "inf"], "Invalid value for '--delta': must be a finite number, got inf"),
+    (["eval", "rpe", "--ref", "a", "--est", "b", "--delta", "0"], "Invalid value for '--delta': must be > 0, got 0"),
+    (["eval", "ate", "--ref", "a", "--est", "b", "--max-diff", "-1"], "Invalid value for '--max-diff': must be >= 0, got -1"),
+    (["optimize", "ring", "--robust-k", "nan"], "Invalid value for '--robust-k': must be a finite number, got nan"),
+    (["plan", "den312d", "--start", "nan,1", "--goal", "2,2"], "--start must be finite, got 'nan,1'"),
+    (["plan", "den312d", "--start", "1,1", "--goal", "2,2", "--inflate", "-0.5"], "Invalid value for '--inflate': must be >= 0, got -0.5"),
+    (["plan", "den312d", "--start", "1,1", "--goal", "2,2", "--time-limit", "inf"], "Invalid value for '--time-limit': must be a finite number, got inf"),
+])
+def test_bad_numeric_options_exit_2_naming_the_option(args, message) -> None:
+    result = _run(*args)
+    assert result.exit_code == 2, result.output
+    assert message in " ".join(result.output.split()).replace("│", "").replace("  ", " ") or message in result.output
+
+
+def test_bad_input_is_one_line_and_exit_2(tmp_path) -> None:
+    result = _run("optimize", str(tmp_path / "missing.g2o"))
+    assert result.exit_code == 2
+    assert result.output.strip().splitlines() == [
+        f"error: {str(tmp_path / 'missing.g2o')!r} is neither an existing file nor a registry name (no dataset "
+        f"named {str(tmp_path / 'missing.g2o')!r} in the registry; `slamkit data list --all` shows every name)"]
+
+
+def test_no_path_prints_the_answer_and_exits_3() -> None:
+    result = _run("plan", "den312d", "--start", "10,10", "--goal", "0.5,0.5", "--json")
+    assert result.exit_code == 3
+    assert json.loads(result.output)["status"] == "invalid_goal"
+    same = _run("plan", "den312d", "--start", "10,10", "--goal", "10,10", "--json")
+    assert same.exit_code == 0 and json.loads(same.output)["cost"] == 0.0
+
+
+def test_a_failed_solve_exits_3(monkeypatch) -> None:
+    import slamkit.experiments.pose_graph as pg
+
+    def fail(*a, **k):
+        raise BackendError("Indeterminate linear system at X(3)")
+
+    monkeypatch.setattr(pg, "optimize_source", fail)
+    result = _run("optimize", "ring")
+    assert result.exit_code == 3 and result.output.strip() == "error: Indeterminate linear system at X(3)"
+
+
+def test_an_unexpected_exception_is_one_line_exit_1_and_debug_shows_it(monkeypatch) -> None:
+    import slamkit.experiments.pose_graph as pg
+
+    def bug(*a, **k):
+        raise RuntimeError("boom\nsecond line")
+
+    monkeypatch.setattr(pg, "optimize_source", bug)
+    result = _run("optimize", "ring")
+    assert result.exit_code == 1
+    assert result.output.strip() == ("internal error: RuntimeError: boom (run again with --debug for the "
+                                     "traceback, and please report it)")
+    debug = runner.invoke(app, ["--debug", "optimize", "ring"])
+    assert isinstance(debug.exception, RuntimeError) and str(debug.exception) == "boom\nsecond line"
+
+
+def test_a_file_on_disk_wins_over_the_registry_name(tmp_path, monkeypatch) -> None:
+    # a copy of intel-g2o's file named like the registry's 'ring': the file must be used
+    shutil.copy(registry.path_of("intel-g2o"), tmp_path / "ring")
+    monkeypatch.chdir(tmp_path)
+    result = _run("optimize", "ring", "--json")
+    assert result.exit_code == 0, result.output
+    data = json.loads(result.output)
+    assert data["num_poses"] == 943  # intel-g2o's, not ring's 434
+    assert data["warnings"][0].startswith("'ring' is both a file here and a registry dataset: using the file ")
+    assert registry.resolution_note("intel") is None
