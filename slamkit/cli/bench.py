@@ -16,12 +16,12 @@ from slamkit.cli.app import app
 
 #: suite name -> "module:function"; each function takes ``quick: bool`` and returns BenchCases.
 SUITES: dict[str, str] = {
-    "pose-graph": "slamkit.backend.benchmark:run",
-    "raycast": "slamkit.maps.benchmark:run",
-    "filters": "slamkit.experiments.filters_benchmark:run",
-    "planning": "slamkit.planning.benchmark:run",
-    "control": "slamkit.experiments.control_benchmark:run",
-    "scan-matching": "slamkit.frontend.benchmark:run",
+    "pose-graph": "slamkit.bench.pose_graph:run",
+    "raycast": "slamkit.bench.raycast:run",
+    "filters": "slamkit.bench.filters_suite:run",
+    "planning": "slamkit.bench.planning:run",
+    "control": "slamkit.bench.control:run",
+    "scan-matching": "slamkit.bench.scan_matching:run",
 }
 
 

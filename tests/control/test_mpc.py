@@ -169,7 +169,7 @@ def test_bicycle_tracks_a_turn_within_steering_limits(solver):
 def test_opti_reference_solves_the_same_problem():
     """The benchmark's reference (casadi.Opti, default IPOPT, cold start) and the tuned build give
     the same first input on the same problem (to 1e-3: both stop at IPOPT tolerances)."""
-    from slamkit.control.mpc_reference import OptiMPC
+    from slamkit.bench.mpc_reference import OptiMPC
 
     cfg = MPCConfig()
     ctl = MPCController(cfg)

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from slamkit.estimation._common import NoiseParams
-from slamkit.estimation.benchmark import _pf_problem, _python_loop_step, estimator_latency_cases
+from slamkit.bench.filters import _pf_problem, _python_loop_step, estimator_latency_cases
 from slamkit.estimation.particle_filter import range_bearing_log_likelihood, systematic_resample
 from slamkit.models import diff_drive
 

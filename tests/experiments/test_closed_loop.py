@@ -144,7 +144,7 @@ def test_pipeline_recording(tmp_path, verify_rrd):
 
 def test_control_benchmark_cases_have_same_run_ratios():
     """The bench's case structure on a tiny run (no timing assertions: speed belongs to the bench)."""
-    from slamkit.experiments.control_benchmark import _record_cycles, closed_loop_cases, timing_cases
+    from slamkit.bench.control import _record_cycles, closed_loop_cases, timing_cases
 
     cases, episodes = closed_loop_cases(1, controllers=("dwa",), kinds=("open",))
     assert [c.name for c in cases] == ["success_rate_dwa", "time_to_goal_mean_s_dwa", "path_length_mean_m_dwa",

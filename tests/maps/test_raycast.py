@@ -133,7 +133,7 @@ def test_cast_circles_worked_example():
 
 
 def test_bench_raycast_cases_compare_equal_work():
-    from slamkit.maps.benchmark import run
+    from slamkit.bench.raycast import run
 
     cases = run(quick=True)
     assert [c.name for c in cases] == ["raycast_office_1000x1000", "raycast_warehouse_1000x1000",

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from slamkit.backend.benchmark import run
+from slamkit.bench.pose_graph import run
 
 
 def test_quick_bench_compares_like_with_like():

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from slamkit.estimation import benchmark as filter_benchmark
+from slamkit.bench import filters as filter_benchmark
 from slamkit.experiments.estimators import factory, prior_of
 from slamkit.sim.landmark_world import mildly_nonlinear, simulate_landmark_sequence
 from slamkit.timing import BenchCase

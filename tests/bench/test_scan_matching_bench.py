@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from slamkit.frontend import benchmark
+from slamkit.bench import scan_matching as benchmark
 from slamkit.frontend.icp import IcpConfig, icp
 
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from slamkit.planning.astar import AStarPlanner
-from slamkit.planning.benchmark import ompl_rrt_star, scenes, table, walls_map
+from slamkit.bench.planning import ompl_rrt_star, scenes, table, walls_map
 from slamkit.planning.grid_search import search_python
 from slamkit.planning.protocols import PlanningProblem
 

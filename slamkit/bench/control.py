@@ -31,7 +31,7 @@ import numpy as np
 
 from slamkit.control.dwa import DWAController
 from slamkit.control.mpc import MPCConfig, MPCController
-from slamkit.control.mpc_reference import OptiMPC
+from slamkit.bench.mpc_reference import OptiMPC
 from slamkit.control.protocols import Reference, RobotState
 from slamkit.experiments.closed_loop import (ClosedLoopConfig, Episode, make_controller, make_scenario,
                                              perceive, run_episode)
