@@ -35,7 +35,7 @@ from slamkit.bench.mpc_reference import OptiMPC
 from slamkit.control.protocols import Reference, RobotState
 from slamkit.experiments.closed_loop import (ClosedLoopConfig, Episode, make_controller, make_scenario,
                                              perceive, run_episode)
-from slamkit.timing import BenchCase, compare
+from slamkit.bench.cases import BenchCase, compare
 
 KINDS = ("office", "warehouse", "open")
 CONTROLLERS = ("potential_fields", "dwa", "mpc", "mpc_osqp")

@@ -31,7 +31,7 @@ from slamkit.estimation._common import NoiseParams
 from slamkit.estimation.ekf_slam import dense_update, sparse_update
 from slamkit.estimation.particle_filter import ParticleFilterConfig, ParticleFilterLocalization
 from slamkit.models import range_bearing
-from slamkit.timing import BenchCase, best_of, compare
+from slamkit.bench.cases import BenchCase, best_of, compare
 
 PF_LANDMARKS_PER_STEP = 5
 

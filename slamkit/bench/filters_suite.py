@@ -9,7 +9,7 @@ import numpy as np
 from slamkit.bench import filters as filter_benchmark
 from slamkit.experiments.estimators import factory, prior_of
 from slamkit.sim.landmark_world import mildly_nonlinear, simulate_landmark_sequence
-from slamkit.timing import BenchCase
+from slamkit.bench.cases import BenchCase
 
 LATENCY_ESTIMATORS = {"ekf_slam": {}, "isam2": {}, "fixed_lag": {"lag_s": 5.0}}
 

@@ -40,7 +40,7 @@ from slamkit.planning.registry import GRID_PLANNERS, make_planner
 from slamkit.planning.rrt import RRTConfig, RRTPlanner
 from slamkit.planning.rrt_star import RRTStarConfig, RRTStarPlanner
 from slamkit.planning.worlds import PointWorld
-from slamkit.timing import BenchCase, best_of, compare
+from slamkit.bench.cases import BenchCase, best_of, compare
 
 
 def walls_map(n: int = 1000, spacing: int = 100, thickness: int = 3, gap: int = 60) -> OccupancyGrid:

@@ -32,7 +32,7 @@ from slamkit.backend.solvers import OptimizeConfig, optimize
 from slamkit.data.formats._records import TEXTSCAN_MODULE, textscan
 from slamkit.data.formats.toro import read_toro
 from slamkit.data.pose_graph import PoseGraph
-from slamkit.timing import BenchCase, compare
+from slamkit.bench.cases import BenchCase, compare
 
 
 def _raw_lm(path: str) -> tuple[float, int, dict]:

@@ -20,7 +20,7 @@ import numpy as np
 from slamkit.maps.generators import office, random_free_poses, warehouse
 from slamkit.maps.occupancy_grid import OccupancyGrid
 from slamkit.maps.raycast import RayCaster, cast_ray_loop
-from slamkit.timing import BenchCase, best_of, compare
+from slamkit.bench.cases import BenchCase, best_of, compare
 
 
 def _clutter(rng: np.random.Generator) -> OccupancyGrid:

@@ -17,7 +17,7 @@ from slamkit.frontend.icp import IcpConfig, _best_rigid, icp, scan_to_points
 from slamkit.geometry import se2
 from slamkit.maps.generators import office, random_free_poses
 from slamkit.maps.raycast import RayCaster
-from slamkit.timing import BenchCase, best_of, compare
+from slamkit.bench.cases import BenchCase, best_of, compare
 
 
 def naive_icp(source: np.ndarray, target: np.ndarray, initial: np.ndarray, iterations: int,

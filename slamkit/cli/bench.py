@@ -2,42 +2,14 @@
 
 from __future__ import annotations
 
-import importlib
 import json
-import os
-import platform
-import sys
 
 import typer
 from rich.console import Console
 from rich.table import Table
 
+from slamkit.bench import SUITES, run_bench
 from slamkit.cli.app import app
-
-#: suite name -> "module:function"; each function takes ``quick: bool`` and returns BenchCases.
-SUITES: dict[str, str] = {
-    "pose-graph": "slamkit.bench.pose_graph:run",
-    "raycast": "slamkit.bench.raycast:run",
-    "filters": "slamkit.bench.filters_suite:run",
-    "planning": "slamkit.bench.planning:run",
-    "control": "slamkit.bench.control:run",
-    "scan-matching": "slamkit.bench.scan_matching:run",
-}
-
-
-def run_bench(name: str, quick: bool = False) -> dict:
-    """Run one suite and return the JSON-ready object ``{"bench", "machine", "cases"}``."""
-    if name not in SUITES:
-        raise typer.BadParameter(f"unknown bench {name!r}; choose from {', '.join(sorted(SUITES))}")
-    module_name, fn_name = SUITES[name].split(":")
-    fn = getattr(importlib.import_module(module_name), fn_name)
-    cases = fn(quick=quick)
-    return {
-        "bench": name,
-        "machine": {"cpus": os.cpu_count(), "python": platform.python_version(),
-                    "platform": sys.platform},
-        "cases": [c.to_dict() for c in cases],
-    }
 
 
 @app.command()
