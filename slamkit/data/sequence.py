@@ -69,6 +69,14 @@ class Scan:
 Event = Odometry | RangeBearing | Gps | Imu | WheelEncoders | Scan
 
 
+def beam_angles_rad(angle_min_rad: float, increment_rad: float, n: int) -> np.ndarray:
+    """The (n,) beam angles of an evenly spaced scan: angle_min + k increment, with both numbers
+    rounded to float32 first -- the precision ``sensor_msgs/LaserScan`` carries -- so a scan
+    built here survives a ROS bag round trip bit for bit (every reader of evenly spaced scans
+    uses this one rule)."""
+    return np.float64(np.float32(angle_min_rad)) + np.arange(int(n)) * np.float64(np.float32(increment_rad))
+
+
 @dataclass(frozen=True)
 class Sequence:
     """A named, finite, time-ordered run of events with optional ground truth.
