@@ -12,9 +12,14 @@ OUT ?= runs/filter_vs_smoother
 
 setup: $(STAMP)
 
-$(STAMP): pyproject.toml
+# the C kernels are compiled by setup.py at install: reinstall when a source changes
+KERNEL_SOURCES := $(wildcard slamkit/*/*.c slamkit/*/*/*.c)
+
+$(STAMP): pyproject.toml setup.py $(KERNEL_SOURCES)
 	@# open3d links against libusb-1.0, which minimal Debian images lack.
 	@ldconfig -p | grep -q 'libusb-1.0.so.0' || { $(SUDO) apt-get update -qq && $(SUDO) apt-get install -y -qq libusb-1.0-0; }
+	@# the kernels need Python's C headers (Debian's python3 ships them in python3-dev)
+	@$(PYTHON) -c 'import os, sysconfig, sys; sys.exit(not os.path.exists(os.path.join(sysconfig.get_paths()["include"], "Python.h")))' || { $(SUDO) apt-get update -qq && $(SUDO) apt-get install -y -qq python3-dev; }
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install -q --upgrade pip
 	$(BIN)/pip install -q -e '.[test]'

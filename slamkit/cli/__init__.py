@@ -6,6 +6,7 @@ Each command group lives in its own module and registers on ``slamkit.cli.app.ap
 from slamkit.cli.app import app
 from slamkit.cli import bench as _bench  # noqa: F401
 from slamkit.cli import data as _data  # noqa: F401
+from slamkit.cli import doctor as _doctor  # noqa: F401
 from slamkit.cli import evaluate as _evaluate  # noqa: F401
 from slamkit.cli import optimize as _optimize  # noqa: F401
 from slamkit.cli import plan as _plan  # noqa: F401

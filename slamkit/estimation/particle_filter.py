@@ -17,7 +17,7 @@ resampling are all array operations over the particle axis.
 Speed: numpy is near its floor on this step (~15 N x m temporaries per update), so the hot path
 -- exact-arc motion with the rng's draws, the known-correspondence range-bearing likelihood and
 residuals, the predictive innovations and their NIS, the posterior mean/covariance and
-systematic resampling -- runs in fused C loops (``_pfkernel.c``, compiled on first use through
+systematic resampling -- runs in fused C loops (``_pfkernel.c``, compiled when slamkit is installed, loaded through
 :mod:`slamkit._native`). The numpy expressions stay as the fallback (``SLAMKIT_NO_NATIVE=1``, no
 compiler) and the ML-association path uses them always. The two paths draw the same random
 numbers and agree to ~1e-15 (the kernel's atan2 is Cephes' rational approximation, a few ulp
@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from pathlib import Path
 from types import ModuleType
 from typing import Callable, Mapping
 
@@ -49,14 +48,13 @@ from slamkit.geometry.angles import wrap_angle
 from slamkit.models import diff_drive, range_bearing
 
 PFKERNEL_MODULE = "slamkit.estimation._pfkernel"
-_KERNEL_SOURCE = Path(__file__).with_name("_pfkernel.c")
 
 
 def _kernel() -> ModuleType | None:
-    """The fused C kernels (``_pfkernel.c``, compiled on first use), or None: then the numpy
+    """The fused C kernels (``_pfkernel.c``, built at install), or None: then the numpy
     expressions below run instead (``SLAMKIT_NO_NATIVE=1``, no compiler). Both paths compute
     the same arithmetic; they agree to rounding (~1e-15 relative), see tests/estimation."""
-    return load_extension(PFKERNEL_MODULE, _KERNEL_SOURCE)
+    return load_extension(PFKERNEL_MODULE)
 
 
 def _f64(a: np.ndarray) -> np.ndarray:

@@ -15,7 +15,7 @@ set. Ties (a ray through a cell corner) step in x first, as :func:`cast_ray_loop
 vectorised and the per-beam reference agree to the last bit.
 
 Compiled core: when a C compiler is available, :class:`RayCaster` walks each beam in
-``_raycast.c`` (built on first use by :mod:`slamkit._native`): the same per-beam walk as
+``_raycast.c`` (built when slamkit is installed, loaded by :mod:`slamkit._native`): the same per-beam walk as
 :func:`cast_ray_loop`, with the same float operations on the same numpy-computed origins and
 directions, so it returns the same bits as both Python paths without needing the distance field.
 The vectorised numpy walk above is the fallback (``SLAMKIT_NO_NATIVE=1``, no compiler, or an
@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import math
 from functools import cached_property
-from pathlib import Path
 
 import numpy as np
 from scipy import ndimage
@@ -57,7 +56,7 @@ RAYCAST_MODULE = "slamkit.maps._raycast"
 def native_raycast():
     """The compiled walk (``_raycast.c``), or None: then :class:`RayCaster` runs its numpy walk
     with the same results (``SLAMKIT_NO_NATIVE=1`` forces that)."""
-    return load_extension(RAYCAST_MODULE, Path(__file__).with_name("_raycast.c"))
+    return load_extension(RAYCAST_MODULE)
 
 
 class RayCaster:

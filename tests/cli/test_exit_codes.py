@@ -96,3 +96,12 @@ def test_a_file_on_disk_wins_over_the_registry_name(tmp_path, monkeypatch) -> No
     assert data["num_poses"] == 943  # intel-g2o's, not ring's 434
     assert data["warnings"][0].startswith("'ring' is both a file here and a registry dataset: using the file ")
     assert registry.resolution_note("intel") is None
+
+
+def test_doctor_says_which_kernels_are_compiled() -> None:
+    result = _run("doctor", "--json")
+    assert result.exit_code == 0
+    data = json.loads(result.output)
+    assert data["kernels"] == {"slamkit.data.formats._textscan": "compiled", "slamkit.maps._raycast": "compiled",
+                               "slamkit.planning._gridsearch": "compiled", "slamkit.estimation._pfkernel": "compiled"}
+    assert [r["kind"] for r in data["data_roots"]][-1] == "cache"
