@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from slamkit.planning.protocols import Hook, PlanningProblem, PlanStatus, failed
+from slamkit.planning.protocols import Hook, PlanningProblem, PlanStatus, at_goal, failed
 from slamkit.planning.worlds import as_world
 
 
@@ -82,7 +82,9 @@ class Budget:
 
 
 def check_endpoints(problem: PlanningProblem, planner: str):
-    """(world, start, goal, None) or (world, ..., failed PlanResult) for invalid endpoints."""
+    """(world, start, goal, None), or (world, start, goal, result) when the answer is known
+    before any sampling: INVALID_START / INVALID_GOAL, or SOLVED with the one-point path
+    [start] and cost 0 when start equals goal (growing a tree there only finds detours)."""
     from slamkit.errors import PlanningError
 
     world = as_world(problem.world)
@@ -95,6 +97,8 @@ def check_endpoints(problem: PlanningProblem, planner: str):
         return world, start, goal, failed(PlanStatus.INVALID_START, planner, world.dim)
     if not valid[1]:
         return world, start, goal, failed(PlanStatus.INVALID_GOAL, planner, world.dim)
+    if float(world.distance(start, goal[None])[0]) == 0.0:
+        return world, start, goal, at_goal(start, planner)
     return world, start, goal, None
 
 

@@ -129,5 +129,11 @@ def empty_path(dim: int = 2) -> np.ndarray:
     return np.zeros((0, dim))
 
 
+def at_goal(start: np.ndarray, planner: str) -> PlanResult:
+    """The answer when start equals goal: SOLVED, the one-point path [start], cost 0."""
+    return PlanResult(PlanStatus.SOLVED, np.asarray(start, dtype=float).reshape(1, -1).copy(), 0.0,
+                      PlanStats(), planner)
+
+
 def failed(status: PlanStatus, planner: str, dim: int = 2, time_s: float = 0.0, **stats: Any) -> PlanResult:
     return PlanResult(status, empty_path(dim), float("inf"), PlanStats(time_s=time_s, **stats), planner)
