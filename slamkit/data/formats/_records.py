@@ -448,10 +448,18 @@ def assemble(*, path: str | Path, dim: int, vertex_ids: np.ndarray, poses: np.nd
         ids, chained = chain_initial(dim, edge_from, edge_to, measurements)
         order = np.argsort(ids, kind="stable")
         vertex_ids, poses = ids[order], chained[order]
+        if not np.isfinite(poses).all():
+            raise DataError("initial poses chained from the edges overflow to infinity "
+                            "(translations too large)", path)
         notes.append("no vertices in file: initial poses chained from edges in file order")
         rows = vertex_rows(vertex_ids, edge_from, edge_to)
 
     information = np.asarray(information, dtype=float)
+    overflow = ~np.isfinite(information).all(axis=(1, 2)) if information.ndim == 3 else np.zeros(0, bool)
+    if overflow.any():
+        # finite entries whose square-root-information product overflows (iSAM), under any policy
+        raise DataError("information matrix overflows to infinity", path,
+                        int(edge_lines[np.flatnonzero(overflow)[0]]))
     if len(information):
         non_pd = ~smallest_eigenvalue_positive(information)
         n_bad = int(non_pd.sum())
