@@ -35,16 +35,21 @@ def split_lines(text: str) -> list[str]:
     return [line[:-1] if line.endswith("\r") else line for line in lines]
 
 
-def read_text(path: str | Path, encoding: str = "utf-8") -> str:
-    """The text of ``path`` with no newline translation; a missing file, a folder or undecodable
-    bytes are a ``DataError`` naming the file."""
-    path = Path(path)
+def read_bytes(path: str | Path) -> bytes:
+    """The bytes of ``path``; a missing file or a folder is a ``DataError`` naming it."""
     try:
-        data = path.read_bytes()
+        return Path(path).read_bytes()
     except FileNotFoundError:
         raise DataError("no such file", path) from None
     except IsADirectoryError:
         raise DataError("is a directory, not a file", path) from None
+
+
+def read_text(path: str | Path, encoding: str = "utf-8") -> str:
+    """The text of ``path`` with no newline translation; a missing file, a folder or undecodable
+    bytes are a ``DataError`` naming the file."""
+    path = Path(path)
+    data = read_bytes(path)
     try:
         return data.decode(encoding)
     except UnicodeDecodeError as exc:
@@ -97,3 +102,24 @@ def float_table(rows: list[list[str]], lines: list[int] | np.ndarray, path: str 
         for col, token in enumerate(row, start=1):
             parse_number(token, f"{field} {col}", path, int(lineno))
     raise DataError("could not convert values", path)  # pragma: no cover - the loop finds it
+
+
+def number_rows(path: str | Path, width: int, empty: str) -> tuple[np.ndarray, np.ndarray]:
+    """(one-based line numbers (K,), finite values (K, width)) of a whitespace-separated table;
+    ``#`` starts a comment, blank lines are skipped, no rows at all is ``DataError(empty)``."""
+    lines, rows = [], []
+    for lineno, line in enumerate(read_lines(path), start=1):
+        tokens = line.split("#", 1)[0].split()
+        if not tokens:
+            continue
+        if len(tokens) != width:
+            raise DataError(f"expected {width} numbers, got {len(tokens)}", path, lineno)
+        lines.append(lineno)
+        rows.append(tokens)
+    if not rows:
+        raise DataError(empty, path)
+    values = float_table(rows, lines, path)
+    bad = ~np.isfinite(values).all(axis=1)
+    if bad.any():
+        raise DataError("NaN or infinity", path, lines[int(np.flatnonzero(bad)[0])])
+    return np.asarray(lines, dtype=np.int64), values

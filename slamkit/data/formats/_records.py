@@ -44,7 +44,7 @@ from typing import Literal
 import numpy as np
 
 from slamkit._native import load_extension
-from slamkit._text import is_number_token, parse_number, read_text, split_lines
+from slamkit._text import is_number_token, parse_number, read_bytes, read_text, split_lines
 from slamkit.data.pose_graph import PoseGraph
 from slamkit.geometry import so3
 from slamkit.errors import DataError
@@ -144,12 +144,7 @@ def read_records(path: str | Path) -> dict[str, Block]:
     path = Path(path)
     scanner = textscan()
     if scanner is not None:
-        try:
-            data = path.read_bytes()
-        except FileNotFoundError:
-            raise DataError("no such file", path) from None
-        except IsADirectoryError:
-            raise DataError("is a directory, not a file", path) from None
+        data = read_bytes(path)
         found = scanner.tags(data) if data.isascii() else None
         if found is not None:
             source = FileBytes(data)

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from slamkit.data.formats._records import wrap_angle_rad
-from slamkit._text import float_table, read_lines
+from slamkit._text import number_rows
 from slamkit.data.trajectory import Trajectory
 from slamkit.errors import DataError
 
@@ -31,23 +31,7 @@ GROUND_TRUTH_FORMATS = ("id_x_y_theta", "x_y_theta", "isam_noise_free")
 
 def _table(path: str | Path, width: int) -> tuple[np.ndarray, np.ndarray]:
     """(line numbers, values (K, width)) of a whitespace-separated numeric file."""
-    path = Path(path)
-    lines, rows = [], []
-    for lineno, line in enumerate(read_lines(path), start=1):
-        tokens = line.split()
-        if not tokens or tokens[0].startswith("#"):
-            continue
-        if len(tokens) != width:
-            raise DataError(f"expected {width} numbers, got {len(tokens)}", path, lineno)
-        lines.append(lineno)
-        rows.append(tokens)
-    if not rows:
-        raise DataError("empty ground-truth file", path)
-    values = float_table(rows, lines, path)
-    bad = ~np.isfinite(values).all(axis=1)
-    if bad.any():
-        raise DataError("NaN or infinity", path, lines[int(np.flatnonzero(bad)[0])])
-    return np.asarray(lines), values
+    return number_rows(path, width, "empty ground-truth file")
 
 
 def read_id_x_y_theta(path: str | Path) -> Trajectory:

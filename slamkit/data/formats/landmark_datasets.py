@@ -38,7 +38,7 @@ from typing import Mapping
 
 import numpy as np
 
-from slamkit._text import float_table, parse_int, parse_number, read_lines
+from slamkit._text import number_rows, parse_int, parse_number, read_lines
 from slamkit.data.sequence import Event, Odometry, RangeBearing, Sequence
 from slamkit.data.trajectory import Trajectory
 from slamkit.errors import DataError
@@ -315,22 +315,7 @@ def read_pyfg_landmark_sequence(path: str | Path, robot: str = "A", name: str | 
 
 def _table(path: Path, columns: int) -> np.ndarray:
     """Rows of ``columns`` finite numbers (``#`` comments and blank lines skipped)."""
-    rows, lines = [], []
-    for lineno, line in enumerate(read_lines(path), 1):
-        tokens = line.split("#", 1)[0].split()
-        if not tokens:
-            continue
-        if len(tokens) != columns:
-            raise DataError(f"expected {columns} columns, found {len(tokens)}", path, lineno)
-        rows.append(tokens)
-        lines.append(lineno)
-    if not rows:
-        raise DataError("no data rows", path)
-    data = float_table(rows, lines, path)
-    bad = ~np.isfinite(data).all(axis=1)
-    if bad.any():
-        raise DataError("NaN or infinity", path, lines[int(np.flatnonzero(bad)[0])])
-    return data
+    return number_rows(path, columns, "no data rows")[1]
 
 
 def read_mrclam_sequence(odometry_path: str | Path, measurement_path: str | Path,
