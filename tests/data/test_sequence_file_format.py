@@ -202,6 +202,8 @@ def _object_npy() -> bytes:
     ("header.json", b'{"format": "slamkit-sequence", "name": "\xff"}',
      "record header.json is not valid JSON: 'utf-8' codec can't decode byte 0xff in position 40: invalid "
      "start byte"),
+    ("header.json", b'{"format": "slamkit-sequence", "version": 1, "num_events": NaN}',
+     "record header.json is not valid JSON: NaN is not a JSON number"),
     ("ground_truth/world_t_body.npy", _npy(np.zeros((2, 3))), "record ground_truth/world_t_body.npy: shape "
                                                                "(2, 3), expected (3, 3)"),
 ])

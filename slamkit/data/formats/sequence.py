@@ -239,8 +239,8 @@ class SequenceReader:
         self._names = set(self._zip.namelist())
         raw = self._read_bytes("header.json")
         try:
-            header = json.loads(raw)
-        except (ValueError, UnicodeDecodeError) as exc:
+            header = json.loads(raw, parse_constant=_reject_constant)
+        except (ValueError, UnicodeDecodeError, RecursionError) as exc:
             raise DataError(f"record header.json is not valid JSON: {exc}", self.path) from None
         if not isinstance(header, dict) or header.get("format") != FORMAT:
             raise DataError(f"record header.json: format is not {FORMAT!r}", self.path)
@@ -448,6 +448,11 @@ class SequenceReader:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def _reject_constant(name: str) -> None:
+    # Python's json reads NaN and Infinity, which JSON does not have (and a header never holds)
+    raise ValueError(f"{name} is not a JSON number")
 
 
 def _count(value: Any) -> bool:
