@@ -225,8 +225,7 @@ def test_zip_bomb_member_is_refused_before_inflating(tmp_path, monkeypatch):
     bad = tmp_path / "bomb.slamseq"
     with zipfile.ZipFile(good) as zin, zipfile.ZipFile(bad, "w", zipfile.ZIP_DEFLATED) as zout:
         for name in zin.namelist():
-            zout.writestr(name, zin.read(name))
-        zout.writestr("landmarks/ids.npy", b"\0" * (64 << 20))
+            zout.writestr(name, b"\0" * (64 << 20) if name == "landmarks/ids.npy" else zin.read(name))
     assert bad.stat().st_size < (1 << 20)
     assert fmt.MAX_MEMBER_BYTES == 1 << 30
     monkeypatch.setattr(fmt, "MAX_MEMBER_BYTES", 1 << 20)
