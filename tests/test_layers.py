@@ -32,7 +32,7 @@ ALLOWED = {
             "planning", "control", "metrics", "experiments"},
     "cli": None,  # may import everything
 }
-BASE_MODULES = {"errors", "timing", "config", "paths", "_native", "__init__"}
+BASE_MODULES = {"errors", "timing", "config", "paths", "_native", "_text", "__init__"}
 # third-party packages confined to one slamkit package
 CONFINED = {
     "gtsam": {"backend", "bench"},
@@ -42,6 +42,7 @@ CONFINED = {
     "typer": {"cli"},
     "matplotlib": {"experiments", "viz", "cli"},
     "yaml": {"experiments", "cli", "sim", "viz"},
+    "PIL": {"data"},  # image files are a file format (slamkit.data.formats.image)
 }
 
 

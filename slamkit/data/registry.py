@@ -427,11 +427,18 @@ def download(url: str, dest: str | Path, sha256: str, expected_size: int | None 
             with response:
                 total = expected_size or int(response.headers.get("Content-Length") or 0) or None
                 bar = _progress_bar(dest.name, total) if progress else None
+                received = 0
                 try:
                     while True:
                         chunk = response.read(_CHUNK)
                         if not chunk:
                             break
+                        received += len(chunk)
+                        if expected_size is not None and received > expected_size:
+                            # a wrong or hostile server must not fill the disk: stop at the first
+                            # chunk past the recorded size (the sha256 could only say so at the end)
+                            raise ChecksumError(f"download exceeds its recorded size of {expected_size} "
+                                                "bytes; stopped and discarded", url)
                         out.write(chunk)
                         digest.update(chunk)
                         if bar is not None:

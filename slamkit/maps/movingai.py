@@ -30,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from slamkit._text import parse_int, parse_number, read_lines
 from slamkit.errors import DataError
 from slamkit.maps.occupancy_grid import OccupancyGrid
 
@@ -51,13 +52,8 @@ class Scenario:
 
 
 def _lines(path: Path) -> list[str]:
-    try:
-        text = path.read_text(encoding="ascii")
-    except FileNotFoundError:
-        raise DataError("file not found", path) from None
-    except UnicodeDecodeError as exc:
-        raise DataError(f"not an ASCII MovingAI file ({exc.reason} at byte {exc.start})", path) from None
-    return text.splitlines()  # handles the CRLF endings of the street maps
+    # the shared line rule handles the CRLF endings of the street maps
+    return read_lines(path, encoding="ascii")
 
 
 def load_map(path: str | Path) -> OccupancyGrid:
@@ -78,11 +74,10 @@ def load_map(path: str | Path) -> OccupancyGrid:
     for key in ("height", "width"):
         if key not in header:
             raise DataError(f"missing '{key}' header", path, i + 1)
-    try:
-        height, width = int(header["height"]), int(header["width"])
-    except ValueError:
+    if not all(header[k].isascii() and header[k].isdigit() for k in ("height", "width")):
         raise DataError(f"height/width must be integers, got {header['height']!r}, {header['width']!r}",
-                        path, i) from None
+                        path, i)
+    height, width = int(header["height"]), int(header["width"])
     if height <= 0 or width <= 0:
         raise DataError(f"height and width must be positive, got {height} x {width}", path, i)
     rows = lines[i + 1:i + 1 + height]
@@ -119,11 +114,9 @@ def load_scenarios(path: str | Path) -> list[Scenario]:
         if len(parts) != 9:
             raise DataError(f"expected 9 fields (bucket map width height sx sy gx gy length), "
                             f"got {len(parts)}", path, n)
-        try:
-            bucket, w, h, sx, sy, gx, gy = (int(parts[k]) for k in (0, 2, 3, 4, 5, 6, 7))
-            length = float(parts[8])
-        except ValueError as exc:
-            raise DataError(f"bad number: {exc}", path, n) from None
+        names = {0: "bucket", 2: "width", 3: "height", 4: "start_x", 5: "start_y", 6: "goal_x", 7: "goal_y"}
+        bucket, w, h, sx, sy, gx, gy = (parse_int(parts[k], f"field {names[k]}", path, n) for k in names)
+        length = parse_number(parts[8], "field optimal_length", path, n)
         if not (0 <= sx < w and 0 <= gx < w and 0 <= sy < h and 0 <= gy < h):
             raise DataError(f"start ({sx}, {sy}) or goal ({gx}, {gy}) outside the {w} x {h} map", path, n)
         if not (np.isfinite(length) and length >= 0):

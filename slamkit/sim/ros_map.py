@@ -11,7 +11,8 @@ import numpy as np
 import yaml
 
 from slamkit.errors import DataError
-from slamkit.maps.image_map import ImageMap, grid_to_pgm_bytes, occupancy_from_image, read_image
+from slamkit.data.formats.image import read_image
+from slamkit.maps.image_map import ImageMap, grid_to_pgm_bytes, occupancy_from_image
 from slamkit.maps.occupancy_grid import OccupancyGrid
 
 _REQUIRED = ("image", "resolution", "origin")

@@ -68,7 +68,8 @@ def server(tmp_path, shared_datasets):
     folder = tmp_path / "www"
     (folder / "bad").mkdir(parents=True)
     shutil.copy(shared_datasets / "pose_graph_3d" / "tinyGrid3D.g2o", folder / "tiny.g2o")
-    (folder / "bad" / "tiny.g2o").write_bytes((folder / "tiny.g2o").read_bytes() + b"\n")
+    # same length, one byte changed: a longer file now stops at the recorded size before any sha256
+    (folder / "bad" / "tiny.g2o").write_bytes((folder / "tiny.g2o").read_bytes().replace(b"EDGE", b"EDGX", 1))
 
     class Quiet(http.server.SimpleHTTPRequestHandler):
         def log_message(self, *args):

@@ -103,6 +103,21 @@ def test_missing_file_on_server_is_a_data_error_and_leaves_nothing(served, tmp_p
     assert _all_paths(cache) == []
 
 
+def test_oversized_download_stops_and_leaves_nothing(served, tmp_path, shared_datasets):
+    # issue 10: a server sending more than the recorded size is cut off, not read to the end
+    (served.folder / "big").mkdir()
+    good = (shared_datasets / "pose_graph_2d" / "ring.g2o").read_bytes()
+    (served.folder / "big" / "ring.g2o").write_bytes(good + b"#" * (4 << 20))
+    cache = tmp_path / "cache"
+    size = registry.get("ring").files[0].size_bytes
+    with pytest.raises(ChecksumError) as info:
+        registry.fetch("ring", url_override=served.url + "big/", cache_dir=cache)
+    assert str(info.value) == (f"{served.url}big/ring.g2o: download exceeds its recorded size of {size} bytes; "
+                               "stopped and discarded")
+    assert size == len(good)
+    assert _all_paths(cache) == []  # the partial file and the folders it made are gone
+
+
 def test_existing_cache_folders_survive_a_failed_fetch(served, tmp_path):
     cache = tmp_path / "cache"
     (cache / "pose_graph_2d").mkdir(parents=True)

@@ -152,5 +152,5 @@ def test_bad_input_names_file_and_line(tmp_path) -> None:
     odo.write_text("# header\n1.0 0.1 0.0\n1.1 0.1 x\n")
     for name, text in [("m.dat", "1.0 14 2.0 0.1\n"), ("l.dat", "6 1 2 0 0\n"), ("b.dat", "6 14\n")]:
         (tmp_path / name).write_text(text)
-    with pytest.raises(DataError, match="odo.dat: not a numeric table"):
+    with pytest.raises(DataError, match="odo.dat:3: field 3 is 'x', expected a number"):
         read_mrclam_sequence(odo, tmp_path / "m.dat", tmp_path / "l.dat", tmp_path / "b.dat")

@@ -178,12 +178,40 @@ def test_crlf_and_comment_line_numbers_worked_example(tmp_path, monkeypatch, no_
     # line 1 comment, 2 blank, 3 vertex, 4 vertex, 5 bad edge: the error names line 5 either way
     monkeypatch.setenv("SLAMKIT_NO_NATIVE", no_native)
     path = tmp_path / "g.g2o"
-    path.write_bytes(b"# c\r\n\r\nVERTEX_SE2 0 0 0 0\r\nVERTEX_SE2 1 0 0 0\rEDGE_SE2 0 1 1 0 0 1 0 0\n")
+    path.write_bytes(b"# c\r\n\r\nVERTEX_SE2 0 0 0 0\r\nVERTEX_SE2 1 0 0 0\nEDGE_SE2 0 1 1 0 0 1 0 0\n")
     with pytest.raises(DataError, match="EDGE_SE2 needs 11 fields after the tag, got 8") as info:
         read_g2o(path)
     assert info.value.line == 5
     blocks = read_records(path)
     assert {t: b.lines.tolist() for t, b in blocks.items()} == {"VERTEX_SE2": [3, 4], "EDGE_SE2": [5]}
+
+
+@pytest.mark.parametrize("no_native", ["", "1"])
+@pytest.mark.parametrize("brk", [b"\r", b"\x0c", b"\x0b", b"\x1c", b"\x1e", "\u0085".encode(), "\u2028".encode()])
+def test_only_newline_ends_a_line(tmp_path, monkeypatch, no_native, brk):
+    # issue 10: a lone CR, form feed, NEL, U+2028 ... stay inside their line (whitespace), so the
+    # line numbers are what `sed -n Np` shows; both paths agree
+    monkeypatch.setenv("SLAMKIT_NO_NATIVE", no_native)
+    path = tmp_path / "g.g2o"
+    path.write_bytes(b"VERTEX_SE2 0 0 0 0" + brk + b"\nVERTEX_SE2 1 0 0 0\nEDGE_SE2 0 1 1 0 0 1 0 0\n")
+    with pytest.raises(DataError) as info:
+        read_g2o(path)
+    assert str(info.value) == f"{path}:3: EDGE_SE2 needs 11 fields after the tag, got 8"
+    path.write_bytes(b"VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 0" + brk + b"0 0\nEDGE_SE2 0 1 1 0 0 1 0 0\n")
+    with pytest.raises(DataError) as info:
+        read_g2o(path)
+    assert str(info.value) == f"{path}:3: EDGE_SE2 needs 11 fields after the tag, got 8"
+
+
+@pytest.mark.parametrize("no_native", ["", "1"])
+@pytest.mark.parametrize("token", ["1_000", "\u0663", "\uff11"])
+def test_non_ascii_digits_are_not_numbers(tmp_path, monkeypatch, no_native, token):
+    monkeypatch.setenv("SLAMKIT_NO_NATIVE", no_native)
+    path = tmp_path / "g.g2o"
+    path.write_text(f"VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 {token} 0 0\n", encoding="utf-8")
+    with pytest.raises(DataError) as info:
+        read_g2o(path)
+    assert str(info.value) == f"{path}:2: VERTEX_SE2 field 2 is {token!r}, expected a number"
 
 
 FORMATS = ["{!r}", "{:.6g}", "{:e}", "{:+.3f}", "{:.17g}", "{:.20e}", "{:.25f}", "{:.0f}.", "{:E}"]

@@ -181,3 +181,55 @@ def test_saving_an_opened_file_reproduces_its_bytes(tmp_path):
     with open_sequence(first) as reader:
         second = save_sequence(tmp_path / "b.slamseq", reader)
     assert first.read_bytes() == second.read_bytes()
+
+
+def _object_npy() -> bytes:
+    import io
+    buf = io.BytesIO()
+    np.save(buf, np.array([{"a": 1}, None], dtype=object), allow_pickle=True)
+    return buf.getvalue()
+
+
+@pytest.mark.parametrize("member,data,message", [
+    ("odometry/v_mps.npy", "object", "record odometry/v_mps.npy is not a valid .npy array: Object arrays "
+                                     "cannot be loaded when allow_pickle=False"),
+    ("odometry/order.npy", _npy(np.array([0.0, 7.0])), "record odometry/order.npy: dtype float64 is not an "
+                                                       "integer type"),
+    ("odometry/stamp_s.npy", _npy(np.array([0.1, np.nan])), "record odometry/stamp_s.npy: NaN or infinity "
+                                                           "at index 1"),
+    ("imu/gyro_radps.npy", _npy(np.zeros((1, 2))), "record imu/gyro_radps.npy: shape (1, 2), expected (n, 3)"),
+    ("odometry/dt_s.npy", _npy(np.array(["a", "b"])), "record odometry/dt_s.npy: dtype <U1 is not a number type"),
+    ("header.json", b'{"format": "slamkit-sequence", "name": "\xff"}',
+     "record header.json is not valid JSON: 'utf-8' codec can't decode byte 0xff in position 40: invalid "
+     "start byte"),
+    ("header.json", b'{"format": "slamkit-sequence", "version": 1, "num_events": NaN}',
+     "record header.json is not valid JSON: NaN is not a JSON number"),
+    ("ground_truth/world_t_body.npy", _npy(np.zeros((2, 3))), "record ground_truth/world_t_body.npy: shape "
+                                                               "(2, 3), expected (3, 3)"),
+])
+def test_bad_member_error_text(tmp_path, member, data, message):
+    # issue 10: every malformed member is a DataError naming the file and the member
+    good = save_sequence(tmp_path / "mixed.slamseq", _mixed_sequence())
+    payload = _object_npy() if data == "object" else data
+    bad = _rewrite(good, tmp_path / "bad.slamseq", lambda n, d: payload if n == member else d)
+    with pytest.raises(DataError) as info:
+        with open_sequence(bad) as reader:
+            list(reader), reader.ground_truth
+    assert str(info.value) == f"{bad}: {message}"
+
+
+def test_zip_bomb_member_is_refused_before_inflating(tmp_path, monkeypatch):
+    import slamkit.data.formats.sequence as fmt
+    # 64 MiB of zeros deflates to ~64 KiB; with the limit at 1 MiB it is refused from the directory
+    good = save_sequence(tmp_path / "mixed.slamseq", _mixed_sequence())
+    bad = tmp_path / "bomb.slamseq"
+    with zipfile.ZipFile(good) as zin, zipfile.ZipFile(bad, "w", zipfile.ZIP_DEFLATED) as zout:
+        for name in zin.namelist():
+            zout.writestr(name, b"\0" * (64 << 20) if name == "landmarks/ids.npy" else zin.read(name))
+    assert bad.stat().st_size < (1 << 20)
+    assert fmt.MAX_MEMBER_BYTES == 1 << 30
+    monkeypatch.setattr(fmt, "MAX_MEMBER_BYTES", 1 << 20)
+    with pytest.raises(DataError) as info:
+        open_sequence(bad).world_p_landmarks
+    assert str(info.value) == (f"{bad}: record landmarks/ids.npy declares 67108864 bytes uncompressed, "
+                               "more than the limit of 1048576")

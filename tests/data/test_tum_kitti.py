@@ -117,3 +117,24 @@ def test_empty_or_missing_file(tmp_path: Path, reader):
     with pytest.raises(DataError, match="no such file"):
         reader(tmp_path / "missing.txt")
 
+
+
+@pytest.mark.parametrize("token", ["1_000", "\u0663", "\uff11"])
+def test_non_ascii_decimal_tokens_are_not_numbers(tmp_path, token):
+    # issue 10: float() accepts these; the shared token rule (slamkit._text) does not
+    path = tmp_path / "t.tum"
+    path.write_text(f"0 0 0 0 0 0 0 1\n1 {token} 0 0 0 0 0 1\n", encoding="utf-8")
+    with pytest.raises(DataError) as info:
+        read_tum(path)
+    assert str(info.value) == f"{path}:2: field 2 is {token!r}, expected a number"
+
+
+@pytest.mark.parametrize("brk", ["\x0c", "\x85", "\x1c", "\x1d", "\x1e", "\u2028", "\r"])
+def test_only_newline_ends_a_line(tmp_path, brk):
+    # issue 10: str.splitlines() also broke lines at these, so the error named line 3, not 2
+    path = tmp_path / "k.txt"
+    row = "1 0 0 0 0 1 0 0 0 0 1 0"
+    path.write_text(f"{row}\n{row}{brk} 5\n{row}\n", encoding="utf-8", newline="")
+    with pytest.raises(DataError) as info:
+        read_kitti(path)
+    assert str(info.value) == f"{path}:2: KITTI line needs 12 numbers, got 13"

@@ -1,5 +1,5 @@
-"""PGM/PNG decoding and the ROS map_server pixel rule, with a PNG encoder written here from the
-specification (every scanline filter) as the oracle."""
+"""PGM/PNG decoding (Pillow, slamkit.data.formats.image) and the ROS map_server pixel rule, with a
+PNG encoder written here from the specification (every scanline filter) as the oracle."""
 
 from __future__ import annotations
 
@@ -13,7 +13,8 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from slamkit.errors import DataError
-from slamkit.maps.image_map import occupancy_from_image, read_image, read_pgm, read_png
+from slamkit.data.formats.image import MAX_IMAGE_PIXELS, read_image
+from slamkit.maps.image_map import occupancy_from_image
 from slamkit.maps.occupancy_grid import OccupancyGrid
 from slamkit.sim.ros_map import load_ros_map, save_ros_map
 
@@ -57,7 +58,7 @@ def test_png_decoder_inverts_every_filter(tmp_path_factory, img, filters):
     path = tmp_path_factory.mktemp("png") / "m.png"
     path.write_bytes(encode_png(img, color, filters))
     expected = img[..., :3].astype(float).mean(axis=-1) if img.shape[2] >= 3 else img[..., 0].astype(float)
-    np.testing.assert_allclose(read_png(path), expected)
+    np.testing.assert_allclose(read_image(path), expected)
 
 
 def test_palette_png_and_bad_png(tmp_path):
@@ -69,19 +70,20 @@ def test_palette_png_and_bad_png(tmp_path):
     data[-20] ^= 0xFF  # corrupt the IDAT chunk
     (tmp_path / "bad.png").write_bytes(bytes(data))
     with pytest.raises(DataError, match="bad.png"):
-        read_png(tmp_path / "bad.png")
+        read_image(tmp_path / "bad.png")
 
 
 def test_pgm_binary_ascii_16bit_comments_and_truncation(tmp_path):
     (tmp_path / "a.pgm").write_bytes(b"P5\n# made by hand\n3 2\n255\n" + bytes([0, 100, 255, 254, 205, 0]))
-    np.testing.assert_allclose(read_pgm(tmp_path / "a.pgm"), [[0, 100, 255], [254, 205, 0]])
+    np.testing.assert_allclose(read_image(tmp_path / "a.pgm"), [[0, 100, 255], [254, 205, 0]])
     (tmp_path / "b.pgm").write_text("P2\n3 1 # width height\n15\n0 15\n 5\n")
-    np.testing.assert_allclose(read_pgm(tmp_path / "b.pgm"), [[0, 255, 85]])
+    np.testing.assert_allclose(read_image(tmp_path / "b.pgm"), [[0, 255, 85]])
     (tmp_path / "c.pgm").write_bytes(b"P5 2 1 65535\n" + struct.pack(">HH", 0, 65535))
-    np.testing.assert_allclose(read_pgm(tmp_path / "c.pgm"), [[0, 255]])
+    np.testing.assert_allclose(read_image(tmp_path / "c.pgm"), [[0, 255]])
     (tmp_path / "d.pgm").write_bytes(b"P5\n3 2\n255\n" + bytes([0, 1]))
-    with pytest.raises(DataError, match="d.pgm: PGM pixel data truncated"):
-        read_pgm(tmp_path / "d.pgm")
+    with pytest.raises(DataError) as info:
+        read_image(tmp_path / "d.pgm")
+    assert str(info.value).startswith(f"{tmp_path / 'd.pgm'}: PPM image data is truncated or corrupt: ")
     (tmp_path / "e.txt").write_text("hello")
     with pytest.raises(DataError, match="unsupported image format"):
         read_image(tmp_path / "e.txt")
@@ -116,3 +118,24 @@ def test_ros_yaml_round_trip_and_errors(tmp_path):
     (tmp_path / "rot.yaml").write_text("image: room.pgm\nresolution: 0.1\norigin: [0, 0, 0.5]\n")
     with pytest.raises(DataError, match="rotated"):
         load_ros_map(tmp_path / "rot.yaml")
+
+
+def test_oversized_png_header_is_refused_before_decoding(tmp_path):
+    # issue 10: a tiny PNG declaring 30000 x 30000 pixels (900 M) took 18 GB before a MemoryError
+    png = bytearray(encode_png(np.zeros((1, 1, 1), np.uint8), 0, [0]))
+    png[16:24] = struct.pack(">II", 30000, 30000)
+    png[29:33] = struct.pack(">I", zlib.crc32(bytes(png[12:29])))  # keep the IHDR CRC valid
+    (tmp_path / "huge.png").write_bytes(bytes(png))
+    with pytest.raises(DataError) as info:
+        read_image(tmp_path / "huge.png")
+    assert str(info.value) == (f"{tmp_path / 'huge.png'}: image declares 30000 x 30000 = 900000000 pixels, "
+                               f"more than the limit of {MAX_IMAGE_PIXELS}")
+    assert MAX_IMAGE_PIXELS == 100_000_000
+
+
+def test_16_bit_pgm_and_png(tmp_path):
+    (tmp_path / "a.pgm").write_bytes(b"P5\n3 1\n1000\n" + struct.pack(">HHH", 0, 1000, 200))
+    # Pillow scales maxval 1000 to 0..65535 (200 -> 13107): 13107 * 255 / 65535 = 51.0
+    np.testing.assert_allclose(read_image(tmp_path / "a.pgm"), [[0.0, 255.0, 51.0]])
+    (tmp_path / "b.pgm").write_text("P2\n2 1\n65535\n65535 0\n")
+    np.testing.assert_allclose(read_image(tmp_path / "b.pgm"), [[255.0, 0.0]])

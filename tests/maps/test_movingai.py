@@ -81,7 +81,7 @@ def test_malformed_map_names_file_and_line(tmp_path, text, line, match):
 
 @pytest.mark.parametrize("text, line, match", [
     ("version 1\n0\tm.map\t3\t3\t0\t0\t2\t2\n", 2, "9 fields"),
-    ("version 1\n0\tm.map\t3\t3\t0\t0\t2\t2\t2.8\n0\tm.map\t3\t3\t0\t0\t2\t2\tx\n", 3, "bad number"),
+    ("version 1\n0\tm.map\t3\t3\t0\t0\t2\t2\t2.8\n0\tm.map\t3\t3\t0\t0\t2\t2\tx\n", 3, "field optimal_length is 'x', expected a number"),
     ("version 1\n0\tm.map\t3\t3\t0\t0\t5\t2\t2.8\n", 2, "outside"),
     ("0\tm.map\t3\t3\t0\t0\t2\t2\t2.8\n", 1, "version 1"),
 ])
@@ -93,7 +93,7 @@ def test_malformed_scen_names_file_and_line(tmp_path, text, line, match):
 
 
 def test_missing_file_is_data_error(tmp_path):
-    with pytest.raises(DataError, match="not found"):
+    with pytest.raises(DataError, match="no such file"):
         load_map(tmp_path / "nope.map")
 
 

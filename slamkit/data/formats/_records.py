@@ -44,6 +44,7 @@ from typing import Literal
 import numpy as np
 
 from slamkit._native import load_extension
+from slamkit._text import is_number_token, parse_number, read_bytes, read_text, split_lines
 from slamkit.data.pose_graph import PoseGraph
 from slamkit.geometry import so3
 from slamkit.errors import DataError
@@ -63,10 +64,8 @@ class FileBytes:
 
     @cached_property
     def python_blocks(self) -> dict[str, "Block"]:
-        # what Path.read_text() would give: only ASCII reaches here, and universal newlines
-        # turn "\r\n" and a lone "\r" into "\n"
-        text = self.data.decode("ascii").replace("\r\n", "\n").replace("\r", "\n")
-        return split_text(text)
+        # only ASCII without a lone "\r" reaches here (the scanner's condition)
+        return split_text(self.data.decode("ascii"))
 
 
 class Block:
@@ -98,8 +97,9 @@ class Block:
 
     @cached_property
     def payload(self) -> str:
-        """The lines without their tags, joined by newlines."""
-        return "\n".join(self.rests)
+        """The lines without their tags, joined by newlines (a lone "\r" inside a line is a
+        blank, as ``str.split`` sees it; numpy's parser would end the line there)."""
+        return "\n".join(self.rests).replace("\r", " ")
 
     def token_counts(self) -> np.ndarray:
         """Number of fields after the tag on each line, computed on bytes without a Python loop."""
@@ -144,38 +144,26 @@ def read_records(path: str | Path) -> dict[str, Block]:
     path = Path(path)
     scanner = textscan()
     if scanner is not None:
-        try:
-            data = path.read_bytes()
-        except FileNotFoundError:
-            raise DataError("no such file", path) from None
-        except IsADirectoryError:
-            raise DataError("is a directory, not a file", path) from None
+        data = read_bytes(path)
         found = scanner.tags(data) if data.isascii() else None
         if found is not None:
             source = FileBytes(data)
             return {tag: Block(tag, np.frombuffer(lines, dtype=np.int64), source=source)
                     for tag, lines in found.items()}
-    try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise DataError("no such file", path) from None
-    except UnicodeDecodeError as exc:
-        raise DataError(f"not a text file ({exc.reason} at byte {exc.start})", path) from None
-    except IsADirectoryError:
-        raise DataError("is a directory, not a file", path) from None
-    return split_text(text)
+    return split_text(read_text(path))
 
 
 def split_text(text: str) -> dict[str, Block]:
-    """The Python splitter of :func:`read_records` (per-line ``str.partition``)."""
-    lines = text.splitlines()
+    """The Python splitter of :func:`read_records` (per-line ``str.partition``); lines split by
+    the shared rule of :mod:`slamkit._text` (``"\n"``, tolerating ``"\r\n"``)."""
+    lines = split_lines(text)
     # partition(" ") is the cheap common case (tag at column 0, then a space); lines that start
     # with whitespace or use other separators take the general split
     parts = [line.partition(" ") for line in lines]
     heads = [part[0] for part in parts]
     rests = [part[2] for part in parts]
     for k, head in enumerate(heads):
-        if not head or "\t" in head or "\x0b" in head or "\x0c" in head or "\r" in head:
+        if not head or head != head.strip() or len(head.split()) != 1:
             tokens = lines[k].split(None, 1)
             heads[k] = tokens[0] if tokens else ""
             rests[k] = tokens[1] if len(tokens) > 1 else ""
@@ -240,11 +228,7 @@ def _locate_bad_line(path, tag, block: Block, expected: int) -> None:
         if len(row) != expected:
             raise DataError(f"{tag} needs {expected} fields after the tag, got {len(row)}", path, lineno)
         for col in range(expected):
-            try:
-                float(row[col])
-            except ValueError:
-                raise DataError(f"{tag} field {col + 1} is {row[col]!r}, expected a number",
-                                path, lineno) from None
+            parse_number(row[col], f"{tag} field {col + 1}", path, lineno)
     raise DataError(f"{tag}: could not convert values", path)  # pragma: no cover
 
 
@@ -459,10 +443,18 @@ def assemble(*, path: str | Path, dim: int, vertex_ids: np.ndarray, poses: np.nd
         ids, chained = chain_initial(dim, edge_from, edge_to, measurements)
         order = np.argsort(ids, kind="stable")
         vertex_ids, poses = ids[order], chained[order]
+        if not np.isfinite(poses).all():
+            raise DataError("initial poses chained from the edges overflow to infinity "
+                            "(translations too large)", path)
         notes.append("no vertices in file: initial poses chained from edges in file order")
         rows = vertex_rows(vertex_ids, edge_from, edge_to)
 
     information = np.asarray(information, dtype=float)
+    overflow = ~np.isfinite(information).all(axis=(1, 2)) if information.ndim == 3 else np.zeros(0, bool)
+    if overflow.any():
+        # finite entries whose square-root-information product overflows (iSAM), under any policy
+        raise DataError("information matrix overflows to infinity", path,
+                        int(edge_lines[np.flatnonzero(overflow)[0]]))
     if len(information):
         non_pd = ~smallest_eigenvalue_positive(information)
         n_bad = int(non_pd.sum())
@@ -510,9 +502,7 @@ def note_ignored(blocks: dict[str, Block], handled: set[str]) -> list[str]:
 def reject_numeric_tags(path, blocks: dict[str, Block]) -> None:
     """A first token that is a number means this is not a tagged graph file (or a line lost its tag)."""
     for tag, block in blocks.items():
-        try:
-            float(tag)
-        except ValueError:
+        if not is_number_token(tag):
             continue
         raise DataError(f"line starts with the number {tag!r}, expected a record tag such as "
                         "VERTEX_SE2 or EDGE_SE2", path, block.lines[0])

@@ -5,9 +5,10 @@
  *   tags(data: bytes) -> dict[str, bytearray] | None
  *       first token of every line -> one-based line numbers (native int64) of its lines, in
  *       order of first appearance. Blank lines and lines whose first token starts with '#' are
- *       skipped. Lines end at "\n", "\r\n" or "\r" (Python's universal newlines). Returns None
- *       when the data holds a byte other than printable ASCII, tab, CR or LF: the Python path,
- *       which knows str.splitlines()'s other line breaks and decoding errors, handles those files.
+ *       skipped. Lines end at "\n" or "\r\n" (the shared rule of slamkit/_text.py). Returns None
+ *       when the data holds a byte other than printable ASCII, tab, CR or LF, or a CR not
+ *       followed by LF: the Python path, which keeps such characters inside their line and
+ *       reports decoding errors, handles those files.
  *
  *   scan(data: bytes, tag: str, ncols: int) -> (bytearray, bytearray) | None
  *       for every line whose first token is ``tag``: exactly ``ncols`` numbers after the tag,
@@ -163,7 +164,9 @@ static PyObject *tags(PyObject *self, PyObject *args) {
     Py_ssize_t n = view.len;
     for (Py_ssize_t i = 0; i < n; i++) {
         unsigned char c = (unsigned char)s[i];
-        if (c > 0x7f || (c < 0x20 && c != '\t' && c != '\n' && c != '\r')) {
+        /* a lone CR is not a line break (slamkit._text's rule): the Python path keeps it in its line */
+        if (c > 0x7f || (c < 0x20 && c != '\t' && c != '\n' && c != '\r')
+            || (c == '\r' && (i + 1 >= n || s[i + 1] != '\n'))) {
             PyBuffer_Release(&view);
             Py_RETURN_NONE;
         }

@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from slamkit.data.formats._records import wrap_angle_rad
+from slamkit._text import number_rows
 from slamkit.data.trajectory import Trajectory
 from slamkit.errors import DataError
 
@@ -30,38 +31,7 @@ GROUND_TRUTH_FORMATS = ("id_x_y_theta", "x_y_theta", "isam_noise_free")
 
 def _table(path: str | Path, width: int) -> tuple[np.ndarray, np.ndarray]:
     """(line numbers, values (K, width)) of a whitespace-separated numeric file."""
-    path = Path(path)
-    try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise DataError("no such file", path) from None
-    except UnicodeDecodeError:
-        raise DataError("not a text file", path) from None
-    lines, rows = [], []
-    for lineno, line in enumerate(text.splitlines(), start=1):
-        tokens = line.split()
-        if not tokens or tokens[0].startswith("#"):
-            continue
-        if len(tokens) != width:
-            raise DataError(f"expected {width} numbers, got {len(tokens)}", path, lineno)
-        lines.append(lineno)
-        rows.append(tokens)
-    if not rows:
-        raise DataError("empty ground-truth file", path)
-    try:
-        values = np.array(rows, dtype=float)
-    except ValueError:
-        for lineno, row in zip(lines, rows):
-            for col, token in enumerate(row):
-                try:
-                    float(token)
-                except ValueError:
-                    raise DataError(f"field {col + 1} is {token!r}, expected a number", path, lineno) from None
-        raise  # pragma: no cover
-    bad = ~np.isfinite(values).all(axis=1)
-    if bad.any():
-        raise DataError("NaN or infinity", path, lines[int(np.flatnonzero(bad)[0])])
-    return np.asarray(lines), values
+    return number_rows(path, width, "empty ground-truth file")
 
 
 def read_id_x_y_theta(path: str | Path) -> Trajectory:

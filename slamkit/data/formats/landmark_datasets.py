@@ -38,6 +38,7 @@ from typing import Mapping
 
 import numpy as np
 
+from slamkit._text import number_rows, parse_int, parse_number, read_lines
 from slamkit.data.sequence import Event, Odometry, RangeBearing, Sequence
 from slamkit.data.trajectory import Trajectory
 from slamkit.errors import DataError
@@ -115,6 +116,7 @@ def sequence_from_relative(name: str, stamps_s: np.ndarray, rel: np.ndarray, obs
         events.append(RangeBearing(float(stamps[obs_pose[idx[0]]]), np.asarray(obs_landmark)[rows].astype(np.int64),
                                    ranges[rows], bearings[rows]))
     meta = dict(metadata or {})
+    _require_finite_events(events, meta.get("source"))
     dt_seg = float(np.median(np.diff(stamps))) / 3.0 if len(stamps) > 1 else 1.0
     if odometry_sigma_xytheta is not None:
         sx, sy, st = (float(v) for v in odometry_sigma_xytheta)
@@ -135,6 +137,17 @@ def sequence_from_relative(name: str, stamps_s: np.ndarray, rel: np.ndarray, obs
             initial_pose_xytheta = np.asarray(ground_truth_xytheta[0], dtype=float)
     return Sequence.from_events(name, events, ground_truth=gt, world_p_landmarks=world_p_landmarks,
                                 initial_pose_xytheta=initial_pose_xytheta, metadata=meta)
+
+
+def _require_finite_events(events: list[Event], path) -> None:
+    """Finite numbers that overflow on the way (1e308 m in 1/3 s) make a DataError, not events a
+    filter would choke on."""
+    for e in events:
+        values = ([e.stamp_s, e.dt_s, e.v_mps, e.omega_radps] if isinstance(e, Odometry)
+                  else [e.stamp_s, *np.asarray(e.range_m).tolist(), *np.asarray(e.bearing_rad).tolist()])
+        if not np.isfinite(values).all():
+            raise DataError(f"{type(e).__name__} at stamp {e.stamp_s!r} s is not finite (values overflow)",
+                            path)
 
 
 # --------------------------------------------------------------------------------------------
@@ -209,15 +222,17 @@ def read_isam_landmark_sequence(path: str | Path, name: str | None = None, max_p
 def _cov_sigmas(path: Path, tag: str, dim: int) -> np.ndarray:
     """(K, dim) standard deviations: sqrt of the covariance diagonals of ``tag`` records."""
     rows = []
-    with open(path) as handle:
-        for lineno, line in enumerate(handle, 1):
-            if line.startswith(tag):
-                parts = line.split()
-                try:
-                    upper = np.array([float(x) for x in parts[3 + dim:]])
-                except ValueError:
-                    raise DataError(f"malformed {tag} record", path, lineno) from None
-                rows.append(upper)
+    n_upper = dim * (dim + 1) // 2
+    for lineno, line in enumerate(read_lines(path), 1):
+        parts = line.split()
+        if parts[:1] == [tag]:
+            if len(parts) != 3 + dim + n_upper:
+                raise DataError(f"malformed {tag} record", path, lineno)
+            upper = [parse_number(x, f"{tag} covariance entry", path, lineno) for x in parts[3 + dim:]]
+            diag = [upper[0], upper[dim]] if dim == 2 else [upper[0], upper[3], upper[5]]
+            if not (np.isfinite(upper).all() and min(diag) >= 0):
+                raise DataError(f"{tag} covariance has a negative or non-finite variance", path, lineno)
+            rows.append(upper)
     if not rows:
         raise DataError(f"no {tag} records", path)
     diag_idx = [0, dim] if dim == 2 else [0, 3, 5]
@@ -236,26 +251,36 @@ def read_pyfg_landmark_sequence(path: str | Path, robot: str = "A", name: str | 
     landmarks: dict[int, np.ndarray] = {}
     odo: list[tuple[int, int, np.ndarray, np.ndarray]] = []
     obs: list[tuple[int, int, np.ndarray, float]] = []
-    with open(path) as handle:
-        for lineno, line in enumerate(handle, 1):
-            parts = line.split()
-            if not parts:
-                continue
-            tag = parts[0]
-            try:
-                if tag == "VERTEX_SE2" and parts[2].startswith(robot):
-                    poses[int(parts[2][len(robot):])] = (float(parts[1]), np.array([float(x) for x in parts[3:6]]))
-                elif tag == "VERTEX_XY":
-                    landmarks[int(parts[1].lstrip("L"))] = np.array([float(parts[2]), float(parts[3])])
-                elif tag == "EDGE_SE2" and parts[2].startswith(robot) and parts[3].startswith(robot):
-                    cov = np.array([float(x) for x in parts[7:13]])
-                    odo.append((int(parts[2][len(robot):]), int(parts[3][len(robot):]),
-                                np.array([float(x) for x in parts[4:7]]), cov))
-                elif tag == "EDGE_SE2_XY" and parts[2].startswith(robot) and parts[3].startswith("L"):
-                    obs.append((int(parts[2][len(robot):]), int(parts[3][1:]),
-                                np.array([float(parts[4]), float(parts[5])]), float(parts[6])))
-            except (ValueError, IndexError):
-                raise DataError(f"malformed {tag} record", path, lineno) from None
+    fields = {"VERTEX_SE2": 6, "VERTEX_XY": 4, "EDGE_SE2": 13, "EDGE_SE2_XY": 9}
+    for lineno, line in enumerate(read_lines(path), 1):
+        parts = line.split()
+        if not parts:
+            continue
+        tag = parts[0]
+        if tag in fields and len(parts) != fields[tag]:
+            raise DataError(f"malformed {tag} record: {len(parts) - 1} fields after the tag, expected "
+                            f"{fields[tag] - 1}", path, lineno)
+
+        def num(k: int) -> float:
+            value = parse_number(parts[k], f"malformed {tag} record: field {k}", path, lineno)
+            if not np.isfinite(value):
+                raise DataError(f"{tag} field {k} is {parts[k]!r}, expected a finite number", path, lineno)
+            return value
+
+        def key(k: int, prefix: str) -> int:
+            return parse_int(parts[k][len(prefix):], f"{tag} field {k} ({parts[k]!r}) index", path, lineno)
+
+        if tag == "VERTEX_SE2" and parts[2].startswith(robot):
+            poses[key(2, robot)] = (num(1), np.array([num(k) for k in (3, 4, 5)]))
+        elif tag == "VERTEX_XY":
+            landmarks[key(1, "L" if parts[1].startswith("L") else "")] = np.array([num(2), num(3)])
+        elif tag == "EDGE_SE2" and parts[2].startswith(robot) and parts[3].startswith(robot):
+            cov = np.array([num(k) for k in range(7, 13)])
+            if np.any(cov[[0, 3, 5]] < 0):
+                raise DataError("EDGE_SE2 has a negative variance", path, lineno)
+            odo.append((key(2, robot), key(3, robot), np.array([num(k) for k in (4, 5, 6)]), cov))
+        elif tag == "EDGE_SE2_XY" and parts[2].startswith(robot) and parts[3].startswith("L"):
+            obs.append((key(2, robot), key(3, "L"), np.array([num(4), num(5)]), num(6)))
     if not poses:
         raise DataError(f"no VERTEX_SE2 of robot {robot!r}", path)
     ids = np.array(sorted(poses))
@@ -289,13 +314,8 @@ def read_pyfg_landmark_sequence(path: str | Path, robot: str = "A", name: str | 
 
 
 def _table(path: Path, columns: int) -> np.ndarray:
-    try:
-        data = np.loadtxt(path, comments="#", ndmin=2)
-    except ValueError as exc:
-        raise DataError(f"not a numeric table: {exc}", path) from None
-    if data.shape[1] != columns:
-        raise DataError(f"expected {columns} columns, found {data.shape[1]}", path)
-    return data
+    """Rows of ``columns`` finite numbers (``#`` comments and blank lines skipped)."""
+    return number_rows(path, columns, "no data rows")[1]
 
 
 def read_mrclam_sequence(odometry_path: str | Path, measurement_path: str | Path,

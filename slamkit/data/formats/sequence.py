@@ -31,7 +31,12 @@ and iteration builds one event object at a time (a million events never exist as
 objects unless the caller keeps them). :func:`load_sequence` builds the whole in-memory
 ``Sequence``. Any ZIP tool can inspect a file; ``numpy.load`` opens it like an ``.npz``.
 
-Bad input raises ``DataError`` naming the file and, where it applies, the member (record) at fault.
+Bad input raises ``DataError`` naming the file and, where it applies, the member (record) at fault:
+a damaged ZIP, a member over :data:`MAX_MEMBER_BYTES` uncompressed (checked on the ZIP directory
+before inflating, so a zip bomb is refused unread), a ``.npy`` header that does not parse, a pickled
+(object) array, a column of the wrong dtype or shape, columns of unequal length, a header that is
+not UTF-8 JSON of the documented shape, and NaN or infinity anywhere except a scan's
+``ranges_m`` (where it means "no return").
 """
 
 from __future__ import annotations
@@ -39,6 +44,7 @@ from __future__ import annotations
 import io
 import json
 import os
+import struct
 import zipfile
 import zlib
 from pathlib import Path
@@ -55,7 +61,16 @@ from slamkit.paths import check_output_file, temporary_sibling
 FORMAT = "slamkit-sequence"
 VERSION = 1
 SUFFIX = ".slamseq"
-_EPOCH = (1980, 1, 1, 0, 0, 0)  # fixed member timestamps: byte-identical files for equal input
+_EPOCH = (1980, 1, 1, 0, 0, 0)
+#: largest uncompressed size of one member (1 GiB: 134 M float64 values in one column)
+MAX_MEMBER_BYTES = 1 << 30
+#: what reading a damaged archive or .npy member can raise, besides our own checks
+_CORRUPT = (zipfile.BadZipFile, zipfile.LargeZipFile, EOFError, OSError, zlib.error, ValueError,
+            NotImplementedError, RuntimeError, struct.error, TypeError, SyntaxError, OverflowError,
+            KeyError, IndexError)
+#: column -> (dtype kind, ndim); every other column is float64-like and 1-D
+_INTEGER_COLUMNS = {"order", "offsets", "landmark_ids", "ticks_left", "ticks_right"}
+_MATRIX_COLUMNS = {"world_p_body": (2, 3), "gyro_radps": 3, "accel_mps2": 3}  # fixed member timestamps: byte-identical files for equal input
 
 KINDS: dict[str, type] = {
     "odometry": Odometry,
@@ -229,14 +244,14 @@ class SequenceReader:
             self._zip = zipfile.ZipFile(self.path, "r")
         except FileNotFoundError:
             raise DataError("no such sequence file", self.path) from None
-        except (zipfile.BadZipFile, OSError) as exc:
+        except _CORRUPT as exc:
             raise DataError(f"not a slamkit sequence file (not a readable ZIP archive: {exc})",
                             self.path) from None
         self._names = set(self._zip.namelist())
         raw = self._read_bytes("header.json")
         try:
-            header = json.loads(raw)
-        except (ValueError, UnicodeDecodeError) as exc:
+            header = json.loads(raw, parse_constant=_reject_constant)
+        except (ValueError, UnicodeDecodeError, RecursionError) as exc:
             raise DataError(f"record header.json is not valid JSON: {exc}", self.path) from None
         if not isinstance(header, dict) or header.get("format") != FORMAT:
             raise DataError(f"record header.json: format is not {FORMAT!r}", self.path)
@@ -246,6 +261,16 @@ class SequenceReader:
         for key in ("name", "num_events", "counts", "metadata"):
             if key not in header:
                 raise DataError(f"record header.json: missing field {key!r}", self.path)
+        counts = header["counts"]
+        if not (isinstance(header["name"], str) and _count(header["num_events"]) and isinstance(counts, dict)
+                and all(_count(v) for v in counts.values()) and isinstance(header["metadata"], dict)
+                and (header.get("ground_truth") is None or isinstance(header["ground_truth"], dict))):
+            raise DataError("record header.json: name must be a string, num_events and counts "
+                            "non-negative integers, metadata a mapping, ground_truth a mapping or null",
+                            self.path)
+        if sum(counts.values()) != header["num_events"]:
+            raise DataError(f"record header.json: counts add up to {sum(counts.values())}, "
+                            f"num_events is {header['num_events']}", self.path)
         unknown = set(header["counts"]) - set(KINDS)
         if unknown:
             raise DataError(f"record header.json: unknown event kinds {sorted(unknown)}", self.path)
@@ -260,18 +285,44 @@ class SequenceReader:
     def _read_bytes(self, member: str) -> bytes:
         if member not in self._names:
             raise DataError(f"record {member} is missing", self.path)
+        size = self._zip.getinfo(member).file_size
+        if size > MAX_MEMBER_BYTES:
+            raise DataError(f"record {member} declares {size} bytes uncompressed, more than the limit "
+                            f"of {MAX_MEMBER_BYTES}", self.path)
         try:
             return self._zip.read(member)
-        except (zipfile.BadZipFile, EOFError, OSError, zlib.error) as exc:
+        except _CORRUPT as exc:
             raise DataError(f"record {member} is corrupt or truncated: {exc}", self.path) from None
 
     def _array(self, member: str) -> np.ndarray:
         data = self._read_bytes(member)
         try:
             a = np.lib.format.read_array(io.BytesIO(data), allow_pickle=False)
-        except (ValueError, EOFError, OSError) as exc:
+        except _CORRUPT as exc:
             raise DataError(f"record {member} is not a valid .npy array: {exc}", self.path) from None
+        column = member.rsplit("/", 1)[-1].removesuffix(".npy")
+        if column in _INTEGER_COLUMNS or member == "landmarks/ids.npy":
+            if a.dtype.kind not in "iu":
+                raise DataError(f"record {member}: dtype {a.dtype} is not an integer type", self.path)
+        elif a.dtype.kind not in "fiu":
+            raise DataError(f"record {member}: dtype {a.dtype} is not a number type", self.path)
+        else:
+            a = a.astype(float, copy=False)
+            finite = np.isfinite(a)
+            if column != "ranges_m" and not finite.all():  # a scan's inf/NaN range is "no return"
+                raise DataError(f"record {member}: NaN or infinity at index {int(np.flatnonzero(~finite.reshape(-1))[0])}",
+                                self.path)
         a.setflags(write=False)
+        return a
+
+    def _shaped(self, member: str, shape: tuple) -> np.ndarray:
+        """The array of ``member`` with ``shape`` (None: any length; a tuple: one of those widths)."""
+        a = self._array(member)
+        ok = a.ndim == len(shape) and all(
+            want is None or (a.shape[k] in want if isinstance(want, tuple) else a.shape[k] == want)
+            for k, want in enumerate(shape))
+        if not ok:
+            raise DataError(f"record {member}: shape {a.shape}, expected {_shape_text(shape)}", self.path)
         return a
 
     # -- columns
@@ -285,7 +336,8 @@ class SequenceReader:
         if n == 0:
             self._cache[kind] = {}
             return {}
-        c = {col: self._array(f"{kind}/{col}.npy") for col in _COLUMNS[kind]}
+        c = {col: self._shaped(f"{kind}/{col}.npy", (None, _MATRIX_COLUMNS[col]) if col in _MATRIX_COLUMNS else (None,))
+             for col in _COLUMNS[kind]}
         for col, a in c.items():
             member = f"{kind}/{col}.npy"
             if col == "offsets":
@@ -311,11 +363,12 @@ class SequenceReader:
     def ground_truth(self) -> Trajectory | None:
         if self._ground_truth is None and self.header.get("ground_truth"):
             gt = self.header["ground_truth"]
+            stamps = self._shaped("ground_truth/stamps_s.npy", (None,))
+            t = self._shaped("ground_truth/world_t_body.npy", (len(stamps), 3))
+            q = self._shaped("ground_truth/world_q_body_wxyz.npy", (len(stamps), 4))
             try:
-                self._ground_truth = Trajectory(
-                    self._array("ground_truth/stamps_s.npy"), self._array("ground_truth/world_t_body.npy"),
-                    self._array("ground_truth/world_q_body_wxyz.npy"), planar=bool(gt.get("planar")),
-                    frame=str(gt.get("frame", "world")))
+                self._ground_truth = Trajectory(stamps, t, q, planar=bool(gt.get("planar")),
+                                                frame=str(gt.get("frame", "world")))
             except DataError as exc:
                 if exc.path is not None:
                     raise
@@ -325,8 +378,8 @@ class SequenceReader:
     @property
     def world_p_landmarks(self) -> dict[int, np.ndarray] | None:
         if self._landmarks is None and "landmarks/ids.npy" in self._names:
-            ids = self._array("landmarks/ids.npy")
-            pts = self._array("landmarks/world_p.npy")
+            ids = self._shaped("landmarks/ids.npy", (None,))
+            pts = self._shaped("landmarks/world_p.npy", (None, (2, 3)))
             if len(ids) != len(pts):
                 raise DataError(f"record landmarks: {len(ids)} ids but {len(pts)} positions", self.path)
             self._landmarks = {int(i): pts[j] for j, i in enumerate(ids)}
@@ -336,7 +389,7 @@ class SequenceReader:
     def initial_pose_xytheta(self) -> np.ndarray | None:
         if "initial_pose_xytheta.npy" not in self._names:
             return None
-        return self._array("initial_pose_xytheta.npy")
+        return self._shaped("initial_pose_xytheta.npy", (3,))
 
     def _positions(self) -> tuple[np.ndarray, np.ndarray]:
         """(kind code, row) of every event in sequence order, validated as a permutation."""
@@ -406,6 +459,20 @@ class SequenceReader:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def _reject_constant(name: str) -> None:
+    # Python's json reads NaN and Infinity, which JSON does not have (and a header never holds)
+    raise ValueError(f"{name} is not a JSON number")
+
+
+def _count(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and value >= 0
+
+
+def _shape_text(shape: tuple) -> str:
+    parts = ["n" if w is None else "|".join(map(str, w)) if isinstance(w, tuple) else str(w) for w in shape]
+    return "(" + ", ".join(parts) + ("," if len(parts) == 1 else "") + ")"
 
 
 def open_sequence(path: str | Path) -> SequenceReader:

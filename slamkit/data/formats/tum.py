@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from slamkit._text import float_table, read_lines
 from slamkit.data.trajectory import Trajectory
 from slamkit.data.formats._atomic import atomic_write_text
 from slamkit.errors import DataError
@@ -34,17 +35,9 @@ def read_numeric_rows(path: str | Path, n_fields: int, what: str) -> tuple[np.nd
     Returns (values (K, n_fields), one-based line numbers (K,)). Shared by the TUM and KITTI
     readers."""
     path = Path(path)
-    try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise DataError("no such file", path) from None
-    except IsADirectoryError:
-        raise DataError("is a directory, not a file", path) from None
-    except UnicodeDecodeError as exc:
-        raise DataError(f"not a text file ({exc.reason} at byte {exc.start})", path) from None
     rows: list[list[str]] = []
     lines: list[int] = []
-    for lineno, line in enumerate(text.splitlines(), start=1):
+    for lineno, line in enumerate(read_lines(path), start=1):
         stripped = line.strip()
         if not stripped or stripped.startswith("#"):
             continue
@@ -55,17 +48,7 @@ def read_numeric_rows(path: str | Path, n_fields: int, what: str) -> tuple[np.nd
         lines.append(lineno)
     if not rows:
         raise DataError(f"no {what} poses in file", path)
-    try:
-        values = np.array(rows, dtype=float)
-    except ValueError:
-        for lineno, tokens in zip(lines, rows):
-            for col, token in enumerate(tokens, start=1):
-                try:
-                    float(token)
-                except ValueError:
-                    raise DataError(f"field {col} is {token!r}, expected a number", path,
-                                    lineno) from None
-        raise  # pragma: no cover - the loop above always finds the token
+    values = float_table(rows, lines, path)
     finite = np.isfinite(values).all(axis=1)
     if not finite.all():
         raise DataError("NaN or infinity in pose", path, lines[int(np.flatnonzero(~finite)[0])])
