@@ -44,7 +44,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from slamkit.control.path_following import crop, point_at, project_many, project_on_path
-from slamkit.control.protocols import (ControlOutput, ControlStatus, LocalWorld, Reference,
+from slamkit.control.protocols import (non_finite_brake, ControlOutput, ControlStatus, LocalWorld, Reference,
                                        RobotState, brake_command)
 from slamkit.control.rollout import distance_to_collision, rollout_arcs, trajectory_clearance
 from slamkit.errors import ControlError
@@ -121,6 +121,8 @@ class DWAController:
         return np.column_stack([vv.ravel(), ww.ravel()])
 
     def compute(self, state: RobotState, reference: Reference, world: LocalWorld) -> ControlOutput:
+        if not state.finite:
+            return non_finite_brake()
         t0 = time.perf_counter()
         c = self.config
         xy = state.pose_xytheta[:2]

@@ -56,7 +56,7 @@ import osqp
 import scipy.sparse as sp
 
 from slamkit.control.path_following import path_reference
-from slamkit.control.protocols import (ControlOutput, ControlStatus, LocalWorld, Reference,
+from slamkit.control.protocols import (non_finite_brake, ControlOutput, ControlStatus, LocalWorld, Reference,
                                        RobotState, brake_command)
 from slamkit.errors import ControlError
 
@@ -433,6 +433,9 @@ class MPCController:
 
     # ------------------------------------------------------------------ control
     def compute(self, state: RobotState, reference: Reference, world: LocalWorld) -> ControlOutput:
+        if not state.finite:
+            self.reset()
+            return non_finite_brake()
         t0 = time.perf_counter()
         c = self.config
         if np.linalg.norm(reference.goal_xy_m - state.pose_xytheta[:2]) <= c.goal_tolerance_m:

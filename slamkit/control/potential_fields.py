@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from slamkit.control.path_following import lookahead_point
-from slamkit.control.protocols import (ControlOutput, ControlStatus, DistanceGrid, LocalWorld,
+from slamkit.control.protocols import (non_finite_brake, ControlOutput, ControlStatus, DistanceGrid, LocalWorld,
                                        Reference, RobotState)
 from slamkit.errors import ControlError
 
@@ -162,6 +162,8 @@ class PotentialFieldController:
         return np.array([min(v, c.v_max_mps), float(np.clip(w, -c.omega_max_radps, c.omega_max_radps))])
 
     def compute(self, state: RobotState, reference: Reference, world: LocalWorld) -> ControlOutput:
+        if not state.finite:
+            return non_finite_brake()
         t0 = time.perf_counter()
         c = self.config
         xy = state.pose_xytheta[:2]

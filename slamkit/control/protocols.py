@@ -56,10 +56,14 @@ class RobotState:
         if pose.shape != (3,) or cmd.shape != (2,):
             raise ControlError(f"RobotState needs pose_xytheta (3,) and command (2,), got "
                                f"{pose.shape} and {cmd.shape}")
-        if not (np.all(np.isfinite(pose)) and np.all(np.isfinite(cmd))):
-            raise ControlError("RobotState.pose_xytheta/command must be finite")
+        # a non-finite pose (a diverged estimator) is not refused here: every controller answers
+        # it with a zero command (see ``non_finite_brake``), which is what a robot must do
         object.__setattr__(self, "pose_xytheta", _ro(pose.copy()))
         object.__setattr__(self, "command", _ro(cmd.copy()))
+
+    @property
+    def finite(self) -> bool:
+        return bool(np.all(np.isfinite(self.pose_xytheta)) and np.all(np.isfinite(self.command)))
 
 
 @dataclass(frozen=True)
@@ -157,6 +161,11 @@ class LocalWorld:
              else np.asarray(self.circle_velocity_mps, dtype=float).reshape(-1, 2))
         if not (len(c) == len(r) == len(v)):
             raise ControlError(f"LocalWorld: {len(c)} circle centres, {len(r)} radii, {len(v)} velocities")
+        bad = ~(np.isfinite(c).all(axis=1) & np.isfinite(r) & np.isfinite(v).all(axis=1))
+        if bad.any():
+            k = int(np.flatnonzero(bad)[0])
+            raise ControlError(f"LocalWorld: obstacle {k} has a non-finite centre, radius or velocity "
+                               f"({c[k].tolist()}, {float(r[k])}, {v[k].tolist()})")
         if np.any(r < 0):
             raise ControlError("LocalWorld.circle_radius_m must be >= 0")
         object.__setattr__(self, "circle_xy_m", _ro(c.copy()))
@@ -227,6 +236,11 @@ class Controller(Protocol):
     def reset(self) -> None: ...
 
     def compute(self, state: RobotState, reference: Reference, world: LocalWorld) -> ControlOutput: ...
+
+
+def non_finite_brake() -> ControlOutput:
+    """The answer to a state with NaN or inf in it: stop (zero command), and say why."""
+    return ControlOutput(np.zeros(2), ControlStatus.FALLBACK_BRAKE, info={"reason": "non-finite robot state"})
 
 
 def brake_command(command: np.ndarray, decel_mps2: float, omega_decel_radps2: float,
