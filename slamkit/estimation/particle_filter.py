@@ -192,6 +192,26 @@ def roughen(particles: np.ndarray, k: float, rng: np.random.Generator,
     return out
 
 
+def kernel_bandwidth(n: int, d: int) -> float:
+    """The optimal Gaussian-kernel bandwidth h_opt = A N^(-1/(d+4)), A = (4/(d+2))^(1/(d+4))
+    (Musso, Oudjane & Le Gland 2001, eq. 12.13; Silverman's rule)."""
+    return (4.0 / (d + 2.0)) ** (1.0 / (d + 4.0)) * n ** (-1.0 / (d + 4.0))
+
+
+def regularize(particles: np.ndarray, cov: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Draw each (N, 3) pose particle from N(x_i, h_opt^2 cov) (heading wrapped)."""
+    n, d = particles.shape
+    h = kernel_bandwidth(n, d)
+    S = 0.5 * (cov + cov.T) * h * h
+    try:
+        L = np.linalg.cholesky(S + 1e-12 * np.eye(d))
+    except np.linalg.LinAlgError:
+        return particles
+    out = particles + rng.standard_normal((n, d)) @ L.T
+    out[:, 2] = wrap_angle(out[:, 2])
+    return out
+
+
 # --------------------------------------------------------------------------------------------
 # planar robot helpers shared with MCL
 # --------------------------------------------------------------------------------------------
@@ -341,6 +361,12 @@ class ParticleFilterConfig:
     ess_threshold: float = 0.5
     #: roughening constant K after resampling (0 disables; Gordon et al. use 0.2)
     roughening_k: float = 0.0
+    #: regularised resampling (Musso, Oudjane & Le Gland 2001): resampled particles are drawn
+    #: from a Gaussian kernel of covariance h_opt^2 Sigma around each copy, Sigma the covariance
+    #: of the cloud before the measurement. Without it a measurement much sharper than the cloud
+    #: puts all weight on one particle, the set collapses to copies of it and the reported
+    #: covariance to ~0 (NEES 1e13 on the README's strong scenario).
+    regularize: bool = True
 
     def __post_init__(self) -> None:
         if self.n_particles < 1:
@@ -425,11 +451,14 @@ class ParticleFilterLocalization(FilterBase):
         self._weigh_and_resample(loglik, 1)
 
     def _weigh_and_resample(self, loglik: np.ndarray, n_measurements: int) -> None:
+        prior_cov = pose_mean_cov(self.particles, np.exp(self.log_w))[1] if self.config.regularize else None
         self.log_w = normalize_log_weights(self.log_w + loglik)
         w = np.exp(self.log_w)
         if effective_sample_size(w) < self.config.ess_threshold * len(w):
             idx = resample(self.config.resampling, w, self.rng)
             self.particles = roughen(self.particles[idx], self.config.roughening_k, self.rng, _POSE_ANGLES)
+            if prior_cov is not None:
+                self.particles = regularize(self.particles, prior_cov, self.rng)
             self.log_w = np.full(len(idx), -np.log(len(idx)))
             self.n_resamples += 1
 

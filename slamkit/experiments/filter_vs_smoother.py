@@ -286,6 +286,20 @@ def run_monte_carlo(config: Mapping[str, Any], trajectories_dir: Path | None = N
     return results, scenarios, list(choices)
 
 
+#: above this fraction of steps without a positive-definite covariance no verdict is given
+DEGENERATE_VERDICT_LIMIT = 0.1
+
+
+def nees_verdict(anees_mean: float, band: tuple[float, float], degenerate_fraction: float) -> str:
+    """inside / above: overconfident / below: conservative, or 'degenerate' when too many steps
+    have a covariance that is not positive definite (a collapsed particle set is not conservative)."""
+    if degenerate_fraction > DEGENERATE_VERDICT_LIMIT or not np.isfinite(anees_mean):
+        return f"degenerate covariance ({100 * degenerate_fraction:.0f}% of steps)"
+    if band[0] <= anees_mean <= band[1]:
+        return "inside"
+    return "above: overconfident" if anees_mean > band[1] else "below: conservative"
+
+
 def consistency_table(results: list[TaskResult], scenarios: list[ScenarioSpec],
                       choices: list[EstimatorChoice]) -> tuple[list[dict[str, Any]], dict]:
     """Per scenario x estimator: the time-mean of the Monte-Carlo average NEES, its chi2(3M)/M
@@ -302,15 +316,15 @@ def consistency_table(results: list[TaskResult], scenarios: list[ScenarioSpec],
                 stamps, anees, band = monte_carlo_nees(series)
             except DataError:
                 continue
+            degenerate = float(np.mean([np.mean(~np.isfinite(x.nees)) for x in series]))
             finite = np.isfinite(anees)
-            if not finite.any():
-                continue
-            mean = float(np.mean(anees[finite]))
-            inside = float(np.mean((anees[finite] >= band[0]) & (anees[finite] <= band[1])))
+            mean = float(np.mean(anees[finite])) if finite.any() else float("nan")
+            inside = float(np.mean((anees[finite] >= band[0]) & (anees[finite] <= band[1]))) if finite.any() else 0.0
             rows.append({"dataset": s.name, "estimator": c.label, "runs": len(series),
                          "anees_mean": mean, "band95": [band[0], band[1]],
-                         "inside_band": bool(band[0] <= mean <= band[1]),
-                         "steps_in_band_fraction": inside})
+                         "inside_band": bool(finite.any() and band[0] <= mean <= band[1]),
+                         "steps_in_band_fraction": inside, "degenerate_fraction": degenerate,
+                         "verdict": nees_verdict(mean, band, degenerate)})
             curves[(s.name, c.label)] = (stamps, anees, band, len(series))
     return rows, curves
 
@@ -369,11 +383,10 @@ def report_markdown(config: Mapping[str, Any], summary: list[dict[str, Any]], co
                  "5.4), and about 95% of the steps inside it.\n\n")
         table = [[r["dataset"], r["estimator"], r["runs"], r["anees_mean"],
                   f"[{r['band95'][0]:.3g}, {r['band95'][1]:.3g}]",
-                  "inside" if r["inside_band"] else
-                  ("**above: overconfident**" if r["anees_mean"] > r["band95"][1] else "**below: conservative**"),
-                  r["steps_in_band_fraction"]] for r in consistency]
+                  r["verdict"] if r["verdict"] == "inside" else f"**{r['verdict']}**",
+                  r["steps_in_band_fraction"], r["degenerate_fraction"]] for r in consistency]
         text += markdown_table(["scenario", "estimator", "runs M", "mean NEES", "95% band", "verdict",
-                                "steps in band"], table) + "\n\n"
+                                "steps in band", "degenerate steps"], table) + "\n\n"
     failed = [(rec.dataset, rec.estimator, rec.seed, rec.params.get("failed"))
               for r in results for rec in r.records if rec.params.get("failed")]
     if failed:

@@ -19,6 +19,8 @@ for datasets without it):
   fraction of steps inside the single-sample chi-square(3) 95% band (about 0.95 when consistent;
   Bar-Shalom, Li & Kirubarajan 2001, sec. 5.4). Filters are scored with the filtered covariance
   of every step, smoothers with their final marginals;
+* ``nees_degenerate_fraction``: the fraction of steps whose covariance is not positive definite;
+  they have no NEES and are left out of ``nees_mean`` (see ``metrics.consistency.nees_or_nan``);
 * ``nis_mean``: mean normalised innovation squared per measurement (filters that record it);
 * ``landmark_rmse_m``: RMS landmark position error after an SE(2) Umeyama alignment of the
   estimated landmarks onto the true ones (SLAM estimators; localisation filters are handed the
@@ -42,7 +44,7 @@ from slamkit.experiments.observers import StepSnapshot
 from slamkit.geometry.angles import wrap_angle
 from slamkit.metrics.alignment import associate, umeyama
 from slamkit.metrics.ate import ate
-from slamkit.metrics.consistency import chi2_band, nees as nees_values
+from slamkit.metrics.consistency import chi2_band, nees_or_nan
 from slamkit.metrics.rpe import rpe
 
 #: pose NEES degrees of freedom (x, y, theta)
@@ -230,7 +232,12 @@ def score(run: EstimatorRun, reference: Trajectory | None,
     est = run.estimate
     notes: list[str] = []
     if est.nis is not None and len(est.nis):
-        metrics["nis_mean"] = float(np.mean(est.nis))
+        nis = np.asarray(est.nis, dtype=float)
+        ok = np.isfinite(nis) & (nis >= 0)
+        if ok.any():
+            metrics["nis_mean"] = float(np.mean(nis[ok]))
+        if not ok.all():
+            metrics["nis_degenerate_fraction"] = float(1.0 - ok.mean())
     if world_p_landmarks and est.world_p_landmarks:
         metrics["landmark_rmse_m"] = landmark_rmse_m(est.world_p_landmarks, world_p_landmarks)
     if reference is None:
@@ -256,11 +263,10 @@ def score(run: EstimatorRun, reference: Trajectory | None,
         P = P[pairs.est_index]
         sigma = np.sqrt(np.clip(np.diagonal(P, axis1=1, axis2=2), 0.0, None))
         if reference_is_truth:
-            nees = np.full(len(err), np.nan)
-            ok = np.linalg.det(P) > 0
-            if ok.any():
-                nees[ok] = nees_values(err[ok], P[ok])
+            # no NEES where the covariance is not positive definite: counted, never averaged
+            nees = nees_or_nan(err, P)
             finite = np.isfinite(nees)
+            metrics["nees_degenerate_fraction"] = float(1.0 - finite.mean()) if len(nees) else 0.0
             if finite.any():
                 band = chi2_band(POSE_DOF, 1, 0.95)
                 v = nees[finite]

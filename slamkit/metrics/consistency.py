@@ -18,10 +18,7 @@ from scipy import stats
 from slamkit.errors import DataError
 
 
-def nees(err: np.ndarray, cov: np.ndarray) -> np.ndarray:
-    """e^T P^-1 e for errors (N, d) and covariances (N, d, d) -> (N,).
-
-    Solves with Cholesky-free ``np.linalg.solve`` (P must be non-singular)."""
+def _check_shapes(err: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     e = np.asarray(err, dtype=float)
     P = np.asarray(cov, dtype=float)
     if e.ndim == 1:
@@ -29,11 +26,57 @@ def nees(err: np.ndarray, cov: np.ndarray) -> np.ndarray:
         P = P.reshape(len(e), 1, 1)
     if P.shape != e.shape + e.shape[-1:]:
         raise DataError(f"errors {e.shape} and covariances {P.shape} do not match: need (N, d) and (N, d, d)")
+    return e, P
+
+
+def nees_or_nan(err: np.ndarray, cov: np.ndarray) -> np.ndarray:
+    """e^T P^-1 e for errors (N, d) and covariances (N, d, d) -> (N,), NaN where P is not
+    symmetric positive definite (or e or P is not finite).
+
+    Computed as |L^-1 e|^2 with the Cholesky factor P = L L^T: a covariance that is not positive
+    definite has no NEES, and forcing one through ``solve`` gives the negative or astronomically
+    large values (a particle cloud collapsed to a line: NEES 1e15 or -1.9e37) that a mean then
+    reports as a result. Callers count the NaN steps (``nees_degenerate_fraction``)."""
+    e, P = _check_shapes(err, cov)
+    out = np.full(len(e), np.nan)
+    finite = np.isfinite(e).all(axis=1) & np.isfinite(P).all(axis=(1, 2))
+    sym = finite.copy()
+    sym[finite] = np.all(np.abs(P[finite] - np.swapaxes(P[finite], -1, -2))
+                         <= 1e-9 * np.maximum(1.0, np.abs(P[finite])), axis=(1, 2))
+    idx = np.flatnonzero(sym)
+    if len(idx) == 0:
+        return out
     try:
-        x = np.linalg.solve(P, e[..., None])[..., 0]
-    except np.linalg.LinAlgError:
-        raise DataError("a covariance matrix is singular; NEES is undefined") from None
-    return np.einsum("...i,...i->...", e, x)
+        L = np.linalg.cholesky(P[idx])
+        ok = np.ones(len(idx), bool)
+    except np.linalg.LinAlgError:  # some are not PD: factor one by one to find which
+        L = np.zeros_like(P[idx])
+        ok = np.zeros(len(idx), bool)
+        for k, i in enumerate(idx):
+            try:
+                L[k] = np.linalg.cholesky(P[i])
+                ok[k] = True
+            except np.linalg.LinAlgError:
+                pass
+    # a factor with a vanishing pivot is numerically singular: no meaningful NEES either
+    diag = np.diagonal(L, axis1=-2, axis2=-1)
+    ok &= np.all(diag > 1e-12 * np.maximum(diag.max(axis=-1, keepdims=True), 1e-300), axis=-1)
+    good = idx[ok]
+    if len(good):
+        y = np.linalg.solve(L[ok], e[good][..., None])[..., 0]  # L y = e (batched)
+        out[good] = np.einsum("...i,...i->...", y, y)
+    return out
+
+
+def nees(err: np.ndarray, cov: np.ndarray) -> np.ndarray:
+    """e^T P^-1 e for errors (N, d) and covariances (N, d, d) -> (N,); every P must be symmetric
+    positive definite (a DataError otherwise; :func:`nees_or_nan` marks such steps instead)."""
+    out = nees_or_nan(err, cov)
+    bad = np.flatnonzero(np.isnan(out))
+    if len(bad):
+        raise DataError(f"covariance {int(bad[0])} is not symmetric positive definite (or an entry is not "
+                        f"finite); NEES is undefined for {len(bad)} of {len(out)} steps")
+    return out
 
 
 def nis(innovation: np.ndarray, innovation_cov: np.ndarray) -> np.ndarray:

@@ -254,3 +254,20 @@ def test_consistency_of_a_consistent_and_an_overconfident_estimator():
     assert good.fraction_inside == pytest.approx(0.95, abs=0.02)
     over = consistency(nees(err, np.broadcast_to(P / 2, (n, d, d))), dof=d)  # claims half the variance
     assert not over.consistent and over.mean == pytest.approx(2 * good.mean)
+
+
+def test_nees_is_undefined_not_huge_for_a_covariance_that_is_not_positive_definite():
+    from slamkit.metrics.consistency import nees_or_nan
+
+    err = np.array([[1.0, 2.0], [1.0, 1.0], [1.0, 0.0], [0.0, 3.0]])
+    cov = np.array([np.diag([1.0, 4.0]),                # fine: 1 + 1 = 2
+                    [[1.0, 1.0], [1.0, 1.0]],            # singular (a collapsed particle cloud)
+                    [[1.0, 2.0], [2.0, 1.0]],            # indefinite: solve() gives -1/3 * ... < 0
+                    [[2.0, 1.0], [1.0, 2.0]]])           # fine: 6
+    values = nees_or_nan(err, cov)
+    np.testing.assert_allclose(values, [2.0, np.nan, np.nan, 6.0])
+    assert np.mean(np.isnan(values)) == 0.5  # what the runner reports as nees_degenerate_fraction
+    with pytest.raises(DataError, match=r"covariance 1 is not symmetric positive definite .* undefined for 2 of 4"):
+        nees(err, cov)
+    # the old solve() answer for the indefinite one was negative: e P^-1 e = -1/3
+    assert np.linalg.solve(cov[2], err[2]) @ err[2] == pytest.approx(-1.0 / 3.0)
