@@ -18,7 +18,7 @@ import numpy as np
 
 from slamkit.backend._convert import quat_wxyz_to_rotation
 from slamkit.data.pose_graph import PoseGraph
-from slamkit.errors import BackendError
+from slamkit.errors import BackendError, NoResultError
 
 
 def _rot2(theta: np.ndarray) -> np.ndarray:
@@ -64,5 +64,11 @@ def sesync_objective(graph: PoseGraph, poses: np.ndarray) -> float:
     Ri = R[i]
     rot_res = R[j] - Ri @ Rz
     trans_res = t[j] - t[i] - np.einsum("kab,kb->ka", Ri, tz)
-    return float(np.sum(kappa * np.sum(rot_res**2, axis=(1, 2)))
-                 + np.sum(tau * np.sum(trans_res**2, axis=1)))
+    value = float(np.sum(kappa * np.sum(rot_res**2, axis=(1, 2)))
+                  + np.sum(tau * np.sum(trans_res**2, axis=1)))
+    if not np.isfinite(value) or value < 0.0:
+        # F is a weighted sum of squares: NaN, inf or a negative value means the poses or the
+        # weights (information that is not positive definite) are broken, not a result
+        raise NoResultError(f"{graph.name}: the SE-Sync objective is {value!r}, which a sum of squares "
+                            "cannot be (non-finite poses, or information that is not positive definite)")
+    return value

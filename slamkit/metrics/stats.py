@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from slamkit.errors import DataError
+from slamkit.errors import DataError, NoResultError
 
 STAT_NAMES = ("rmse", "mean", "median", "std", "min", "max", "sse")
 
@@ -36,6 +36,12 @@ class ErrorStats:
         if e.size == 0:
             raise DataError("no errors to summarise (empty error vector)")
         squared = np.power(e, 2)
+        if not (np.isfinite(squared).all() and np.isfinite(squared.sum())):
+            # an Infinity is not a score: a pose of 1e308 gives inf errors, not a result
+            bad = np.flatnonzero(~np.isfinite(squared))
+            where = f"error {int(bad[0])} is {float(e[bad[0]])!r}" if len(bad) else "their sum of squares overflows"
+            raise NoResultError(f"the error statistics are not finite ({where}): check the trajectories "
+                                "for NaN or astronomically large coordinates")
         return cls(
             rmse=float(math.sqrt(np.mean(squared))),
             mean=float(np.mean(e)),

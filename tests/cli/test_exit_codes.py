@@ -105,3 +105,25 @@ def test_doctor_says_which_kernels_are_compiled() -> None:
     assert data["kernels"] == {"slamkit.data.formats._textscan": "compiled", "slamkit.maps._raycast": "compiled",
                                "slamkit.planning._gridsearch": "compiled", "slamkit.estimation._pfkernel": "compiled"}
     assert [r["kind"] for r in data["data_roots"]][-1] == "cache"
+
+
+def test_an_ate_of_infinity_is_no_result_exit_3(tmp_path) -> None:
+    # a 1e308 coordinate used to print ATE Infinity and exit 0
+    (tmp_path / "ref.tum").write_text("0 0 0 0 0 0 0 1\n1 1 0 0 0 0 0 1\n")
+    (tmp_path / "est.tum").write_text("0 0 0 0 0 0 0 1\n1 1e308 0 0 0 0 0 1\n")
+    result = _run("eval", "ate", "--ref", str(tmp_path / "ref.tum"), "--est", str(tmp_path / "est.tum"), "--json")
+    assert result.exit_code == 3
+    assert "error: the error statistics are not finite (error 1 is inf)" in result.output
+
+
+def test_a_negative_sesync_objective_is_no_result(tmp_path) -> None:
+    from slamkit.backend.objective import sesync_objective
+    from slamkit.data.formats import load_pose_graph
+    from slamkit.errors import NoResultError
+
+    g2o = tmp_path / "neg.g2o"
+    g2o.write_text("VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0\n"
+                   "EDGE_SE2 0 1 2 0 0 -1 0 0 -1 0 -1\n")  # negative-definite information, kept
+    graph = load_pose_graph(g2o, policy="keep")
+    with pytest.raises(NoResultError, match=r"neg: the SE-Sync objective is -.*, which a sum of squares cannot be"):
+        sesync_objective(graph, graph.poses)

@@ -271,3 +271,14 @@ def test_nees_is_undefined_not_huge_for_a_covariance_that_is_not_positive_defini
         nees(err, cov)
     # the old solve() answer for the indefinite one was negative: e P^-1 e = -1/3
     assert np.linalg.solve(cov[2], err[2]) @ err[2] == pytest.approx(-1.0 / 3.0)
+
+
+def test_non_finite_error_statistics_are_errors_not_results():
+    from slamkit.errors import NoResultError
+    from slamkit.metrics.stats import ErrorStats
+
+    with pytest.raises(NoResultError, match=r"not finite \(error 1 is inf\)"):
+        ErrorStats.from_errors(np.array([0.1, np.inf]))
+    with pytest.raises(NoResultError, match=r"not finite \(error 0 is 1e\+200\)"):
+        ErrorStats.from_errors(np.array([1e200, 0.0]))  # its square overflows
+    assert ErrorStats.from_errors(np.array([3.0, 4.0])).rmse == pytest.approx(np.sqrt(12.5))
