@@ -49,7 +49,7 @@ import numpy as np
 from gtsam.symbol_shorthand import L, X
 
 from slamkit.data.estimate import Estimate, Prior
-from slamkit.data.sequence import Event, Odometry, RangeBearing, Sequence
+from slamkit.data.sequence import Event, Odometry, RangeBearing, Sequence, event_problem
 from slamkit.data.trajectory import Trajectory
 from slamkit.errors import ConfigError, EstimationError
 from slamkit.models import diff_drive
@@ -211,6 +211,9 @@ class _LandmarkSmootherBase:
     def step(self, event: Event) -> None:
         if not self._ready:
             raise EstimationError(f"{self.name}: step() called before reset(prior)")
+        problem = event_problem(event)
+        if problem is not None:
+            raise EstimationError(f"{self.name}: {type(event).__name__} at t={event.stamp_s}: {problem}")
         t0 = time.perf_counter()
         stamp = float(event.stamp_s)
         # self._pending stays the object being filled until processed, so _current_pose sees

@@ -9,6 +9,7 @@ import numpy as np
 
 from slamkit.data.sequence import Event, Sequence
 from slamkit.data.trajectory import Trajectory
+from slamkit.errors import EstimationError
 
 
 @dataclass(frozen=True)
@@ -34,10 +35,43 @@ class Estimate:
 
 @dataclass(frozen=True)
 class Prior:
-    """Initial belief: planar pose (x, y, theta) and its covariance."""
+    """Initial belief: planar pose (x, y, theta) and its covariance, checked once here for
+    every estimator: finite, and the covariance symmetric positive semidefinite (a zero
+    covariance -- a start pose known exactly -- is a common SLAM convention; the GTSAM smoothers
+    additionally need it positive definite and say so)."""
 
     pose_xytheta: np.ndarray
     covariance: np.ndarray
+
+    def __post_init__(self) -> None:
+        mean = np.asarray(self.pose_xytheta, dtype=float).reshape(-1)
+        cov = np.asarray(self.covariance, dtype=float)
+        if mean.shape != (3,) or cov.shape != (3, 3):
+            raise EstimationError(f"Prior needs pose_xytheta (3,) and covariance (3, 3), got {mean.shape} "
+                                  f"and {cov.shape}")
+        if not (np.isfinite(mean).all() and np.isfinite(cov).all()):
+            raise EstimationError("prior contains NaN or infinite values")
+        check_covariance(cov, "prior covariance", semidefinite=True)
+
+
+def check_covariance(cov: np.ndarray, what: str, tol: float = 1e-9, semidefinite: bool = False) -> None:
+    """An EstimationError naming ``what`` unless ``cov`` is symmetric positive definite
+    (``semidefinite``: eigenvalues >= -tol * scale allowed down to zero)."""
+    P = np.asarray(cov, dtype=float)
+    if P.ndim != 2 or P.shape[0] != P.shape[1] or not np.isfinite(P).all():
+        raise EstimationError(f"{what} must be a finite square matrix, got shape {P.shape}")
+    if np.abs(P - P.T).max(initial=0.0) > tol * max(1.0, np.abs(P).max(initial=0.0)):
+        raise EstimationError(f"{what} is not symmetric: {P.tolist()}")
+    if semidefinite:
+        w = np.linalg.eigvalsh(0.5 * (P + P.T))
+        if w.min(initial=0.0) < -tol * max(1.0, np.abs(P).max(initial=0.0)):
+            raise EstimationError(f"{what} is not positive semidefinite (eigenvalues {np.round(w, 12).tolist()})")
+        return
+    try:
+        np.linalg.cholesky(P)
+    except np.linalg.LinAlgError:
+        raise EstimationError(f"{what} is not positive definite (eigenvalues "
+                              f"{np.round(np.linalg.eigvalsh(P), 12).tolist()})") from None
 
 
 @runtime_checkable

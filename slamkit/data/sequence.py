@@ -69,6 +69,32 @@ class Scan:
 Event = Odometry | RangeBearing | Gps | Imu | WheelEncoders | Scan
 
 
+def event_problem(event: Event) -> str | None:
+    """What makes ``event`` unusable for an estimator (NaN or inf in a measurement, a negative
+    or non-finite time step, a non-positive GPS sigma), or None. Checked at every ``step``, so it
+    stays a handful of cheap tests; scans may hold NaN ranges (no return)."""
+    if not np.isfinite(event.stamp_s):
+        return f"stamp {event.stamp_s!r} is not finite"
+    if isinstance(event, Odometry):
+        if not (np.isfinite(event.dt_s) and event.dt_s >= 0):
+            return f"dt_s={event.dt_s!r} must be finite and >= 0"
+        if not (np.isfinite(event.v_mps) and np.isfinite(event.omega_radps)):
+            return f"(v, omega) = ({event.v_mps!r}, {event.omega_radps!r}) is not finite"
+    elif isinstance(event, RangeBearing):
+        # a slightly negative range is what additive noise on a near landmark gives: allowed
+        if not (np.isfinite(event.range_m).all() and np.isfinite(event.bearing_rad).all()):
+            return "a range or bearing is not finite"
+    elif isinstance(event, Gps):
+        if not np.isfinite(event.world_p_body).all():
+            return "the position is not finite"
+        if not (np.isfinite(event.sigma_m) and event.sigma_m > 0):
+            return f"sigma_m={event.sigma_m!r} must be finite and > 0"
+    elif isinstance(event, Imu):
+        if not (np.isfinite(event.gyro_radps).all() and np.isfinite(event.accel_mps2).all()):
+            return "a gyro or accelerometer reading is not finite"
+    return None
+
+
 def beam_angles_rad(angle_min_rad: float, increment_rad: float, n: int) -> np.ndarray:
     """The (n,) beam angles of an evenly spaced scan: angle_min + k increment, with both numbers
     rounded to float32 first -- the precision ``sensor_msgs/LaserScan`` carries -- so a scan

@@ -16,7 +16,7 @@ import numpy as np
 from scipy.stats import chi2
 
 from slamkit.data.estimate import Estimate, Prior
-from slamkit.data.sequence import Event, Gps, Odometry, RangeBearing
+from slamkit.data.sequence import Event, Gps, Odometry, RangeBearing, event_problem
 from slamkit.data.trajectory import Trajectory
 from slamkit.errors import ConfigError, EstimationError
 from slamkit.geometry.angles import wrap_angle
@@ -163,9 +163,7 @@ class FilterBase:
     # -- protocol ------------------------------------------------------------------------
     def reset(self, prior: Prior) -> None:
         mean = np.asarray(prior.pose_xytheta, dtype=float).reshape(3)
-        cov = np.asarray(prior.covariance, dtype=float).reshape(3, 3)
-        if not (np.all(np.isfinite(mean)) and np.all(np.isfinite(cov))):
-            raise EstimationError(f"{self.name}: prior contains NaN or infinite values")
+        cov = np.asarray(prior.covariance, dtype=float).reshape(3, 3)  # checked by Prior itself
         self._stamps: list[float] = []
         self._poses: list[np.ndarray] = []
         self._covs: list[np.ndarray] = []
@@ -187,9 +185,10 @@ class FilterBase:
         # followed by an update at the same stamp costs one summary, not two.
         if self._pending is not None and self._pending != stamp:
             self._finalize()
+        problem = event_problem(event)
+        if problem is not None:
+            raise EstimationError(f"{self.name}: {type(event).__name__} at t={event.stamp_s}: {problem}")
         if isinstance(event, Odometry):
-            if not (event.dt_s >= 0 and np.isfinite(event.dt_s)):
-                raise EstimationError(f"{self.name}: Odometry at t={event.stamp_s} has dt_s={event.dt_s}")
             self._predict(event)
         elif isinstance(event, RangeBearing):
             self._update(event)

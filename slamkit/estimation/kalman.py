@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import solve_discrete_are
 
+from slamkit.data.estimate import check_covariance
 from slamkit.errors import EstimationError
 
 
@@ -104,6 +105,8 @@ class KalmanFilter:
                 f"inconsistent KF shapes: A {self.A.shape}, Q {self.Q.shape}, H {self.H.shape}")
         if self.R.shape != (self.H.shape[0],) * 2:
             raise EstimationError(f"R has shape {self.R.shape}, expected {(self.H.shape[0],) * 2}")
+        check_covariance(self.R, "KF measurement noise R")
+        check_covariance(self.Q, "KF process noise Q", semidefinite=True)
         self.gain_inf = steady_state_gain(self.A, self.H, self.Q, self.R)[0] if steady_state else None
         self.mean = np.zeros(n)
         self.covariance = np.eye(n)
