@@ -19,7 +19,7 @@ import numpy as np
 
 from slamkit.backend._convert import check_vertex_ids, permute_information, pose_key, to_pose
 from slamkit.data.pose_graph import PoseGraph
-from slamkit.errors import BackendError, ConfigError
+from slamkit.errors import BackendError, ConfigError, DataError
 
 RobustKind = Literal["none", "huber", "cauchy"]
 ROBUST_KINDS = ("none", "huber", "cauchy")
@@ -107,8 +107,15 @@ def build_graph(graph: PoseGraph, robust_kind: RobustKind = "none", robust_k: fl
         unique, which = flat[:1], np.zeros(m, dtype=np.int64)
     else:
         unique, which = np.unique(flat, axis=0, return_inverse=True)
-    models = [robust(gaussian_from_information(u.reshape(width, width)), robust_kind, robust_k)
-              for u in unique]
+    models = []
+    for k, u in enumerate(unique):
+        try:
+            models.append(robust(gaussian_from_information(u.reshape(width, width)), robust_kind, robust_k))
+        except (ValueError, RuntimeError) as exc:  # GTSAM refuses e.g. a negative diagonal
+            e = int(np.flatnonzero(np.reshape(which, -1) == k)[0])
+            raise DataError(  # the file's fault, not a failed solve: bad input (exit 2)
+                f"edge {e} ({int(graph.edge_from[e])} -> {int(graph.edge_to[e])}) has an information "
+                f"matrix GTSAM cannot use ({exc}); read the file with policy 'repair' or 'reject'", src) from None
     # one shared model (w10000, most files): repeat it instead of a 64k-entry list
     model_of = (itertools.repeat(models[0], m) if len(models) == 1
                 else [models[w] for w in which.reshape(-1).tolist()])

@@ -30,15 +30,26 @@ def sesync_weights(graph: PoseGraph) -> tuple[np.ndarray, np.ndarray]:
     """Per-edge ``(kappa, tau)`` as SE-Sync computes them from the information matrices."""
     info = graph.information
     if graph.dim == 2:
-        cov_tt = np.linalg.inv(info[:, :2, :2])
-        tau = 2.0 / np.trace(cov_tt, axis1=1, axis2=2)
+        tau = 2.0 / _trace_of_inverse(info[:, :2, :2])
         kappa = info[:, 2, 2].copy()
     else:
-        cov_tt = np.linalg.inv(info[:, :3, :3])
-        cov_rr = np.linalg.inv(info[:, 3:, 3:])
-        tau = 3.0 / np.trace(cov_tt, axis1=1, axis2=2)
-        kappa = 3.0 / (2.0 * np.trace(cov_rr, axis1=1, axis2=2))
+        tau = 3.0 / _trace_of_inverse(info[:, :3, :3])
+        kappa = 3.0 / (2.0 * _trace_of_inverse(info[:, 3:, 3:]))
     return kappa, tau
+
+
+def _trace_of_inverse(blocks: np.ndarray) -> np.ndarray:
+    """tr(B^-1) per (M, d, d) block; +inf for a singular block (no information: weight 0)."""
+    try:
+        return np.trace(np.linalg.inv(blocks), axis1=1, axis2=2)
+    except np.linalg.LinAlgError:
+        out = np.empty(len(blocks))
+        for k, b in enumerate(blocks):
+            try:
+                out[k] = np.trace(np.linalg.inv(b))
+            except np.linalg.LinAlgError:
+                out[k] = np.inf
+        return out
 
 
 def sesync_objective(graph: PoseGraph, poses: np.ndarray) -> float:

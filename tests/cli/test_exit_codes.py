@@ -127,3 +127,20 @@ def test_a_negative_sesync_objective_is_no_result(tmp_path) -> None:
     graph = load_pose_graph(g2o, policy="keep")
     with pytest.raises(NoResultError, match=r"neg: the SE-Sync objective is -.*, which a sum of squares cannot be"):
         sesync_objective(graph, graph.poses)
+
+
+def test_information_gtsam_cannot_use_is_bad_input_naming_the_edge(tmp_path) -> None:
+    bad = tmp_path / "neg.g2o"
+    bad.write_text("VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0\nEDGE_SE2 0 1 1 0 0 -1 0 0 -1 0 -1\n")
+    result = _run("optimize", str(bad), "--json")
+    assert result.exit_code == 2
+    assert result.output.startswith(f"error: {bad}: edge 0 (0 -> 1) has an information matrix GTSAM cannot use "
+                                    "(Isotropic::Variance: variance must be non-negative)")
+    zero = tmp_path / "zero.g2o"  # no information at all: no force, SE-Sync weight 0, a warning
+    zero.write_text("VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0\nEDGE_SE2 0 1 1 0 0 0 0 0 0 0 0\n")
+    ok = _run("optimize", str(zero), "--json")
+    assert ok.exit_code == 0
+    data = json.loads(ok.output)
+    assert data["final_error"] == 0.0 and data["sesync_objective"] == 0.0
+    assert data["warnings"] == ["1 of 1 edges have an information matrix that is not positive definite; "
+                                "GTSAM factorises them as given (as readG2o does)"]
