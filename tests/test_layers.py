@@ -42,6 +42,8 @@ CONFINED = {
     "typer": {"cli"},
     "matplotlib": {"experiments", "viz", "cli"},
     "yaml": {"experiments", "cli", "sim", "viz"},
+    # config validation lives at the edge (slamkit.config, the pipelines, the sim's file loaders)
+    "pydantic": {"experiments", "sim"},
     "PIL": {"data"},  # image files are a file format (slamkit.data.formats.image)
 }
 

@@ -322,11 +322,9 @@ def episode_metrics(ep: Episode, dt_s: float) -> dict[str, float]:
 
 
 def _seeds(spec: Any) -> list[int]:
-    if isinstance(spec, Mapping):
-        return list(range(int(spec.get("start", 0)), int(spec.get("start", 0)) + int(spec["count"])))
-    if isinstance(spec, int):
-        return list(range(spec))
-    return [int(s) for s in spec]
+    from slamkit.experiments.config_models import seed_list
+
+    return seed_list(spec)
 
 
 def scenario_list(config: Mapping[str, Any]) -> list[Scenario]:

@@ -88,6 +88,14 @@ def _resolve(target: str) -> Any:
     return getattr(importlib.import_module(module_name), attr)
 
 
+def config_class(name: str) -> type | None:
+    """The config dataclass of estimator ``name`` (its params are that class's fields)."""
+    s = spec(name)
+    if s.config is None:
+        return None
+    return getattr(importlib.import_module(s.target.split(":")[0]), s.config, None)
+
+
 def is_available(name: str) -> bool:
     """True when the estimator's module is installed and defines its class."""
     try:

@@ -126,14 +126,10 @@ def parse_estimators(config: Mapping[str, Any]) -> list[EstimatorChoice]:
 
 
 def parse_seeds(config: Mapping[str, Any]) -> list[int]:
-    seeds = config.get("seeds", 1)
-    if isinstance(seeds, int) and not isinstance(seeds, bool):
-        if seeds < 1:
-            raise ConfigError(f"filter_vs_smoother: seeds must be >= 1, got {seeds}")
-        return list(range(seeds))
-    if isinstance(seeds, (list, tuple)) and seeds and all(isinstance(s, int) for s in seeds):
-        return [int(s) for s in seeds]
-    raise ConfigError(f"filter_vs_smoother: seeds must be a positive int or a list of ints, got {seeds!r}")
+    """The run's seeds (one rule for every pipeline: :func:`config_models.seed_list`)."""
+    from slamkit.experiments.config_models import seed_list
+
+    return seed_list(config.get("seeds", 1))
 
 
 def default_workers() -> int:

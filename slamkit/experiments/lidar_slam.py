@@ -420,7 +420,9 @@ def run(config: Mapping[str, Any], folder, progress, observer=None):
     worlds = config.get("worlds")
     if not worlds:
         raise ConfigError("lidar_slam: 'worlds' must list at least one grid scenario mapping")
-    seeds = list(config.get("seeds", [0]))
+    from slamkit.experiments.config_models import seed_list
+
+    seeds = seed_list(config.get("seeds", [0]))
     slam_cfg = slam_config_from(config.get("slam"))
     variants = config.get("robust_variants") or [slam_cfg.robust]
     mcl_cfg = None if not config.get("mcl") else _dataclass_from(

@@ -15,11 +15,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
-import yaml
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
+from slamkit.config import load_yaml
 from slamkit.errors import ConfigError
+from slamkit.experiments.config_models import check_pipeline
 from slamkit.paths import path_component
 from slamkit.experiments.observers import NullObserver, PipelineObserver
 from slamkit.experiments.results import ResultsFolder, RunRecord
@@ -75,19 +76,21 @@ class ProgressReporter:
 
 
 def load_config(path: str | Path) -> dict[str, Any]:
+    """Read and validate a pipeline config file (see :mod:`slamkit.experiments.config_models`):
+    every error names the file, line and field before anything runs."""
     path = Path(path)
-    if not path.is_file():
-        raise ConfigError(f"pipeline config {path} does not exist")
-    try:
-        config = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f":{mark.line + 1}" if mark is not None else ""
-        raise ConfigError(f"{path}{where}: invalid YAML: {exc}") from exc
+    doc = load_yaml(path, "pipeline config")
+    config = doc.data
     if not isinstance(config, dict) or "pipeline" not in config:
         raise ConfigError(f"{path}: a pipeline config is a mapping with a 'pipeline' key")
+    check_pipeline(config, doc, str(path))
     config.setdefault("name", path.stem)
     return config
+
+
+def validate_pipeline_config(path: str | Path) -> dict[str, Any]:
+    """The validated config of the file at ``path`` (what ``slamkit run`` checks first)."""
+    return load_config(path)
 
 
 def resolve_pipeline(kind: str) -> Callable[..., PipelineOutput]:
@@ -112,6 +115,7 @@ def run_pipeline(config: str | Path | Mapping[str, Any], out_dir: str | Path | N
         cfg.update(overrides)
     if "pipeline" not in cfg:
         raise ConfigError("a pipeline config needs a 'pipeline' key")
+    check_pipeline(cfg)
     fn = resolve_pipeline(cfg["pipeline"])
     if out_dir is None:
         out_dir = Path("runs") / path_component(cfg.get("name", cfg["pipeline"]), "the config's name")
@@ -121,6 +125,10 @@ def run_pipeline(config: str | Path | Mapping[str, Any], out_dir: str | Path | N
         observer = observer_factory(cfg["pipeline"], folder.recording_path) if record else NullObserver()
         try:
             output = fn(cfg, folder, reporter, observer)
+            if not output.runs:
+                # e.g. inits: [chordal] on 2D graphs only: nothing to report is an error, not a result
+                raise ConfigError(f"pipeline {cfg['pipeline']!r} ran nothing: every combination it lists was "
+                                  "skipped or empty; see the config")
             observer.on_output(output)
         finally:
             observer.close()

@@ -7,47 +7,41 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from typing import Annotated, Literal
+
 import numpy as np
 import yaml
+from pydantic import BaseModel, Field
 
+from slamkit.config import STRICT, load_yaml, validate
 from slamkit.errors import DataError
 from slamkit.data.formats.image import read_image
 from slamkit.maps.image_map import ImageMap, grid_to_pgm_bytes, occupancy_from_image
 from slamkit.maps.occupancy_grid import OccupancyGrid
 
-_REQUIRED = ("image", "resolution", "origin")
+class RosMapYaml(BaseModel):
+    """The fields of a map_server YAML (ROS wiki, map_server): what is read and how it is bounded."""
+
+    model_config = STRICT
+    image: Annotated[str, Field(min_length=1)]
+    resolution: Annotated[float, Field(ge=1e-4, le=1e3)]
+    origin: Annotated[list[Annotated[float, Field(ge=-1e6, le=1e6)]], Field(min_length=2, max_length=3)]
+    negate: Literal[0, 1] = 0
+    occupied_thresh: Annotated[float, Field(ge=0.0, le=1.0)] = 0.65
+    free_thresh: Annotated[float, Field(ge=0.0, le=1.0)] = 0.196
+    mode: Literal["trinary", "scale"] = "trinary"
 
 
 def load_ros_map(yaml_path: str | Path, unknown_is_occupied: bool = True) -> ImageMap:
     """Read a map_server YAML and its image; unknown cells are occupied unless told otherwise."""
     path = Path(yaml_path)
-    try:
-        meta = yaml.safe_load(path.read_text())
-    except FileNotFoundError:
-        raise DataError("no such map YAML", path) from None
-    except yaml.YAMLError as exc:
-        raise DataError(f"not valid YAML: {exc}", path) from None
-    if not isinstance(meta, dict):
-        raise DataError("map YAML must be a mapping", path)
-    for key in _REQUIRED:
-        if key not in meta:
-            raise DataError(f"map YAML is missing field {key!r}", path)
-    mode = meta.get("mode", "trinary")
-    if mode not in ("trinary", "scale"):
-        raise DataError(f"field 'mode': {mode!r} is not supported (trinary, scale)", path)
-    try:
-        resolution = float(meta["resolution"])
-        origin = [float(v) for v in meta["origin"]]
-        negate = bool(int(meta.get("negate", 0)))
-        occ_t = float(meta.get("occupied_thresh", 0.65))
-        free_t = float(meta.get("free_thresh", 0.196))
-    except (TypeError, ValueError) as exc:
-        raise DataError(f"bad numeric field: {exc}", path) from None
-    if len(origin) < 2 or not resolution > 0:
-        raise DataError(f"field 'origin' needs [x, y, yaw] and 'resolution' > 0, got {origin}, {resolution}", path)
+    doc = load_yaml(path, "map YAML")
+    meta = validate(RosMapYaml, doc.data, doc, str(path))
+    resolution, origin, negate = meta.resolution, meta.origin, bool(meta.negate)
+    occ_t, free_t = meta.occupied_thresh, meta.free_thresh
     if len(origin) > 2 and abs(origin[2]) > 1e-12:
         raise DataError("field 'origin': a rotated map (yaw != 0) is not supported", path)
-    image = Path(meta["image"])
+    image = Path(meta.image)
     if not image.is_absolute():
         image = path.parent / image
     grey = read_image(image)

@@ -21,6 +21,7 @@ import yaml
 
 from slamkit.data.sequence import Sequence
 from slamkit.paths import path_component
+from slamkit.config import YamlDocument, load_yaml, model_of, validate
 from slamkit.errors import ConfigError, SlamkitError
 from slamkit.maps.occupancy_grid import OccupancyGrid
 from slamkit.models.gps import Gps
@@ -85,7 +86,8 @@ def _build(cls: type, values: Mapping[str, Any], where: str, base: Any = None) -
         raise ConfigError(f"{where}: {exc}") from None
 
 
-def scenario_from_dict(data: Mapping[str, Any], source: str = "<scenario>") -> Scenario:
+def scenario_from_dict(data: Mapping[str, Any], source: str = "<scenario>", doc: YamlDocument | None = None
+                       ) -> Scenario:
     if not isinstance(data, Mapping):
         raise ConfigError(f"{source}: a scenario must be a mapping, got {type(data).__name__}")
     values = dict(data)
@@ -94,6 +96,10 @@ def scenario_from_dict(data: Mapping[str, Any], source: str = "<scenario>") -> S
         path_component(values["name"], f"{source}: name")
     kind = values.pop("kind", None)
     preset = values.pop("preset", None)
+    if kind in ("landmark", "grid"):
+        # types, unknown keys (with the nearest name), NaN/inf and bounds (a duration of 1e20 s
+        # would simulate for ever), all before anything is built
+        validate(model_of(LandmarkScenario if kind == "landmark" else GridScenario), values, doc, source)
     if kind == "landmark":
         base = None
         if preset is not None:
@@ -110,13 +116,8 @@ def scenario_from_dict(data: Mapping[str, Any], source: str = "<scenario>") -> S
 
 def load_scenario(path: str | Path) -> Scenario:
     path = Path(path)
-    try:
-        data = yaml.safe_load(path.read_text())
-    except FileNotFoundError:
-        raise ConfigError(f"{path}: no such scenario file") from None
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"{path}: not valid YAML: {exc}") from None
-    scenario = scenario_from_dict(data or {}, str(path))
+    doc = load_yaml(path, "scenario")
+    scenario = scenario_from_dict(doc.data if doc.data is not None else {}, str(path), doc)
     if isinstance(scenario, GridScenario) and scenario.map_file is not None:
         # a relative map path is relative to the scenario file, not to the working directory
         map_path = Path(scenario.map_file)

@@ -77,8 +77,10 @@ def test_config_errors_name_the_field() -> None:
         parse_scenarios({"scenarios": [{"preset": "wild"}]})
     with pytest.raises(ConfigError, match="unknown estimator 'kalmann'"):
         parse_estimators({"estimators": ["kalmann"]})
-    with pytest.raises(ConfigError, match="seeds must be"):
-        parse_seeds({"seeds": 0})
+    from slamkit.experiments.config_models import check_pipeline
+
+    with pytest.raises(ConfigError, match=r"seeds: Input should be greater than or equal to 1 \(got 0\)"):
+        check_pipeline({"pipeline": "filter_vs_smoother", "seeds": 0, "scenarios": ["mild"], "estimators": ["ekf"]})
     assert parse_seeds({"seeds": [3, 7]}) == [3, 7]
     assert [c.label for c in parse_estimators({"estimators": ["ekf", {"pf": {"n_particles": 10}}]})] == ["ekf", "pf"]
 

@@ -102,7 +102,7 @@ def test_an_empty_folder_and_an_earlier_result_are_replaced(tmp_path, toy) -> No
 ])
 def test_a_config_name_that_is_not_one_component_is_refused(tmp_path, toy, monkeypatch, name, problem) -> None:
     monkeypatch.chdir(tmp_path)
-    with pytest.raises(ConfigError, match=f"the config's name .* cannot be used as a file name: {problem}"):
+    with pytest.raises(ConfigError, match=f"name: Value error, name .* cannot be used as a file name: {problem}"):
         run_pipeline({"pipeline": "toy", "name": name}, None, progress=False)
     assert list(tmp_path.iterdir()) == []
 

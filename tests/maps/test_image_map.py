@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from slamkit.errors import DataError
+from slamkit.errors import ConfigError, DataError
 from slamkit.data.formats.image import MAX_IMAGE_PIXELS, read_image
 from slamkit.maps.image_map import occupancy_from_image
 from slamkit.maps.occupancy_grid import OccupancyGrid
@@ -113,8 +113,15 @@ def test_ros_yaml_round_trip_and_errors(tmp_path):
     np.testing.assert_array_equal(back.unknown, unknown & ~grid.occupied)
     assert back.grid.resolution_m == 0.1 and back.grid.origin_xy_m.tolist() == [-3.0, 1.5]
     (tmp_path / "noimg.yaml").write_text("resolution: 0.1\norigin: [0, 0, 0]\n")
-    with pytest.raises(DataError, match="noimg.yaml: map YAML is missing field 'image'"):
+    # the map YAML is a config: validated into a typed model, errors name file, line and field
+    with pytest.raises(ConfigError, match="noimg.yaml:1: image: required but missing"):
         load_ros_map(tmp_path / "noimg.yaml")
+    (tmp_path / "typo.yaml").write_text("image: room.pgm\nresolution: 0.1\norigin: [0, 0, 0]\nnegat: 1\n")
+    with pytest.raises(ConfigError, match=r"typo.yaml:4: negat: unknown key \(did you mean 'negate'\?\)"):
+        load_ros_map(tmp_path / "typo.yaml")
+    (tmp_path / "nan.yaml").write_text("image: room.pgm\nresolution: .nan\norigin: [0, 0, 0]\n")
+    with pytest.raises(ConfigError, match=r"nan.yaml:2: resolution: Input should be a finite number"):
+        load_ros_map(tmp_path / "nan.yaml")
     (tmp_path / "rot.yaml").write_text("image: room.pgm\nresolution: 0.1\norigin: [0, 0, 0.5]\n")
     with pytest.raises(DataError, match="rotated"):
         load_ros_map(tmp_path / "rot.yaml")

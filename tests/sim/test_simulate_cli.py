@@ -75,7 +75,7 @@ def test_bad_scenario_exits_with_the_key_named(tmp_path):
     bad.write_text("kind: landmark\nsensor: {sigma_range: 0.1}\n")
     result = runner.invoke(app, ["simulate", str(bad), "--out", str(tmp_path / "x.slamseq")])
     assert result.exit_code == 2
-    assert "bad.yaml.sensor: unknown key(s) ['sigma_range']" in result.output
+    assert "bad.yaml:2: sensor.sigma_range: unknown key (did you mean 'sigma_range_m'?)" in result.output
     assert not (tmp_path / "x.slamseq").exists()
 
 

@@ -1,0 +1,298 @@
+"""Config files at the edge: safe YAML loading and validation into typed models (pydantic v2).
+
+Every config slamkit reads from a file -- pipeline configs, scenarios, ROS map YAML -- goes
+through :func:`load_yaml` and :func:`validate`, and every error is a
+:class:`~slamkit.errors.ConfigError` that names the file, the line (from the YAML node marks),
+the field path and, for an unknown key, the nearest valid name::
+
+    pipelines/pose_graph.yaml:9: options.max_iteratons: unknown key (did you mean 'max_iterations'?)
+
+YAML is read strictly: UTF-8 only, and an alias budget (:data:`MAX_EXPANDED_NODES`) so that a
+few hundred bytes of nested aliases ("billion laughs") cannot expand into gigabytes, and a
+self-referencing alias (``&a [*a]``) is refused instead of recursing forever.
+
+The algorithms keep their frozen, SI-unit config dataclasses; :func:`model_of` derives the
+pydantic model of such a dataclass from its fields (one source of truth), with
+``extra='forbid'``, no NaN/inf, and the bounds of :func:`_bounds_for` on fields whose unit
+suffix says what they are (durations ``_s``, rates ``_hz``, lengths ``_m``, counts), so a
+``duration_s: 1e20`` that would run for ever is refused before anything runs.
+
+This is a base module (usable from ``slamkit.sim`` and ``slamkit.experiments``, the packages
+that read config files); algorithm packages never import it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import functools
+import math
+import typing
+from pathlib import Path
+from typing import Annotated, Any, Literal, Mapping
+
+import pydantic
+import yaml
+from pydantic import ConfigDict, Field
+
+from slamkit.errors import ConfigError
+
+#: the largest number of nodes a YAML document may expand to (aliases counted each time used)
+MAX_EXPANDED_NODES = 200_000
+#: the largest config file read (bytes)
+MAX_CONFIG_BYTES = 4 * 1024 * 1024
+
+STRICT = ConfigDict(extra="forbid", allow_inf_nan=False, arbitrary_types_allowed=True)
+
+
+# --- YAML --------------------------------------------------------------------------------------
+
+
+class _BudgetLoader(yaml.SafeLoader):
+    """A SafeLoader that refuses self-referencing aliases (checked while composing)."""
+
+    def __init__(self, stream):
+        super().__init__(stream)
+        self._open_anchors: list[str] = []
+
+    def compose_node(self, parent, index):
+        if self.check_event(yaml.AliasEvent):
+            event = self.peek_event()
+            if event.anchor in self._open_anchors:
+                raise ConfigError(f"line {event.start_mark.line + 1}: alias *{event.anchor} refers to the node "
+                                  "that contains it (a recursive structure)")
+            return super().compose_node(parent, index)
+        event = self.peek_event()
+        anchor = getattr(event, "anchor", None)
+        if anchor is not None:
+            self._open_anchors.append(anchor)
+        try:
+            return super().compose_node(parent, index)
+        finally:
+            if anchor is not None:
+                self._open_anchors.pop()
+
+
+def _expanded_size(node: yaml.Node, memo: dict[int, int]) -> int:
+    key = id(node)
+    if key in memo:
+        return memo[key]
+    memo[key] = 1  # guards against cycles (already refused while composing)
+    if isinstance(node, yaml.SequenceNode):
+        size = 1 + sum(_expanded_size(n, memo) for n in node.value)
+    elif isinstance(node, yaml.MappingNode):
+        size = 1 + sum(_expanded_size(k, memo) + _expanded_size(v, memo) for k, v in node.value)
+    else:
+        size = 1
+    memo[key] = min(size, MAX_EXPANDED_NODES + 1)
+    return memo[key]
+
+
+def _lines(node: yaml.Node, path: tuple, out: dict[tuple, int], seen: set[int]) -> None:
+    """Field path -> one-based line of its value (keys' lines for mappings)."""
+    if id(node) in seen:
+        return
+    seen.add(id(node))
+    out.setdefault(path, node.start_mark.line + 1)
+    if isinstance(node, yaml.MappingNode):
+        for k, v in node.value:
+            name = k.value if isinstance(k, yaml.ScalarNode) else str(k)
+            out[path + (name,)] = k.start_mark.line + 1
+            _lines(v, path + (name,), out, seen)
+    elif isinstance(node, yaml.SequenceNode):
+        for i, v in enumerate(node.value):
+            _lines(v, path + (i,), out, seen)
+
+
+@dataclasses.dataclass(frozen=True)
+class YamlDocument:
+    """A parsed config file: its data, its path and the line of every field path."""
+
+    data: Any
+    path: str
+    lines: Mapping[tuple, int]
+
+    def where(self, loc: tuple) -> str:
+        """``FILE:LINE`` of the deepest field on ``loc`` whose line is known."""
+        loc = tuple(loc)
+        while loc and loc not in self.lines:
+            loc = loc[:-1]
+        line = self.lines.get(loc)
+        return f"{self.path}:{line}" if line is not None else self.path
+
+
+def load_yaml(path: str | Path, what: str = "config") -> YamlDocument:
+    """Read and parse a YAML config file strictly (see the module docstring)."""
+    path = Path(path)
+    try:
+        raw = path.read_bytes()
+    except FileNotFoundError:
+        raise ConfigError(f"{what} {path} does not exist") from None
+    except IsADirectoryError:
+        raise ConfigError(f"{what} {path} is a directory, not a file") from None
+    if len(raw) > MAX_CONFIG_BYTES:
+        raise ConfigError(f"{path}: {len(raw)} bytes; a {what} file is at most {MAX_CONFIG_BYTES} bytes")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = raw[:exc.start].count(b"\n") + 1
+        raise ConfigError(f"{path}:{line}: not UTF-8 text (byte 0x{raw[exc.start]:02x})") from None
+    try:
+        loader = _BudgetLoader(text)
+    except yaml.YAMLError as exc:  # the reader refuses control characters up front
+        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        line = text[:getattr(exc, "position", 0)].count("\n") + 1
+        raise ConfigError(f"{path}:{line}: invalid YAML: {problem}") from None
+    try:
+        try:
+            node = loader.get_single_node()
+        except ConfigError as exc:
+            raise ConfigError(f"{path}: {exc}") from None
+        except yaml.YAMLError as exc:
+            mark = getattr(exc, "problem_mark", None) or getattr(exc, "context_mark", None)
+            where = f":{mark.line + 1}" if mark is not None else ""
+            problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+            raise ConfigError(f"{path}{where}: invalid YAML: {problem}") from None
+        if node is None:
+            return YamlDocument(None, str(path), {})
+        if _expanded_size(node, {}) > MAX_EXPANDED_NODES:
+            raise ConfigError(f"{path}: the YAML expands to more than {MAX_EXPANDED_NODES} nodes through its "
+                              "aliases; refused (an alias bomb?)")
+        try:
+            data = loader.construct_document(node)
+        except (yaml.YAMLError, ValueError, TypeError, RecursionError) as exc:
+            mark = getattr(exc, "problem_mark", None)
+            where = f":{mark.line + 1}" if mark is not None else ""
+            raise ConfigError(f"{path}{where}: invalid YAML value: {str(exc).splitlines()[0]}") from None
+        lines: dict[tuple, int] = {}
+        _lines(node, (), lines, set())
+        return YamlDocument(data, str(path), lines)
+    finally:
+        loader.dispose()
+
+
+# --- validation --------------------------------------------------------------------------------
+
+
+def _suggest(key: str, options: list[str]) -> str:
+    close = difflib.get_close_matches(str(key), options, n=1, cutoff=0.6)
+    return f" (did you mean {close[0]!r}?)" if close else (f"; valid keys: {', '.join(sorted(options))}"
+                                                          if options else "")
+
+
+def _known_keys(model: type, loc: tuple) -> list[str]:
+    """The field names valid at ``loc`` (the mapping that holds the unknown key)."""
+    current: Any = model
+    for part in loc:
+        if isinstance(part, int):
+            continue
+        fields = getattr(current, "model_fields", None)
+        if not fields or part not in fields:
+            return []
+        current = _inner_model(fields[part].annotation)
+    return list(getattr(current, "model_fields", {}) or [])
+
+
+def _inner_model(annotation: Any) -> Any:
+    for arg in (typing.get_args(annotation) or (annotation,)):
+        if isinstance(arg, type) and issubclass(arg, pydantic.BaseModel):
+            return arg
+        inner = _inner_model(arg) if typing.get_args(arg) else None
+        if inner is not None:
+            return inner
+    return None
+
+
+def validate(model: type, data: Any, doc: YamlDocument | None = None, source: str = "<config>",
+             prefix: tuple = ()) -> Any:
+    """``model.model_validate(data)``; a ValidationError becomes one ConfigError whose lines
+    name the file, line, field path and problem of every error."""
+    try:
+        return model.model_validate(data)
+    except pydantic.ValidationError as exc:
+        messages = []
+        for err in exc.errors()[:10]:
+            loc = tuple(x for x in err["loc"] if not (isinstance(x, str) and (
+                x.startswith(("function-", "tagged-")) or (x.startswith("<") and x.endswith(">")))))
+            full = prefix + loc
+            where = doc.where(full) if doc is not None else source
+            dotted = ".".join(str(x) for x in full) or "(top level)"
+            if err["type"] == "extra_forbidden":
+                problem = "unknown key" + _suggest(str(loc[-1]), _known_keys(model, loc[:-1]))
+            elif err["type"] == "missing":
+                problem = "required but missing"
+            else:
+                problem = err["msg"]
+                if "input" in err and err["type"] not in ("model_type", "dict_type"):
+                    problem += f" (got {err['input']!r})"[:200]
+            messages.append(f"{where}: {dotted}: {problem}")
+        raise ConfigError("\n".join(messages)) from None
+
+
+# --- models from the algorithms' dataclasses -----------------------------------------------------
+
+#: bounds by field-name suffix: a duration of 1e20 s or a 1e9 Hz rate would run for ever
+_SUFFIX_BOUNDS: tuple[tuple[str, float | None, float | None], ...] = (
+    ("resolution_m", 1e-3, 1e3),
+    ("_s", 0.0, 86_400.0),       # durations, time steps, lags: at most one day
+    ("_hz", 0.0, 10_000.0),
+    ("_mps", -100.0, 100.0),
+    ("_radps", -100.0, 100.0),
+    ("_m", -1e5, 1e5),
+    ("_rad", -100.0, 100.0),
+)
+_COUNT_PREFIXES = ("num_", "n_", "max_")
+_MAPPING_TAG, _NAME_TAG = "<fields>", "<preset name>"
+MAX_COUNT = 1_000_000
+
+
+def _bounds_for(name: str, tp: Any) -> Any:
+    if tp is int and name.startswith(_COUNT_PREFIXES):
+        return Annotated[int, Field(ge=0, le=MAX_COUNT)]
+    if tp is float:
+        for suffix, lo, hi in _SUFFIX_BOUNDS:
+            if name.endswith(suffix):
+                return Annotated[float, Field(ge=lo, le=hi)]
+        return float
+    return tp
+
+
+def _field_type(name: str, tp: Any) -> Any:
+    origin = typing.get_origin(tp)
+    args = typing.get_args(tp)
+    if dataclasses.is_dataclass(tp):
+        # a nested config, or the name of one of its presets (imu_noise: consumer_mems); the
+        # discriminator picks the branch by the input's type, so errors speak of that one only
+        return Annotated[typing.Union[Annotated[model_of(tp), pydantic.Tag(_MAPPING_TAG)],
+                                      Annotated[str, pydantic.Tag(_NAME_TAG)]],
+                         pydantic.Discriminator(lambda v: _NAME_TAG if isinstance(v, str) else _MAPPING_TAG)]
+    if origin in (typing.Union, getattr(__import__("types"), "UnionType", None)):
+        return typing.Union[tuple(_field_type(name, a) for a in args)]  # type: ignore[return-value]
+    if origin is tuple:
+        if len(args) == 2 and args[1] is Ellipsis:
+            return tuple[_field_type(name, args[0]), ...]  # type: ignore[misc]
+        return tuple[tuple(_field_type(name, a) for a in args)]  # type: ignore[misc]
+    if origin is Literal or tp in (str, bool, type(None)):
+        return tp
+    if tp in (int, float):
+        return _bounds_for(name, tp)
+    return Any  # arrays, callables, enums: checked by the dataclass itself
+
+
+@functools.lru_cache(maxsize=None)
+def model_of(cls: type) -> type[pydantic.BaseModel]:
+    """The pydantic model of the config dataclass ``cls``: every init field optional (a config
+    names only what it overrides), unknown keys and NaN/inf refused, suffix bounds applied."""
+    hints = typing.get_type_hints(cls)
+    fields: dict[str, Any] = {}
+    for f in dataclasses.fields(cls):
+        if f.init:
+            fields[f.name] = (typing.Optional[_field_type(f.name, hints.get(f.name, Any))], None)
+    if callable(getattr(cls, "preset", None)) and "preset" not in fields:
+        # classes with named presets (Gps, ImuNoise) accept {preset: name, <overrides>}
+        fields["preset"] = (typing.Optional[str], None)
+    return pydantic.create_model(f"{cls.__name__}Fields", __config__=STRICT, **fields)
+
+
+def finite(x: float) -> bool:
+    return isinstance(x, (int, float)) and math.isfinite(x)

@@ -1,0 +1,235 @@
+"""The typed shape of every pipeline config (pydantic models), checked before anything runs.
+
+One model per pipeline kind; nested algorithm options are validated against the models that
+:func:`slamkit.config.model_of` derives from the algorithms' own config dataclasses, so a field
+exists, has a type and a bound in one place only. ``seeds`` has one meaning in every pipeline:
+a count (``seeds: 6`` -> 0..5), a list of seeds, or ``{start, count}``; :func:`seed_list`
+turns it into the list.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal, Union
+
+import pydantic
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+from slamkit.config import STRICT, YamlDocument, model_of, validate
+from slamkit.errors import ConfigError
+from slamkit.paths import path_component
+
+Count = Annotated[int, Field(ge=1, le=100_000)]
+Seed = Annotated[int, Field(ge=0, le=2**32 - 1)]
+
+
+class SeedRange(BaseModel):
+    model_config = STRICT
+    start: Seed = 0
+    count: Count
+
+
+def _seeds_form(v: Any) -> str:
+    if isinstance(v, dict) or isinstance(v, SeedRange):
+        return "<range>"
+    return "<list>" if isinstance(v, (list, tuple)) else "<count>"
+
+
+#: a count (0..n-1), a list, or {start, count}; tags (filtered out of messages) pick the form
+Seeds = Annotated[Union[Annotated[Count, pydantic.Tag("<count>")],
+                        Annotated[list[Seed], Field(min_length=1, max_length=100_000), pydantic.Tag("<list>")],
+                        Annotated[SeedRange, pydantic.Tag("<range>")]],
+                  pydantic.Discriminator(_seeds_form)]
+
+
+def seed_list(spec: Any) -> list[int]:
+    """The seeds a validated ``seeds`` value means."""
+    if isinstance(spec, SeedRange):
+        return list(range(spec.start, spec.start + spec.count))
+    if isinstance(spec, dict):
+        return list(range(int(spec.get("start", 0)), int(spec.get("start", 0)) + int(spec["count"])))
+    if isinstance(spec, int):
+        return list(range(spec))
+    return [int(s) for s in spec]
+
+
+class _Pipeline(BaseModel):
+    model_config = STRICT
+    pipeline: str
+    name: str | None = None
+    record: bool = True
+
+    @field_validator("name")
+    @classmethod
+    def _plain_name(cls, v: str | None) -> str | None:
+        if v is not None:
+            try:
+                path_component(v, "name")
+            except ConfigError as exc:
+                raise ValueError(str(exc)) from None
+        return v
+
+
+class _OpenPipeline(_Pipeline):
+    model_config = ConfigDict(extra="allow", allow_inf_nan=False)
+
+
+# --- pose_graph ---------------------------------------------------------------------------------
+
+def _optimize_options() -> type:
+    from slamkit.backend.solvers import OptimizeConfig
+
+    return model_of(OptimizeConfig)
+
+
+class PoseGraphPipeline(_Pipeline):
+    pipeline: Literal["pose_graph"]
+    datasets: Annotated[list[str], Field(min_length=1)]
+    solvers: Annotated[list[Literal["lm", "gn", "dogleg", "isam2"]], Field(min_length=1)] = ["lm"]
+    inits: Annotated[list[Literal["file", "odometry", "lago", "chordal"]], Field(min_length=1)] = ["file"]
+    robust: Literal["none", "huber", "cauchy"] = "none"
+    options: dict[str, Any] = {}
+
+
+# --- filter_vs_smoother --------------------------------------------------------------------------
+
+class ScenarioEntry(BaseModel):
+    model_config = STRICT
+    preset: Literal["mild", "strong"] | None = None
+    dataset: str | None = None
+    name: str | None = None
+    params: dict[str, Any] = {}
+
+
+class FilterVsSmootherPipeline(_Pipeline):
+    pipeline: Literal["filter_vs_smoother"]
+    seeds: Seeds = 1
+    workers: Annotated[int, Field(ge=1, le=256)] | None = None
+    scenarios: Annotated[list[Union[str, ScenarioEntry]], Field(min_length=1)]
+    estimators: Union[dict[str, Union[dict[str, Any], None]], Annotated[list[Union[str, dict[str, Any]]], Field(min_length=1)]]
+
+
+# --- local_planning ------------------------------------------------------------------------------
+
+class LocalPlanningScenarios(BaseModel):
+    model_config = STRICT
+    kinds: Annotated[list[Literal["office", "warehouse", "open"]], Field(min_length=1)] = ["office"]
+    seeds: Seeds = 5
+    n_obstacles: Annotated[int, Field(ge=0, le=100)] = 3
+    obstacle_speed_mps: tuple[Annotated[float, Field(ge=0, le=10)], Annotated[float, Field(ge=0, le=10)]] = (0.2, 0.5)
+    obstacle_min_side_m: Annotated[float, Field(ge=0, le=100)] = 0.5
+
+
+class LocalPlanningPipeline(_Pipeline):
+    pipeline: Literal["local_planning"]
+    controllers: Annotated[list[Literal["potential_fields", "dwa", "mpc", "mpc_osqp", "mpc_fatrop"]],
+                           Field(min_length=1)] = ["dwa", "mpc"]
+    scenarios: LocalPlanningScenarios = LocalPlanningScenarios()
+    closed_loop: dict[str, Any] = {}
+    controller_params: dict[str, dict[str, Any]] = {}
+    record_scenarios: Annotated[int, Field(ge=0, le=1000)] = 1
+
+
+# --- lidar_slam ----------------------------------------------------------------------------------
+
+class LidarSlamPipeline(_Pipeline):
+    pipeline: Literal["lidar_slam"]
+    seeds: Seeds = [0]
+    worlds: Annotated[list[dict[str, Any]], Field(min_length=1)]
+    slam: dict[str, Any] = {}
+    robust_variants: Annotated[list[Literal["none", "huber", "cauchy"]], Field(min_length=1)] | None = None
+    mcl: Union[bool, dict[str, Any], None] = None
+
+
+PIPELINE_MODELS: dict[str, type[_Pipeline]] = {
+    "pose_graph": PoseGraphPipeline,
+    "filter_vs_smoother": FilterVsSmootherPipeline,
+    "local_planning": LocalPlanningPipeline,
+    "lidar_slam": LidarSlamPipeline,
+}
+
+
+def _nested(model: type, data: Any, doc: YamlDocument | None, source: str, prefix: tuple) -> None:
+    validate(model, data if data is not None else {}, doc, source, prefix)
+
+
+def check_pipeline(config: dict[str, Any], doc: YamlDocument | None = None, source: str = "<config>") -> BaseModel:
+    """Validate a pipeline config (top level and the algorithm options it nests); returns the
+    model. Raises ConfigError naming file, line and field."""
+    if not isinstance(config, dict):
+        raise ConfigError(f"{source}: a pipeline config is a mapping with a 'pipeline' key, got "
+                          f"{type(config).__name__}")
+    from slamkit.experiments.pipeline import PIPELINES
+
+    kind = config.get("pipeline")
+    if kind not in PIPELINES:
+        from slamkit.config import _suggest
+
+        where = doc.where(("pipeline",)) if doc is not None else source
+        hint = _suggest(str(kind), list(PIPELINES)).replace("valid keys", "known pipelines")
+        raise ConfigError(f"{where}: pipeline: unknown pipeline {kind!r}" + hint)
+    # a pipeline registered without a model (a user's own kind) gets the common fields checked
+    model = validate(PIPELINE_MODELS.get(kind, _OpenPipeline), config, doc, source)
+    if isinstance(model, PoseGraphPipeline):
+        _nested(_optimize_options(), model.options, doc, source, ("options",))
+    elif isinstance(model, FilterVsSmootherPipeline):
+        _check_estimators(config.get("estimators"), doc, source)
+        _check_scenarios(model, doc, source)
+    elif isinstance(model, LocalPlanningPipeline):
+        from slamkit.control.dwa import DWAConfig
+        from slamkit.control.mpc import MPCConfig
+        from slamkit.control.potential_fields import PotentialFieldConfig
+        from slamkit.experiments.closed_loop import ClosedLoopConfig
+
+        _nested(model_of(ClosedLoopConfig), model.closed_loop, doc, source, ("closed_loop",))
+        cfg = {"potential_fields": PotentialFieldConfig, "dwa": DWAConfig, "mpc": MPCConfig,
+               "mpc_osqp": MPCConfig, "mpc_fatrop": MPCConfig}
+        for name, params in model.controller_params.items():
+            if name not in cfg:
+                validate(pydantic.create_model("ControllerParams", __config__=STRICT,
+                                               **{k: (dict, None) for k in cfg}),
+                         {name: params}, doc, source, ("controller_params",))
+            _nested(model_of(cfg[name]), params, doc, source, ("controller_params", name))
+    elif isinstance(model, LidarSlamPipeline):
+        from slamkit.experiments.lidar_slam import LidarSlamConfig, MclCheckConfig
+        from slamkit.sim.grid_world import GridScenario
+
+        _nested(model_of(LidarSlamConfig), model.slam, doc, source, ("slam",))
+        if isinstance(model.mcl, dict):
+            _nested(model_of(MclCheckConfig), model.mcl, doc, source, ("mcl",))
+        for k, world in enumerate(model.worlds):
+            _nested(model_of(GridScenario), {key: v for key, v in world.items() if key != "kind"},
+                    doc, source, ("worlds", k))
+    return model
+
+
+def _check_estimators(raw: Any, doc: YamlDocument | None, source: str) -> None:
+    from slamkit.config import _suggest
+    from slamkit.experiments.estimators import NOISE_FIELDS, REGISTRY, config_class
+
+    items = raw.items() if isinstance(raw, dict) else [
+        (e, {}) if isinstance(e, str) else next(iter(e.items())) for e in raw if isinstance(e, (str, dict)) and e]
+    for label, params in items:
+        params = dict(params or {})
+        kind = str(params.pop("type", label))
+        if kind not in REGISTRY:
+            where = doc.where(("estimators", label)) if doc is not None else source
+            raise ConfigError(f"{where}: estimators.{label}: unknown estimator {kind!r}"
+                              + _suggest(kind, list(REGISTRY)))
+        cls = config_class(kind)
+        fields = model_of(cls).model_fields if cls is not None else {}
+        noise = {k: (Annotated[float, Field(gt=0, le=1e6)] | None, None) for k in NOISE_FIELDS}
+        model = pydantic.create_model(f"{kind}Params", __config__=STRICT,
+                                      **{k: (f.annotation, None) for k, f in fields.items()}, **noise)
+        validate(model, params, doc, source, ("estimators", label))
+
+
+def _check_scenarios(model: FilterVsSmootherPipeline, doc: YamlDocument | None, source: str) -> None:
+    from slamkit.sim.landmark_world import LandmarkScenario
+
+    for k, entry in enumerate(model.scenarios):
+        if isinstance(entry, ScenarioEntry):
+            if (entry.preset is None) == (entry.dataset is None):
+                where = doc.where(("scenarios", k)) if doc is not None else source
+                raise ConfigError(f"{where}: scenarios.{k}: needs exactly one of 'preset' or 'dataset'")
+            if entry.preset is not None:
+                _nested(model_of(LandmarkScenario), entry.params, doc, source, ("scenarios", k, "params"))
