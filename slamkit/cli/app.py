@@ -15,6 +15,7 @@ exceptions itself.
 
 from __future__ import annotations
 
+import json
 import math
 import sys
 
@@ -107,6 +108,22 @@ def positive(value: float | None) -> float | None:
 def non_negative(value: float | None) -> float | None:
     """Option callback: a finite number >= 0."""
     return _checked(value, 0.0, False)
+
+
+def _strict(value):
+    """NaN and inf become null: strict JSON has neither (json.dumps would write NaN/Infinity)."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _strict(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_strict(v) for v in value]
+    return value
+
+
+def dumps_json(obj, indent: int | None = None) -> str:
+    """The one way every ``--json`` output is written: strict JSON, never NaN or Infinity."""
+    return json.dumps(_strict(obj), indent=indent, allow_nan=False)
 
 
 def run() -> None:

@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-import json
 
 import typer
 from rich.console import Console
 from rich.table import Table
 
 from slamkit.bench import SUITES, run_bench
-from slamkit.cli.app import app
+from slamkit.cli.app import app, dumps_json
 
 
 @app.command()
@@ -21,7 +20,7 @@ def bench(
     """Time slamkit against a reference measured in the same run and print the ratios."""
     result = run_bench(name, quick=quick)
     if as_json:
-        print(json.dumps(result, indent=2))
+        print(dumps_json(result, indent=2))
         return
     table = Table(title=f"slamkit bench {name}")
     for col in ("case", "value", "unit", "reference", "ref value", "ratio", "goal"):

@@ -4,14 +4,13 @@ Thin shell over :mod:`slamkit.data.registry` (``available``, ``describe``, ``fet
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import typer
 from rich.console import Console
 from rich.table import Table
 
-from slamkit.cli.app import app
+from slamkit.cli.app import app, dumps_json
 from slamkit.data import registry
 
 data_app = typer.Typer(
@@ -57,7 +56,7 @@ def list_cmd(
     """Datasets available locally (location, format, pose and edge counts)."""
     rows = list_rows(include_missing=all_, verify=verify, kind=kind)
     if as_json:
-        typer.echo(json.dumps({"datasets": rows, "search_roots": [
+        typer.echo(dumps_json({"datasets": rows, "search_roots": [
             {"label": label, "path": str(p)} for label, p in registry.search_roots()]}))
         return
     table = Table(title=f"{len(rows)} datasets" + ("" if all_ else " available locally"))
@@ -83,7 +82,7 @@ def info_cmd(
     """Everything recorded about a dataset: files, sources, licence, counts, reference values."""
     info = registry.describe(name)
     if as_json:
-        typer.echo(json.dumps(info))
+        typer.echo(dumps_json(info))
         return
     console = Console()
     console.print(f"[bold]{info['name']}[/bold]: {info['title']}")

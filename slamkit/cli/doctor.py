@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
-import json
 import platform
 
 import typer
 
-from slamkit.cli.app import app
+from slamkit.cli.app import app, dumps_json
 
 
 def doctor_report() -> dict:
@@ -27,7 +26,7 @@ def doctor(as_json: bool = typer.Option(False, "--json", help="print one JSON ob
     """Say which compiled kernels this installation has and where datasets are looked up."""
     report = doctor_report()
     if as_json:
-        print(json.dumps(report))
+        print(dumps_json(report))
         return
     typer.echo(f"slamkit {report['slamkit_version']} on Python {report['python']}")
     typer.echo("kernels:")

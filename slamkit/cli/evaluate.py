@@ -7,7 +7,6 @@ median, std, min, max, sse, num_pairs, align, ...) as one JSON object on stdout.
 
 from __future__ import annotations
 
-import json
 from enum import Enum
 from pathlib import Path
 
@@ -15,7 +14,7 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from slamkit.cli.app import app, non_negative, positive
+from slamkit.cli.app import app, dumps_json, non_negative, positive
 
 eval_app = typer.Typer(
     name="eval",
@@ -74,7 +73,7 @@ def _run(metric: str, ref: Path, est: Path, fmt: Format, align: Align, relation:
                             **rpe_args)
     out = result.to_dict()
     if as_json:
-        print(json.dumps(out))
+        print(dumps_json(out))
         return
     title = f"{metric.upper()} ({relation.value}, {out['unit']}), align={align.value}"
     if metric == "rpe":

@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import typer
 from rich.console import Console
 from rich.table import Table
 
-from slamkit.cli.app import app, positive
+from slamkit.cli.app import app, dumps_json, positive
 
 
 @app.command()
@@ -39,7 +38,7 @@ def optimize(
         record_optimization(report, rrd, spawn)
     summary = report.summary()
     if as_json:
-        print(json.dumps(summary))
+        print(dumps_json(summary))
         return
     table = Table(title=f"slamkit optimize {report.dataset}", show_header=False)
     for key, value in summary.items():

@@ -7,14 +7,13 @@ MovingAI ``.map`` file. Coordinates are world metres (a MovingAI cell (x, y) has
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 import typer
 from rich.console import Console
 
-from slamkit.cli.app import EXIT_NO_RESULT, app, non_negative, positive
+from slamkit.cli.app import EXIT_NO_RESULT, app, dumps_json, non_negative, positive
 from slamkit.errors import DataError
 
 
@@ -89,12 +88,11 @@ def plan(
         cfg["time_limit_s"] = time_limit_s
     grid, result = plan_on_map(map_, _xy(start, "--start"), _xy(goal, "--goal"), planner,
                                inflate_m, seed, rrd, **cfg)
-    # strict JSON has no Infinity: an unsolved cost/length is null
-    out = {k: (None if isinstance(v, float) and not np.isfinite(v) else v) for k, v in result.to_dict().items()}
+    out = dict(result.to_dict())  # dumps_json writes an unsolved (infinite) cost as null
     out.update({"map": map_, "inflate_m": inflate_m, "path_points": int(len(result.path)),
                 "rrd": None if rrd is None else str(rrd)})
     if as_json:
-        print(json.dumps(out))
+        print(dumps_json(out))
     else:
         Console().print(f"[bold]{out['planner']}[/] on {map_} ({grid.width}x{grid.height}): "
                         f"{out['status']}  cost {result.cost:.4f}  length {result.length_m:.4f} m  "

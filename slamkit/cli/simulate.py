@@ -8,14 +8,13 @@ A thin shell over :func:`slamkit.sim.scenario.simulate`, ``save_sequence`` and
 from __future__ import annotations
 
 import hashlib
-import json
 from collections import Counter
 from pathlib import Path
 
 import typer
 from rich.console import Console
 
-from slamkit.cli.app import app
+from slamkit.cli.app import app, dumps_json
 
 
 def simulate_to_files(scenario_path: Path, seed: int, out: Path, rrd: Path | None = None) -> dict:
@@ -57,7 +56,7 @@ def simulate(
     """Simulate a scenario into a sequence file with ground truth (same seed, same bytes)."""
     summary = simulate_to_files(scenario, seed, out, rrd)
     if as_json:
-        print(json.dumps(summary, indent=2))
+        print(dumps_json(summary, indent=2))
         return
     console = Console()
     console.print(f"[bold]{summary['name']}[/bold] seed {seed}: {summary['num_events']} events over "
