@@ -81,3 +81,46 @@ def test_imports_follow_layers(path: Path) -> None:
 def test_layer_table_covers_every_package() -> None:
     packages = {p.name for p in PACKAGE.iterdir() if p.is_dir() and not p.name.startswith("_")}
     assert packages - {"__pycache__"} == set(ALLOWED)
+
+
+# --- protocols are read through their declared attributes, not getattr (issue 18) --------------
+
+_PROTOCOL_OBJECTS = ("observer", "estimator", "factory", "output", "run", "snapshot", "payload")
+
+
+@pytest.mark.parametrize("path", [p for p in _files() if p.relative_to(PACKAGE).parts[0] in ("experiments", "viz")],
+                         ids=lambda p: str(p.relative_to(PACKAGE)))
+def test_no_getattr_reads_of_protocol_objects(path: Path) -> None:
+    tree = ast.parse(path.read_text(), filename=str(path))
+    for node in ast.walk(tree):
+        if (isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in ("getattr", "hasattr")
+                and node.args and isinstance(node.args[0], ast.Name) and node.args[0].id in _PROTOCOL_OBJECTS):
+            raise AssertionError(f"{path}:{node.lineno}: {node.func.id}({node.args[0].id}, ...) reads a protocol "
+                                 "by name; declare the attribute on the protocol and read it directly")
+
+
+def test_every_recorder_and_the_null_observer_satisfy_the_observer_protocol(tmp_path) -> None:
+    from slamkit.experiments.observers import NullObserver, PipelineObserver
+    from slamkit.viz.pipelines import RECORDERS, observer_for
+
+    assert isinstance(NullObserver(), PipelineObserver)
+    for kind in RECORDERS:
+        observer = observer_for(kind, tmp_path / f"{kind}.rrd")
+        assert isinstance(observer, PipelineObserver), kind
+        assert isinstance(observer.wants_steps, bool) and observer.step_every >= 1
+        observer.close()
+
+
+def test_every_registry_estimator_satisfies_its_protocol() -> None:
+    import numpy as np
+
+    from slamkit.data.estimate import BatchEstimator, Estimator
+    from slamkit.experiments.estimators import REGISTRY, factory
+    from slamkit.sim.landmark_world import mildly_nonlinear, simulate_landmark_sequence
+
+    seq = simulate_landmark_sequence(mildly_nonlinear(duration_s=1.0), np.random.default_rng(0))
+    for name, spec in REGISTRY.items():
+        built = factory(name)
+        est = built(seq)
+        assert built.kind == spec.kind
+        assert isinstance(est, BatchEstimator if spec.kind == "batch" else Estimator), name

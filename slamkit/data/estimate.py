@@ -88,6 +88,13 @@ class Estimator(Protocol):
 
 
 @runtime_checkable
+class ParticleBelief(Protocol):
+    """An estimator whose belief is a particle set exposes it as (N, >= 3) poses (viewers draw it)."""
+
+    particles: np.ndarray
+
+
+@runtime_checkable
 class BatchEstimator(Protocol):
     name: str
 

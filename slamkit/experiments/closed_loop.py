@@ -379,7 +379,7 @@ def compare(config: Mapping[str, Any], observer=None,
     except TypeError as exc:
         raise ConfigError(f"closed_loop: {exc}") from exc
     n_record = int(config.get("record_scenarios", 1))
-    watch = observer is not None and getattr(observer, "wants_steps", True)
+    watch = observer is not None and observer.wants_steps
     episodes = []
     scenarios = scenario_list(config)
     for name in controllers:

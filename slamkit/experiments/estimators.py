@@ -122,7 +122,20 @@ def _config(cls: type, params: Mapping[str, Any], where: str) -> Any:
     return cls(**params)
 
 
-def factory(name: str, params: Mapping[str, Any] | None = None, seed: int = 0) -> Factory:
+@dataclass(frozen=True)
+class EstimatorFactory:
+    """A registry estimator with its params and seed: ``factory(sequence)`` builds one. The
+    runner reads ``kind`` (filter, smoother or batch) from here instead of guessing it."""
+
+    name: str
+    kind: Literal["filter", "smoother", "batch"]
+    build: Callable[[Sequence], Any]
+
+    def __call__(self, sequence: Sequence) -> Any:
+        return self.build(sequence)
+
+
+def factory(name: str, params: Mapping[str, Any] | None = None, seed: int = 0) -> EstimatorFactory:
     """A callable ``sequence -> estimator`` for registry ``name`` with ``params``.
 
     ``seed`` seeds the estimator's own ``np.random.Generator`` (particle methods), so a run is
@@ -150,9 +163,7 @@ def factory(name: str, params: Mapping[str, Any] | None = None, seed: int = 0) -
             return cls.from_sequence(sequence, config=config)
         return cls(config=config)
 
-    build.estimator_name = name  # type: ignore[attr-defined]
-    build.kind = s.kind  # type: ignore[attr-defined]
-    return build
+    return EstimatorFactory(name, s.kind, build)
 
 
 def prior_of(sequence: Sequence, sigma_floor: float = 1e-6) -> Prior:

@@ -257,7 +257,7 @@ def run_slam(sequence: Sequence, truth: OccupancyGrid | None = None,
     """The whole pipeline on one sequence (the map covers ``truth``'s area when given).
     ``frontend``: reuse an earlier :func:`run_frontend` of the same sequence and config (for
     back-end comparisons such as robust kernels)."""
-    wants = observer is not None and getattr(observer, "wants_steps", True)
+    wants = observer is not None and observer.wants_steps
 
     def on_keyframe(k, stamp, pose, pts):
         if wants:

@@ -10,7 +10,7 @@ Pipelines call ``on_step`` while they run (live data: estimator snapshots, plann
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Mapping, Protocol
+from typing import Any, ClassVar, Mapping, Protocol, runtime_checkable
 
 
 @dataclass(frozen=True)
@@ -24,7 +24,15 @@ class StepSnapshot:
     state: Mapping[str, Any] = field(default_factory=dict)
 
 
+@runtime_checkable
 class PipelineObserver(Protocol):
+    """What a pipeline may rely on: whether the observer wants live steps at all, how often
+    (every ``step_every``-th event), and the three callbacks. Runners read these attributes
+    directly -- an observer that does not declare them does not satisfy the protocol."""
+
+    wants_steps: bool
+    step_every: int
+
     def on_step(self, snapshot: StepSnapshot) -> None: ...
 
     def on_output(self, output: Any) -> None: ...
@@ -35,7 +43,8 @@ class PipelineObserver(Protocol):
 class NullObserver:
     """Observes nothing (the default)."""
 
-    wants_steps = False
+    wants_steps: ClassVar[bool] = False
+    step_every: ClassVar[int] = 10
 
     def on_step(self, snapshot: StepSnapshot) -> None:
         pass

@@ -36,11 +36,11 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from slamkit.data.estimate import Estimate, Prior
+from slamkit.data.estimate import BatchEstimator, Estimate, Estimator, ParticleBelief, Prior
 from slamkit.data.sequence import RangeBearing, Sequence
 from slamkit.data.trajectory import Trajectory
 from slamkit.errors import DataError, SlamkitError
-from slamkit.experiments.observers import StepSnapshot
+from slamkit.experiments.observers import PipelineObserver, StepSnapshot
 from slamkit.geometry.angles import wrap_angle
 from slamkit.metrics.alignment import associate, umeyama
 from slamkit.metrics.ate import ate
@@ -75,10 +75,13 @@ class EstimatorRun:
 
 
 def _kind_of(factory: Callable, estimator: Any) -> str:
-    kind = getattr(factory, "kind", None)
-    if kind is not None:
-        return kind
-    return "batch" if hasattr(estimator, "solve") and not hasattr(estimator, "step") else "filter"
+    """A registry factory says what it builds; a plain callable (a notebook's lambda) is judged
+    by the protocol its estimator satisfies."""
+    from slamkit.experiments.estimators import EstimatorFactory
+
+    if isinstance(factory, EstimatorFactory):
+        return factory.kind
+    return "batch" if isinstance(estimator, BatchEstimator) and not isinstance(estimator, Estimator) else "filter"
 
 
 def _live_state(estimator: Any, event: Any) -> dict[str, Any]:
@@ -92,7 +95,7 @@ def _live_state(estimator: Any, event: Any) -> dict[str, Any]:
         ids = np.array(sorted(est.world_p_landmarks), dtype=np.int64)
         state["landmark_ids"] = ids
         state["world_p_landmarks"] = np.array([np.asarray(est.world_p_landmarks[i])[:2] for i in ids])
-    particles = getattr(estimator, "particles", None)
+    particles = estimator.particles if isinstance(estimator, ParticleBelief) else None
     if isinstance(particles, np.ndarray) and particles.ndim == 2 and particles.shape[1] >= 3:
         step = max(1, len(particles) // SNAPSHOT_MAX_PARTICLES)
         state["particles"] = particles[::step, :3].copy()
@@ -104,7 +107,7 @@ def _live_state(estimator: Any, event: Any) -> dict[str, Any]:
 
 
 def run_estimators(sequence: Sequence, estimators: Mapping[str, Callable[[Sequence], Any]],
-                   prior: Prior | None = None, observer: Any = None,
+                   prior: Prior | None = None, observer: PipelineObserver | None = None,
                    kind: str = "filter_vs_smoother", run_label: str | None = None
                    ) -> dict[str, EstimatorRun]:
     """Feed ``sequence`` to every estimator built by ``estimators`` (name -> factory, see
@@ -115,8 +118,8 @@ def run_estimators(sequence: Sequence, estimators: Mapping[str, Callable[[Sequen
     from slamkit.experiments.estimators import prior_of
 
     prior = prior_of(sequence) if prior is None else prior
-    wants = observer is not None and bool(getattr(observer, "wants_steps", False))
-    every = max(1, int(getattr(observer, "step_every", 10))) if wants else 0
+    wants = observer is not None and observer.wants_steps
+    every = max(1, observer.step_every) if wants else 0
     label = run_label or sequence.name
     events = sequence.events
     out: dict[str, EstimatorRun] = {}

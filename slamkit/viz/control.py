@@ -123,6 +123,7 @@ class LocalPlanningObserver:
     controller and the closed-loop step, and draws them with :class:`ClosedLoopRecorder`."""
 
     wants_steps = True
+    step_every = 1  # every closed-loop cycle
 
     def __init__(self, path: str | Path | None, spawn: bool = False):
         self.recorder = ClosedLoopRecorder(path, spawn)

@@ -124,7 +124,7 @@ def log_comparison(stream, sequence, runs: Mapping[str, Any], series: Mapping[st
                                                          radii=[0.03], colors=[COLOR_GROUND_TRUTH]),
                    static=True)
     for name, run in runs.items():
-        est = getattr(run, "estimate", None)
+        est = run.estimate  # an EstimatorRun (None when it failed)
         if est is None:
             continue
         base = f"world/estimate/{name}"
@@ -236,7 +236,7 @@ class FilterVsSmootherObserver:
         self._snapshots[snapshot.run.split("/", 1)[0]].append(snapshot)
 
     def on_output(self, output) -> None:
-        payload = getattr(output, "payload", None)
+        payload = output.payload  # a PipelineOutput carrying FilterVsSmootherPayload
         if payload is None or not payload.scenarios:
             return
         prefixes = [o.name for o in payload.scenarios]

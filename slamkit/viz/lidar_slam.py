@@ -123,6 +123,7 @@ class LidarSlamObserver:
     """Records the ``lidar_slam`` pipeline from its output (``payload``: LidarSlamResult list)."""
 
     wants_steps = False
+    step_every = 1
 
     def __init__(self, path, spawn: bool = False):
         self.path, self.spawn = path, spawn
@@ -131,7 +132,7 @@ class LidarSlamObserver:
         pass
 
     def on_output(self, output) -> None:
-        results = getattr(output, "payload", output)
+        results = output.payload  # a PipelineOutput whose payload is the LidarSlamResult list
         if results:
             record_lidar_slam(results, self.path, self.spawn)
 

@@ -106,6 +106,9 @@ class PoseGraphPipelineObserver:
     """Records the ``pose_graph`` pipeline: the first run of every dataset under
     ``<dataset>/world/...`` and ``<dataset>/plots/error``."""
 
+    wants_steps = False  # everything it draws is in the pipeline's output
+    step_every = 1
+
     def __init__(self, path, spawn: bool = False):
         self.path, self.spawn = path, spawn
 
