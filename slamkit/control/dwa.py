@@ -43,6 +43,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from slamkit.geometry.angles import wrap_angle
 from slamkit.control.path_following import crop, point_at, project_many, project_on_path
 from slamkit.control.protocols import (non_finite_brake, ControlOutput, ControlStatus, LocalWorld, Reference,
                                        RobotState, brake_command)
@@ -100,9 +101,6 @@ def dynamic_window(v_c: float, omega_c: float, config: DWAConfig) -> tuple[tuple
     return (v_lo, v_hi), (w_lo, w_hi)
 
 
-def _wrap(a: np.ndarray) -> np.ndarray:
-    return (a + np.pi) % (2 * np.pi) - np.pi
-
 
 class DWAController:
     name = "dwa"
@@ -149,7 +147,7 @@ class DWAController:
         target = point_at(local, s_end + c.lookahead_m)
         to_target = target - traj[:, -1, :2]
         bearing = np.arctan2(to_target[:, 1], to_target[:, 0])
-        heading = 1.0 - np.abs(_wrap(bearing - traj[:, -1, 2])) / np.pi
+        heading = 1.0 - np.abs(wrap_angle(bearing - traj[:, -1, 2])) / np.pi
         free = np.isinf(dist)
         clearance = np.minimum(dist, horizon_len) / horizon_len
         if np.any(admissible & free):

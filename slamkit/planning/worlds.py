@@ -23,6 +23,7 @@ import math
 import numpy as np
 from scipy.spatial.distance import cdist
 
+from slamkit.geometry.angles import wrap_angle
 from slamkit.errors import PlanningError
 from slamkit.maps.occupancy_grid import OccupancyGrid
 
@@ -238,9 +239,6 @@ class PointWorld:
     def position(self, X: np.ndarray) -> np.ndarray:
         return np.asarray(X, dtype=float).reshape(-1, self.dim)[:, :2]
 
-
-def wrap_angle(a: np.ndarray) -> np.ndarray:
-    return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
 
 
 class SE2World:

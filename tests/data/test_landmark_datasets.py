@@ -10,13 +10,13 @@ from hypothesis import strategies as st
 
 from slamkit.data.formats.landmark_datasets import (
     chain,
-    compose_se2,
     load_landmark_sequence,
     odometry_segments,
     read_mrclam_sequence,
     read_pyfg_landmark_sequence,
 )
 from slamkit.data.sequence import Odometry, RangeBearing
+from slamkit.geometry import se2
 from slamkit.errors import DataError
 from slamkit.models import diff_drive
 
@@ -52,7 +52,7 @@ def test_odometry_events_compose_to_the_relative_pose(dx, dy, dth, th0, dt) -> N
     start = np.array([0.3, -1.2, th0])
     rel = np.array([[dx, dy, dth]])
     end = _integrate(start, odometry_segments(rel, np.array([0.0]), np.array([dt])))
-    expected = compose_se2(start[None], rel)[0]
+    expected = se2.compose(start[None], rel)[0]
     np.testing.assert_allclose(end[:2], expected[:2], atol=1e-9)
     assert np.angle(np.exp(1j * (end[2] - expected[2]))) == pytest.approx(0.0, abs=1e-9)
 

@@ -38,6 +38,8 @@ from typing import Mapping
 
 import numpy as np
 
+from slamkit.geometry import se2
+from slamkit.geometry.angles import wrap_angle
 from slamkit._text import number_rows, parse_int, parse_number, read_lines
 from slamkit.data.sequence import Event, Odometry, RangeBearing, Sequence
 from slamkit.data.trajectory import Trajectory
@@ -46,16 +48,6 @@ from slamkit.errors import DataError
 LANDMARK_DATASETS = ("citytrees10000", "victoria-park", "mrclam5a", "mrclam1")
 
 
-def _wrap(a: np.ndarray) -> np.ndarray:
-    return (np.asarray(a, dtype=float) + np.pi) % (2.0 * np.pi) - np.pi
-
-
-def compose_se2(poses: np.ndarray, rel: np.ndarray) -> np.ndarray:
-    """poses (N, 3) (+) rel (N, 3): world_T_a * a_T_b for planar poses."""
-    c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
-    return np.column_stack([poses[:, 0] + c * rel[:, 0] - s * rel[:, 1],
-                            poses[:, 1] + s * rel[:, 0] + c * rel[:, 1],
-                            _wrap(poses[:, 2] + rel[:, 2])])
 
 
 def chain(start: np.ndarray, rel: np.ndarray) -> np.ndarray:
@@ -63,7 +55,7 @@ def chain(start: np.ndarray, rel: np.ndarray) -> np.ndarray:
     out = np.empty((len(rel) + 1, 3))
     out[0] = start
     for k in range(len(rel)):  # a recurrence: each pose depends on the previous one
-        out[k + 1] = compose_se2(out[k:k + 1], rel[k:k + 1])[0]
+        out[k + 1] = se2.compose(out[k:k + 1], rel[k:k + 1])[0]
     return out
 
 
@@ -74,9 +66,9 @@ def odometry_segments(rel: np.ndarray, t0: np.ndarray, t1: np.ndarray) -> list[O
     d = np.hypot(rel[:, 0], rel[:, 1])
     alpha = np.where(d > 1e-12, np.arctan2(rel[:, 1], rel[:, 0]), 0.0)
     backwards = np.abs(alpha) > np.pi / 2
-    alpha = np.where(backwards, _wrap(alpha - np.pi), alpha)
+    alpha = np.where(backwards, wrap_angle(alpha - np.pi), alpha)
     d = np.where(backwards, -d, d)
-    beta = _wrap(rel[:, 2] - alpha)
+    beta = wrap_angle(rel[:, 2] - alpha)
     dt = (np.asarray(t1, float) - np.asarray(t0, float)) / 3.0
     if np.any(~(dt > 0)):
         k = int(np.flatnonzero(~(dt > 0))[0])
@@ -207,7 +199,7 @@ def read_isam_landmark_sequence(path: str | Path, name: str | None = None, max_p
             raise DataError("ground-truth twin does not have the same structure", ground_truth_path)
         gt_poses = chain(np.zeros(3), gt_rel)
         pose_idx = gindex[gkeep]
-        world = compose_se2(gt_poses[pose_idx], np.column_stack([gt_lms.body_p_landmark[gkeep], np.zeros(gkeep.sum())]))
+        world = se2.compose(gt_poses[pose_idx], np.column_stack([gt_lms.body_p_landmark[gkeep], np.zeros(gkeep.sum())]))
         world_lm = {}
         for lid, p in zip(gt_lms.landmark_id[gkeep], world[:, :2]):
             world_lm.setdefault(int(lid), p)  # noise-free: every sighting gives the same point
