@@ -51,6 +51,7 @@ from gtsam.symbol_shorthand import L, X
 from slamkit.data.estimate import Estimate, Prior
 from slamkit.data.sequence import Event, Odometry, RangeBearing, Sequence, event_problem
 from slamkit.data.trajectory import Trajectory
+from slamkit.geometry import se2
 from slamkit.errors import ConfigError, EstimationError
 from slamkit.models import diff_drive
 
@@ -158,8 +159,7 @@ def _world_cov_rotation(theta: float) -> np.ndarray:
 
 
 def _world_cov(pose_xytheta: np.ndarray, cov_body: np.ndarray) -> np.ndarray:
-    A = _world_cov_rotation(pose_xytheta[2])
-    return A @ cov_body @ A.T
+    return se2.covariance_body_to_world(pose_xytheta, cov_body)
 
 
 def _xytheta(pose: gtsam.Pose2) -> np.ndarray:
@@ -176,6 +176,8 @@ class _LandmarkSmootherBase:
     def __init__(self, config: LandmarkSLAMConfig = LandmarkSLAMConfig()) -> None:
         self.config = config
         self._ready = False
+        #: the noise a batch solve() takes from the sequence's metadata when the config has none
+        self._sequence_noise: SmootherNoise | None = None
 
     # -- protocol ------------------------------------------------------------------------------
     def reset(self, prior: Prior) -> None:
@@ -185,7 +187,7 @@ class _LandmarkSmootherBase:
             raise EstimationError(f"{self.name}: prior contains NaN or infinite values")
         if np.any(np.linalg.eigvalsh(0.5 * (cov + cov.T)) <= 0):
             raise EstimationError(f"{self.name}: prior covariance must be positive definite")
-        self.noise = self.config.noise or getattr(self, "_pending_noise", None) or SmootherNoise()
+        self.noise = self.config.noise or self._sequence_noise or SmootherNoise()
         self._bearing_range_model = gtsam.noiseModel.Diagonal.Sigmas(
             np.array([self.noise.sigma_bearing_rad, self.noise.sigma_range_m]))
         self._stamps: list[float | None] = [None]      # X(0)'s stamp is set by the first event
@@ -327,11 +329,11 @@ class BatchLandmarkSLAM(_LandmarkSmootherBase):
     def solve(self, sequence: Sequence) -> Estimate:
         """reset from the sequence's start pose and metadata noise, feed every event, solve."""
         noise = self.config.noise or SmootherNoise.from_metadata(sequence.metadata)
-        self._pending_noise = noise
+        self._sequence_noise = noise
         try:
             self.reset(prior_from_sequence(sequence, noise))
         finally:
-            self._pending_noise = None
+            self._sequence_noise = None
         for event in sequence:
             self.step(event)
         return self.estimate()

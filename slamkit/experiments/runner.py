@@ -186,23 +186,17 @@ class Scored:
 
 
 def world_pose_covariances(estimate: Estimate) -> np.ndarray | None:
-    """Pose covariances in the world (x, y, theta) convention the filters use.
+    """The estimate's (N, 3, 3) pose covariances, or None when it has none of that shape.
 
-    A smoother that reports GTSAM marginals in the body frame (tangent space of Pose2, where
-    x * Exp(xi) perturbs the pose) says so with ``extras['pose_covariance_frame'] == 'body'``;
-    to first order the world perturbation is blockdiag(R(theta), 1) xi, so P_world = J P J^T."""
+    Every estimator reports them in the world (x, y, theta) convention the filters use; the
+    GTSAM smoothers rotate their body-frame marginals themselves, with
+    :func:`slamkit.geometry.se2.covariance_body_to_world` (the one place that conversion lives)."""
     P = estimate.pose_covariances
     if P is None:
         return None
     P = np.asarray(P, dtype=float)
     if P.shape[-2:] != (3, 3):
         return None
-    if estimate.extras.get("pose_covariance_frame", "world") == "body":
-        theta = estimate.trajectory.xytheta()[:, 2]
-        J = np.zeros((len(theta), 3, 3))
-        c, s = np.cos(theta), np.sin(theta)
-        J[:, 0, 0], J[:, 0, 1], J[:, 1, 0], J[:, 1, 1], J[:, 2, 2] = c, -s, s, c, 1.0
-        P = J @ P @ np.swapaxes(J, -1, -2)
     return P
 
 

@@ -153,3 +153,14 @@ def from_matrix(M: np.ndarray) -> np.ndarray:
     """Homogeneous (..., 3, 3) -> (..., 3)."""
     M = _arr(M)
     return _pack(M[..., 0, 2], M[..., 1, 2], np.arctan2(M[..., 1, 0], M[..., 0, 0]))
+
+
+def covariance_body_to_world(world_xytheta_body: np.ndarray, cov_body: np.ndarray) -> np.ndarray:
+    """A (3, 3) pose covariance in the body-frame tangent (GTSAM's Pose2 marginals, where
+    T Exp(xi) perturbs the pose) expressed in world (x, y, theta) terms, to first order:
+    T Exp(xi) ~ (t + R(theta) xi_t, theta + xi_theta), so P_world = A P_body A^T with
+    A = blockdiag(R(theta), 1)."""
+    theta = float(np.asarray(world_xytheta_body, dtype=float).reshape(3)[2])
+    c, s = np.cos(theta), np.sin(theta)
+    A = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    return A @ np.asarray(cov_body, dtype=float) @ A.T
