@@ -194,8 +194,9 @@ class ClosedLoopConfig:
 
 
 @dataclass(frozen=True)
-class StepSnapshot:
-    """What observers (the Rerun recorder, progress bars) see after each cycle."""
+class ControlStep:
+    """One closed-loop cycle as observers (the Rerun recorder, progress bars) see it; pipeline
+    observers receive it as the ``state['step']`` of an ``observers.StepSnapshot``."""
 
     step: int
     t_s: float
@@ -209,7 +210,7 @@ class StepSnapshot:
 class Observer(Protocol):
     def on_episode(self, scenario: Scenario, controller: str) -> None: ...
 
-    def on_step(self, snapshot: StepSnapshot) -> None: ...
+    def on_step(self, snapshot: ControlStep) -> None: ...
 
 
 @dataclass(frozen=True)
@@ -284,7 +285,7 @@ def run_episode(scenario: Scenario, controller: Controller, config: ClosedLoopCo
         lat.append(out.solve_time_s); clear.append(c)  # noqa: E702
         if observers:
             obs = scenario.obstacles
-            snap = StepSnapshot(k + 1, t_next, x, out,
+            snap = ControlStep(k + 1, t_next, x, out,
                                 obs.position_at(t_next) if len(obs) else np.zeros((0, 2)),
                                 obs.radius_m, c)
             for ob in observers:
@@ -347,7 +348,7 @@ def scenario_list(config: Mapping[str, Any]) -> list[Scenario]:
 class _PipelineStepAdapter:
     """Forwards closed-loop steps to a pipeline observer (``slamkit.experiments.observers``) as
     ``StepSnapshot(kind="local_planning", run="<controller>/<scenario>", ...)`` whose state holds
-    the scenario, the controller name and this module's :class:`StepSnapshot`."""
+    the scenario, the controller name and this module's :class:`ControlStep`."""
 
     def __init__(self, observer, controller: str, scenario: Scenario):
         self.observer, self.controller, self.scenario = observer, controller, scenario
@@ -355,10 +356,10 @@ class _PipelineStepAdapter:
     def on_episode(self, scenario: Scenario, controller: str) -> None:
         pass
 
-    def on_step(self, snap: StepSnapshot) -> None:
-        from slamkit.experiments.observers import StepSnapshot as PipelineStep
+    def on_step(self, snap: ControlStep) -> None:
+        from slamkit.experiments.observers import StepSnapshot
 
-        self.observer.on_step(PipelineStep("local_planning", f"{self.controller}/{self.scenario.name}",
+        self.observer.on_step(StepSnapshot("local_planning", f"{self.controller}/{self.scenario.name}",
                                            snap.step, snap.t_s, {"scenario": self.scenario,
                                                                  "controller": self.controller,
                                                                  "step": snap}))
