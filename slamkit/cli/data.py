@@ -10,6 +10,7 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
+from slamkit.errors import DataError
 from slamkit.cli.app import app, dumps_json
 from slamkit.data import registry
 
@@ -121,3 +122,34 @@ def fetch_cmd(
     """Download a dataset into the cache, verifying every file's sha256."""
     path = registry.fetch(name, url_override=url, cache_dir=cache_dir)
     typer.echo(str(path))
+
+
+@data_app.command("convert")
+def convert_cmd(
+    source: str = typer.Argument(..., help="a registry laser log (intel-log, fr079-log, ...), a CARMEN "
+                                 ".clf[.gz|.bz2] file or a .slamseq file"),
+    out: Path = typer.Argument(..., help="the bag to write (a ROS 2 bag folder; a .bag name writes ROS 1)"),
+) -> None:
+    """Write a recording as a ROS bag (LaserScan, Odometry, Imu, NavSatFix) through rosbags."""
+    from slamkit.data.formats.rosbag import write_bag
+
+    summary = write_bag(out, load_recording(source), ros_version=1 if out.suffix == ".bag" else 2)
+    typer.echo(f"wrote {summary.path}: " + ", ".join(f"{t} {n}" for t, n in summary.messages.items())
+               + ("; skipped " + ", ".join(f"{k} {n}" for k, n in summary.skipped_events.items())
+                  if summary.skipped_events else ""))
+
+
+def load_recording(source: str):
+    """A Sequence from a registry laser log, a CARMEN log file or a .slamseq file."""
+    from slamkit.data.formats.carmen import load_carmen_sequence
+    from slamkit.data.formats.sequence import SequenceReader
+
+    target = registry.resolve(source)
+    if isinstance(target, Path):
+        if target.suffix == ".slamseq":
+            return SequenceReader(target)
+        return load_carmen_sequence(target)
+    if target.format != "carmen":
+        raise DataError(f"dataset {target.name!r} is a {target.kind} ({target.format}); convert reads "
+                        "laser logs and .slamseq files")
+    return load_carmen_sequence(registry.path_of(target.name), target.name.removesuffix("-log"))

@@ -115,3 +115,31 @@ def rpe_command(
     """Relative pose error over pose pairs delta frames or metres apart (drift)."""
     _run("rpe", ref, est, fmt, align, relation, max_diff, n_first, as_json, delta=delta,
          delta_unit=delta_unit.value, all_pairs=all_pairs)
+
+
+@eval_app.command("relations")
+def relations_command(
+    est: Path = EST,
+    relations: Path = typer.Option(..., "--relations", help="relations file (t1 t2 x y z roll pitch yaw), e.g. "
+                                   "the SLAM benchmark's intel.relations"),
+    fmt: Format = FORMAT,
+    tolerance: float = typer.Option(1e-3, "--tolerance", help="max. stamp difference (s) between a relation "
+                                    "stamp and an estimate pose", callback=positive),
+    as_json: bool = JSON,
+) -> None:
+    """Relation error (Kuemmerle et al. 2009): the estimate's relative displacements against the
+    benchmark's manually verified ones; translational (m) and rotational (deg) mean and std."""
+    from slamkit.metrics.evaluate import load_trajectory
+    from slamkit.metrics.relations import evaluate_relations
+
+    result = evaluate_relations(load_trajectory(est, fmt.value), relations, tolerance)
+    out = result.to_dict()
+    if as_json:
+        print(dumps_json(out))
+        return
+    table = Table(title=f"relation error of {est.name} on {relations.name}")
+    table.add_column("metric")
+    table.add_column("value", justify="right")
+    for key, value in out.items():
+        table.add_row(key, f"{value:.6g}" if isinstance(value, float) else str(value))
+    Console().print(table)

@@ -148,3 +148,26 @@ def test_table_output_and_errors(tum_pair, tmp_path: Path):
     result = runner.invoke(app, ["eval", "ate", "--ref", ref, "--est", est, "--delta", "3", "--json"])
     assert result.exit_code == 0 and "ignored" in result.stderr
     assert json.loads(result.stdout)["rmse"] == pytest.approx(5.0)
+
+
+def test_eval_relations_on_intel_raw_odometry(shared_datasets, tmp_path) -> None:
+    # the laser poses by odometry of every FLASER line, written as TUM, score the MANIFEST's check
+    from slamkit.data.formats.carmen import read_carmen
+
+    laser = read_carmen(shared_datasets / "lidar_2d" / "intel.clf.bz2").front
+    write_tum(tmp_path / "odo.tum", Trajectory.from_se2(laser.stamps_s, laser.world_xytheta_laser))
+    result = runner.invoke(app, ["eval", "relations", "--est", str(tmp_path / "odo.tum"),
+                                 "--relations", str(shared_datasets / "lidar_2d" / "intel.relations"), "--json"])
+    assert result.exit_code == 0, result.output
+    out = json.loads(result.output)
+    assert out["relation_count"] == 2984 and out["relation_unmatched"] == 0
+    assert round(out["relation_trans_mean_m"], 2) == 7.37 and round(out["relation_trans_std_m"], 2) == 14.35
+
+
+def test_data_convert_writes_a_bag_that_reads_back(tmp_path) -> None:
+    from slamkit.data.formats.rosbag import read_bag
+
+    result = runner.invoke(app, ["data", "convert", "mit-csail-log", str(tmp_path / "mit")])
+    assert result.exit_code == 0, result.output
+    assert result.output.strip() == f"wrote {tmp_path / 'mit'}: /scan 1988, /odom 1988"
+    assert len(read_bag(tmp_path / "mit").events) == 1988 + 1987

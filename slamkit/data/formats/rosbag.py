@@ -171,7 +171,10 @@ def read_bag(path: str | Path, topics: BagTopics = BagTopics(), name: str | None
     finally:
         reader.close()
 
-    events: list = []
+    # odometry first: at a shared stamp the motion up to t comes before the measurement at t
+    # (the order every slamkit reader and the simulator use; from_events keeps it, sorting stably)
+    odometry = _odometry_events(rows, odometry_source, tf_odometry, path)
+    events: list = list(odometry)
     skipped: dict[str, int] = {}
     for t_ns, m in rows.get("scan", []):
         angles = beam_angles_rad(m.angle_min, m.angle_increment, len(m.ranges))
@@ -180,8 +183,6 @@ def read_bag(path: str | Path, topics: BagTopics = BagTopics(), name: str | None
         # range_max travels as float32: its shortest decimal is the value the sensor reported
         events.append(Scan(_stamp_s(m, t_ns), angles, np.where(valid, r, np.nan).astype(r.dtype),
                            float(str(np.float32(m.range_max)))))
-    odometry = _odometry_events(rows, odometry_source, tf_odometry, path)
-    events += odometry
     for t_ns, m in rows.get("imu", []):
         av, la = m.angular_velocity, m.linear_acceleration
         events.append(Imu(_stamp_s(m, t_ns), np.array([av.x, av.y, av.z]), np.array([la.x, la.y, la.z])))
