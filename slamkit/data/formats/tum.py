@@ -59,7 +59,7 @@ def check_stamps(stamps: np.ndarray, lines: np.ndarray, path: str | Path) -> Non
     back = np.flatnonzero(np.diff(stamps) < 0)
     if len(back):
         k = int(back[0]) + 1
-        raise DataError(f"timestamp {stamps[k]!r} is earlier than the previous one {stamps[k - 1]!r}",
+        raise DataError(f"timestamp {float(stamps[k])!r} is earlier than the previous one {float(stamps[k - 1])!r}",
                         path, int(lines[k]))
 
 
