@@ -32,7 +32,7 @@ ALLOWED = {
             "planning", "control", "metrics", "experiments"},
     "cli": None,  # may import everything
 }
-BASE_MODULES = {"errors", "timing", "config", "paths", "_native", "_text", "__init__"}
+BASE_MODULES = {"errors", "timing", "config", "paths", "naming", "_native", "_text", "__init__"}
 # third-party packages confined to one slamkit package
 CONFINED = {
     "gtsam": {"backend", "bench"},

@@ -212,8 +212,8 @@ def scenes(quick: bool) -> dict[str, PlanningProblem]:
 def table(quick: bool = False, planners: list[str] | None = None, runs: int | None = None,
           time_limit_s: float = 1.0) -> list[dict]:
     """One OMPL-benchmark-style row per (world, planner): success rate and means over runs."""
-    planners = planners or ["astar", "dijkstra", "dstar-lite", "prm", "rrt", "rrt-connect", "rrt-star",
-                            "informed-rrt-star"]
+    planners = planners or ["astar", "dijkstra", "dstar_lite", "prm", "rrt", "rrt_connect", "rrt_star",
+                            "informed_rrt_star"]
     runs = runs or (2 if quick else 5)
     rows = []
     for world_name, problem in scenes(quick).items():

@@ -70,7 +70,7 @@ def plan(
     start: str = typer.Option(..., "--start", help="X,Y in metres"),
     goal: str = typer.Option(..., "--goal", help="X,Y in metres"),
     planner: str = typer.Option("astar", "--planner",
-                                help="astar|dijkstra|dstar-lite|prm|rrt|rrt-connect|rrt-star|informed-rrt-star"),
+                                help="astar|dijkstra|dstar_lite|prm|rrt|rrt_connect|rrt_star|informed_rrt_star"),
     inflate_m: float = typer.Option(0.0, "--inflate", help="inflate obstacles by this robot radius (m)",
                                     callback=non_negative),
     seed: int = typer.Option(0, "--seed", help="seed of the sampling planners' rng"),

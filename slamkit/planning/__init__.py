@@ -3,10 +3,10 @@
 ``planner.plan(PlanningProblem(world, start, goal)) -> PlanResult`` (see :mod:`.protocols`).
 
 Grid (OccupancyGrid, optional per-cell cost multipliers from a costmap): ``astar``,
-``dijkstra`` (compiled C core with a pure-Python fallback, :mod:`.grid_search`), ``dstar-lite``
+``dijkstra`` (compiled C core with a pure-Python fallback, :mod:`.grid_search`), ``dstar_lite``
 (incremental). Sampling (:class:`.worlds.PointWorld` with circles/polygons/grid, or
-:class:`.worlds.SE2World` for a rigid polygonal body): ``prm``, ``rrt``, ``rrt-connect``,
-``rrt-star``, ``informed-rrt-star``. Build any of them by name with
+:class:`.worlds.SE2World` for a rigid polygonal body): ``prm``, ``rrt``, ``rrt_connect``,
+``rrt_star``, ``informed_rrt_star``. Build any of them by name with
 :func:`.registry.make_planner`; post-process paths with :mod:`.postprocess`;
 ``slamkit bench planning`` runs :mod:`.benchmark`.
 """

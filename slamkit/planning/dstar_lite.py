@@ -52,7 +52,7 @@ class DStarLiteConfig:
 
 
 class DStarLitePlanner:
-    name = "dstar-lite"
+    name = "dstar_lite"
 
     def __init__(self, config: DStarLiteConfig = DStarLiteConfig(), hook: Hook | None = None):
         self.config = config

@@ -39,7 +39,7 @@ def sample_ellipse(rng: np.random.Generator, focus_a: np.ndarray, focus_b: np.nd
 
 
 class InformedRRTStarPlanner(RRTStarPlanner):
-    name = "informed-rrt-star"
+    name = "informed_rrt_star"
 
     def __init__(self, config: RRTStarConfig = RRTStarConfig(), rng: np.random.Generator | None = None,
                  hook=None):

@@ -1,8 +1,9 @@
 """Planners by registry name: what configs, the CLI and the benchmark type.
 
-``make_planner("rrt-star", rng=np.random.default_rng(3), max_iterations=2000)`` builds the
-planner with its config's defaults overridden by the keyword arguments. Underscores and hyphens
-are interchangeable (``rrt_star`` == ``rrt-star``).
+``make_planner("rrt_star", rng=np.random.default_rng(3), max_iterations=2000)`` builds the
+planner with its config's defaults overridden by the keyword arguments. Names follow the one
+naming rule of :mod:`slamkit.naming`; the old hyphenated spellings (``rrt-star``) still work and
+are reported as deprecated.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from slamkit.errors import ConfigError
+from slamkit.naming import Registry
 from slamkit.planning.astar import AStarConfig, AStarPlanner
 from slamkit.planning.dijkstra import DijkstraConfig, DijkstraPlanner
 from slamkit.planning.dstar_lite import DStarLiteConfig, DStarLitePlanner
@@ -24,24 +26,21 @@ from slamkit.planning.rrt_connect import RRTConnectConfig, RRTConnectPlanner
 from slamkit.planning.rrt_star import RRTStarConfig, RRTStarPlanner
 
 #: name -> (planner class, config class, needs an rng)
-PLANNERS: dict[str, tuple[type, type, bool]] = {
+PLANNERS: Registry[tuple[type, type, bool]] = Registry("planner", {
     "astar": (AStarPlanner, AStarConfig, False),
     "dijkstra": (DijkstraPlanner, DijkstraConfig, False),
-    "dstar-lite": (DStarLitePlanner, DStarLiteConfig, False),
+    "dstar_lite": (DStarLitePlanner, DStarLiteConfig, False),
     "prm": (PRMPlanner, PRMConfig, True),
     "rrt": (RRTPlanner, RRTConfig, True),
-    "rrt-connect": (RRTConnectPlanner, RRTConnectConfig, True),
-    "rrt-star": (RRTStarPlanner, RRTStarConfig, True),
-    "informed-rrt-star": (InformedRRTStarPlanner, RRTStarConfig, True),
-}
-GRID_PLANNERS = ("astar", "dijkstra", "dstar-lite")
+    "rrt_connect": (RRTConnectPlanner, RRTConnectConfig, True),
+    "rrt_star": (RRTStarPlanner, RRTStarConfig, True),
+    "informed_rrt_star": (InformedRRTStarPlanner, RRTStarConfig, True),
+})
+GRID_PLANNERS = ("astar", "dijkstra", "dstar_lite")
 
 
 def canonical(name: str) -> str:
-    key = name.strip().lower().replace("_", "-")
-    if key not in PLANNERS:
-        raise ConfigError(f"unknown planner {name!r}; choose from {', '.join(PLANNERS)}")
-    return key
+    return PLANNERS.canonical(name)
 
 
 def make_planner(name: str, rng: np.random.Generator | None = None, hook: Hook | None = None,

@@ -42,7 +42,7 @@ def _extend(world, tree: Tree, target: np.ndarray, eta: float) -> tuple[int, boo
 
 
 class RRTConnectPlanner(SamplingPlanner):
-    name = "rrt-connect"
+    name = "rrt_connect"
 
     def __init__(self, config: RRTConnectConfig = RRTConnectConfig(), rng: np.random.Generator | None = None,
                  hook: Hook | None = None):

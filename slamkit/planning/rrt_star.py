@@ -54,7 +54,7 @@ def gamma_rrt_star(measure: float, d: int, rewire_factor: float = 1.1) -> float:
 
 
 class RRTStarPlanner(SamplingPlanner):
-    name = "rrt-star"
+    name = "rrt_star"
 
     def __init__(self, config: RRTStarConfig = RRTStarConfig(), rng: np.random.Generator | None = None,
                  hook: Hook | None = None):

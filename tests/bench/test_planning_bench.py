@@ -26,9 +26,9 @@ def test_walls_map_forces_a_snaking_path():
 
 
 def test_table_rows(shared_datasets):
-    rows = table(quick=True, planners=["astar", "dijkstra", "dstar-lite", "prm"], runs=2)
+    rows = table(quick=True, planners=["astar", "dijkstra", "dstar_lite", "prm"], runs=2)
     by = {(r["world"], r["planner"]): r for r in rows}
-    grid_lengths = {by[("den312d", p)]["length_m"] for p in ("astar", "dijkstra", "dstar-lite")}
+    grid_lengths = {by[("den312d", p)]["length_m"] for p in ("astar", "dijkstra", "dstar_lite")}
     assert max(grid_lengths) - min(grid_lengths) < 1e-9
     assert by[("den312d", "astar")]["expansions"] < by[("den312d", "dijkstra")]["expansions"]
     assert ("circles10", "astar") not in by  # grid planners skip continuous worlds

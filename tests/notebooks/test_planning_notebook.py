@@ -15,7 +15,7 @@ def test_planning_notebook_runs(run_notebook) -> None:
     assert len(errors) == 3 and max(errors) < 1e-3
     exp = {n: int(v) for n, v in re.findall(r"^(dijkstra|astar)\s+solved: .* expansions (\d+)", text, re.M)}
     assert exp["astar"] < exp["dijkstra"]
-    for name in ("rrt", "rrt-connect", "rrt-star", "informed-rrt-star", "prm"):
+    for name in ("rrt", "rrt_connect", "rrt_star", "informed_rrt_star", "prm"):
         assert re.search(rf"^{re.escape(name)}\s+solved", text, re.M), name
     assert text.count("collision-free True") == 3
     inc, scratch = map(int, re.search(r"incremental (\d+), from scratch (\d+)", text).groups())

@@ -105,7 +105,7 @@ def test_invalid_and_unreachable(name):
     assert isinstance(planner, Planner) and r.planner == name
     # A*/Dijkstra prove unreachability by closing the start's component (6 cells); D* Lite
     # searches backwards and closes the goal's component (5 cells)
-    assert r.stats.expansions == (5 if name == "dstar-lite" else 6)
+    assert r.stats.expansions == (5 if name == "dstar_lite" else 6)
 
 
 def test_malformed_problems_raise():

@@ -10,7 +10,7 @@ from slamkit.maps.occupancy_grid import OccupancyGrid
 from slamkit.planning.protocols import PlanningProblem, PlanStatus
 from slamkit.planning.registry import PLANNERS, make_planner
 
-SAMPLING_BUDGET = {"rrt": 500, "rrt-connect": 500, "rrt-star": 500, "informed-rrt-star": 500}
+SAMPLING_BUDGET = {"rrt": 500, "rrt_connect": 500, "rrt_star": 500, "informed_rrt_star": 500}
 
 
 def _grid() -> OccupancyGrid:

@@ -40,7 +40,7 @@ def test_cli_map_path_inflation_and_statuses(shared_datasets, tmp_path):
     assert inflated["cost"] > plain["cost"] - 2.5  # inflation never opens shortcuts (start moved 2 cells)
     wall = json.loads(runner.invoke(app, ["plan", "arena", "--start", "0.5,0.5", "--goal", "40.5,40.5", "--json"]).stdout)
     assert wall["status"] == "invalid_start" and wall["cost"] is None
-    rrt = runner.invoke(app, ["plan", "arena", "--start", "1.5,13.5", "--goal", "40.5,40.5", "--planner", "rrt-star",
+    rrt = runner.invoke(app, ["plan", "arena", "--start", "1.5,13.5", "--goal", "40.5,40.5", "--planner", "rrt_star",
                               "--max-iterations", "400", "--seed", "1", "--json"])
     d = json.loads(rrt.stdout)
     assert d["status"] == "solved" and d["samples"] == 400
@@ -57,20 +57,20 @@ def test_recording_has_map_frontier_tree_and_paths(tmp_path, verify_rrd):
     occ[5:25, 15] = True
     grid = OccupancyGrid(occ, resolution_m=0.5)
     problem = PlanningProblem(grid, [1.0, 7.0], [13.0, 7.0])
-    planners = {"astar": make_planner("astar"), "rrt-star": make_planner("rrt-star", max_iterations=300),
+    planners = {"astar": make_planner("astar"), "rrt_star": make_planner("rrt_star", max_iterations=300),
                 "prm": make_planner("prm", n_samples=200)}
     results = record_plans(tmp_path / "plan.rrd", problem, planners)
     assert all(r.solved for r in results.values())
     entities = verify_rrd(tmp_path / "plan.rrd")
     for e in ("/world/map", "/world/start", "/world/goal", "/world/search/astar/expanded",
-              "/world/search/rrt-star/tree", "/world/search/prm/roadmap", "/world/path/astar",
-              "/world/path/rrt-star", "/plots/best_cost/rrt-star"):
+              "/world/search/rrt_star/tree", "/world/search/prm/roadmap", "/world/path/astar",
+              "/world/path/rrt_star", "/plots/best_cost/rrt_star"):
         assert e in entities, (e, sorted(entities))
 
 
 def test_recording_of_a_continuous_world(tmp_path, verify_rrd):
     world = PointWorld([[0, 0], [10, 10]], circles=[[5, 5, 2.0]], polygons=[np.array([[1, 6], [3, 6], [2, 8]])])
     problem = PlanningProblem(world, [0.5, 0.5], [9.5, 9.5])
-    record_plans(tmp_path / "c.rrd", problem, {"rrt-connect": make_planner("rrt-connect")})
+    record_plans(tmp_path / "c.rrd", problem, {"rrt_connect": make_planner("rrt_connect")})
     entities = verify_rrd(tmp_path / "c.rrd")
-    assert {"/world/obstacles/circles", "/world/obstacles/polygons", "/world/path/rrt-connect"} <= entities
+    assert {"/world/obstacles/circles", "/world/obstacles/polygons", "/world/path/rrt_connect"} <= entities

@@ -16,6 +16,7 @@ from slamkit.planning.informed_rrt_star import sample_ellipse
 from slamkit.planning.postprocess import min_clearance, path_length, shortcut, smooth, smoothness
 from slamkit.planning.prm import PRMConfig, PRMPlanner, sample_states
 from slamkit.planning.protocols import PlanningProblem, PlanStatus
+from slamkit.naming import SlamkitDeprecationWarning
 from slamkit.planning.registry import GRID_PLANNERS, make_planner, planner_names
 from slamkit.planning.rrt import RRTConfig, RRTPlanner
 from slamkit.planning.rrt_star import RRTStarConfig, RRTStarPlanner, gamma_rrt_star
@@ -79,13 +80,16 @@ def test_time_budget_is_obeyed():
 
 
 def test_registry_names_and_config_errors():
-    assert set(planner_names()) == {"astar", "dijkstra", "dstar-lite", "prm", "rrt", "rrt-connect",
-                                    "rrt-star", "informed-rrt-star"}
-    assert make_planner("rrt_star").name == "rrt-star"
-    with pytest.raises(ConfigError):
-        make_planner("rrt-star", bogus=1)
-    with pytest.raises(ConfigError):
-        make_planner("fmt")
+    assert set(planner_names()) == {"astar", "dijkstra", "dstar_lite", "prm", "rrt", "rrt_connect",
+                                    "rrt_star", "informed_rrt_star"}
+    assert make_planner("rrt_star").name == "rrt_star"
+    # the hyphenated spellings of earlier releases still build the planner, with a warning
+    with pytest.warns(SlamkitDeprecationWarning, match="planner name 'rrt-star' is deprecated; write 'rrt_star'"):
+        assert make_planner("rrt-star").name == "rrt_star"
+    with pytest.raises(ConfigError, match="unknown config keys \\['bogus'\\]"):
+        make_planner("rrt_star", bogus=1)
+    with pytest.raises(ConfigError, match="unknown planner 'rrt_start' \\(did you mean 'rrt_star'\\?\\); known: astar, "):
+        make_planner("rrt_start")
     with pytest.raises(PlanningError):
         RRTConfig(goal_bias=2.0)
     with pytest.raises(PlanningError):  # SE(2) states in a point world
@@ -144,7 +148,7 @@ def test_informed_ellipse_samples_inside_and_uniform():
 # ---------------------------------------------------------------- properties
 
 @settings(max_examples=15, deadline=None)
-@given(st.integers(0, 10_000), st.sampled_from(["rrt", "rrt-connect", "rrt-star", "prm"]))
+@given(st.integers(0, 10_000), st.sampled_from(["rrt", "rrt_connect", "rrt_star", "prm"]))
 def test_random_worlds_paths_collision_free(seed, name):
     rng = np.random.default_rng(seed)
     circles = np.column_stack([rng.uniform(1, 9, (6, 2)), rng.uniform(0.3, 1.2, 6)])
@@ -165,7 +169,7 @@ def test_grid_world_paths_stay_in_free_cells():
     occ[5:15, 10] = True
     grid = OccupancyGrid(occ, resolution_m=0.5)
     problem = PlanningProblem(grid, [1.0, 5.0], [9.0, 5.0])
-    for name in ("rrt", "rrt-star", "prm"):
+    for name in ("rrt", "rrt_star", "prm"):
         r = _fast(name).plan(problem)
         assert r.solved
         dense = np.concatenate([a + np.linspace(0, 1, 50)[:, None] * (b - a) for a, b in zip(r.path[:-1], r.path[1:])])
@@ -226,7 +230,7 @@ def test_se2_collision_depends_on_heading():
     assert not w.motions_valid(np.array([[5.0, 5.0, 0.0]]), np.array([[5.0, 5.0, 1.2]]))[0]
 
 
-@pytest.mark.parametrize("name", ["rrt", "rrt-connect", "rrt-star", "prm"])
+@pytest.mark.parametrize("name", ["rrt", "rrt_connect", "rrt_star", "prm"])
 def test_se2_through_slot(name):
     w = _slot_world()
     problem = PlanningProblem(w, [1.5, 5.0, np.pi / 2], [8.5, 5.0, np.pi / 2])
