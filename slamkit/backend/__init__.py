@@ -16,8 +16,9 @@ from slamkit.backend.initialisation import InitialEstimate, initial_values
 from slamkit.backend.landmark_slam import (BatchLandmarkSLAM, FixedLagLandmarkSLAM,
                                            Isam2LandmarkSLAM, LandmarkSLAMConfig, SmootherNoise)
 from slamkit.backend.objective import sesync_objective, sesync_weights
+from slamkit.backend.isam2 import Isam2Params, Isam2PoseGraph
 from slamkit.backend.solvers import OptimizeConfig, OptimizeResult, optimize
 
 __all__ = ["build_graph", "initial_values", "InitialEstimate", "optimize", "OptimizeConfig",
-           "OptimizeResult", "sesync_objective", "sesync_weights", "BatchLandmarkSLAM",
+           "OptimizeResult", "Isam2Params", "Isam2PoseGraph", "sesync_objective", "sesync_weights", "BatchLandmarkSLAM",
            "Isam2LandmarkSLAM", "FixedLagLandmarkSLAM", "LandmarkSLAMConfig", "SmootherNoise"]

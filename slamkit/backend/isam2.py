@@ -24,6 +24,7 @@ import gtsam
 import numpy as np
 
 from slamkit.backend._convert import pose_key, poses_from_values, to_pose
+from slamkit.backend.graph import ROBUST_KINDS, gauge_prior, gaussian_from_information, robust
 from slamkit.data.pose_graph import PoseGraph
 from slamkit.errors import BackendError
 
@@ -142,3 +143,76 @@ def isam2_replay(graph: PoseGraph, factor_graph: gtsam.NonlinearFactorGraph,
         if relinearised == 0:
             break
     return isam.calculateEstimate(), updates
+
+
+class Isam2PoseGraph:
+    """A planar pose graph grown and solved online with iSAM2 (an engine: holds the Bayes tree).
+
+    ``add_pose(i, world_xytheta)`` brings in vertex ``i`` at an initial guess (the first one
+    gets the gauge prior); ``add_edge(i, j, i_xytheta_j, information, robust_edge)`` a
+    BetweenFactor (``robust_edge`` wraps its noise in the kernel ``robust_kind``); ``update()`` hands
+    what was added to ``ISAM2.update`` (one Gauss-Newton step with fluid relinearisation,
+    Kaess et al. 2012, Alg. 1) and ``poses()`` returns the current estimate of every vertex, in
+    the order they were added, as (N, 3). Edges are also kept as a :class:`PoseGraph` (``graph()``)
+    for a final batch solve."""
+
+    def __init__(self, robust_kind: str = "cauchy", robust_k: float | None = None,
+                 params: Isam2Params = Isam2Params(), prior_sigma: float = 1e-6, name: str = "online"):
+        if robust_kind not in ROBUST_KINDS:
+            raise BackendError(f"robust must be one of {ROBUST_KINDS}, got {robust_kind!r}")
+        self.robust_kind, self.robust_k, self.prior_sigma, self.name = robust_kind, robust_k, prior_sigma, name
+        self._isam = gtsam.ISAM2(params.to_gtsam())
+        self._factors = gtsam.NonlinearFactorGraph()
+        self._values = gtsam.Values()
+        self._ids: list[int] = []
+        self._initial: list[np.ndarray] = []
+        self._edges: list[tuple[int, int, np.ndarray, np.ndarray]] = []
+        self._poses = np.zeros((0, 3))
+
+    @property
+    def num_poses(self) -> int:
+        return len(self._ids)
+
+    def add_pose(self, vertex_id: int, world_xytheta: np.ndarray) -> None:
+        row = np.asarray(world_xytheta, dtype=float).reshape(3)
+        if not self._ids:
+            self._factors.add(gauge_prior(2, int(vertex_id), row, self.prior_sigma))
+        self._values.insert(pose_key(vertex_id), to_pose(2, row))
+        self._ids.append(int(vertex_id))
+        self._initial.append(row.copy())
+        self._poses = np.vstack([self._poses, row[None]])
+
+    def add_edge(self, i: int, j: int, i_xytheta_j: np.ndarray, information: np.ndarray,
+                 robust_edge: bool = True) -> None:
+        z = np.asarray(i_xytheta_j, dtype=float).reshape(3)
+        info = np.asarray(information, dtype=float).reshape(3, 3)
+        model = gaussian_from_information(0.5 * (info + info.T))
+        if robust_edge:
+            model = robust(model, self.robust_kind, self.robust_k)
+        self._factors.add(gtsam.BetweenFactorPose2(pose_key(i), pose_key(j), to_pose(2, z), model))
+        self._edges.append((int(i), int(j), z, info))
+
+    def update(self, extra_steps: int = 0) -> None:
+        """Solve what was added (plus ``extra_steps`` empty updates: more relinearisation after a
+        loop closure moved much of the graph) and refresh ``poses()``."""
+        self._isam.update(self._factors, self._values)
+        for _ in range(extra_steps):
+            self._isam.update()
+        self._factors = gtsam.NonlinearFactorGraph()
+        self._values = gtsam.Values()
+        self._poses = poses_from_values(2, np.asarray(self._ids), self._isam.calculateEstimate())
+
+    def poses(self) -> np.ndarray:
+        """(N, 3) current estimate (rows in the order of ``add_pose``; not yet updated vertices
+        at their initial guess)."""
+        return self._poses
+
+    def graph(self) -> PoseGraph:
+        """Everything added so far as a :class:`PoseGraph`, the current estimate as its poses."""
+        if self._edges:
+            ef, et, z, info = (np.array(v) for v in zip(*self._edges))
+        else:
+            ef = et = np.zeros(0, dtype=np.int64)
+            z, info = np.zeros((0, 3)), np.zeros((0, 3, 3))
+        return PoseGraph(2, np.asarray(self._ids), self._poses.copy(), ef.astype(np.int64),
+                         et.astype(np.int64), z.reshape(-1, 3), info.reshape(-1, 3, 3), name=self.name)

@@ -1,0 +1,462 @@
+"""Lidar SLAM as a running system: fed 2D scans (and wheel odometry when there is any), it keeps
+a keyframe pose graph, closes loops and returns the trajectory of every scan and an occupancy
+map. It knows nothing of ground truth, files or reports (``slamkit.experiments.lidar_slam``
+feeds it a Sequence and scores it).
+
+The method is graph-based SLAM with a scan-matching front-end (Lu & Milios, "Globally
+consistent range scan alignment", Autonomous Robots 4, 1997; Grisetti et al., "A tutorial on
+graph-based SLAM", IEEE ITS Magazine 2010; the local/global split of Cartographer, Hess et al.,
+"Real-time loop closure in 2D LIDAR SLAM", ICRA 2016):
+
+1. Every scan is despeckled (``slamkit.frontend.preprocess``), turned into body-frame points
+   (``body_xytheta_lidar``: where the lidar sits on the robot) and matched by point-to-line ICP
+   (``slamkit.frontend.icp``) against a local submap -- the last ``submap_keyframes`` keyframes'
+   points in the newest keyframe's frame -- starting from the ``motion_prior``: the wheel
+   odometry since the previous scan (``odometry``), the previous scan-to-scan motion
+   (``constant_velocity``, lidar only) or no motion (``identity``). A match whose fitness is
+   below ``min_match_fitness`` keeps the prior instead.
+2. Keyframes by travelled distance/rotation (``slamkit.frontend.keyframes``) of the matched
+   pose. A new keyframe becomes a pose-graph vertex with an edge from the previous keyframe
+   (the ICP result and its covariance). Every other scan is stored relative to its keyframe, so
+   its pose follows the keyframe's when the graph moves.
+3. Loop closures, at every new keyframe j: the earlier keyframes within ``loops.search_radius_m``
+   of j in the current estimate (a KD-tree over keyframe positions, rebuilt only when the
+   estimate moved), at least ``loops.min_path_gap_m`` of path back, the closest
+   ``loops.max_candidates_per_keyframe``, each verified by ICP of j's scan against a submap
+   around i (fitness, plausibility: ``slamkit.frontend.loop_closure.verify_loop``). Accepted
+   closures enter the graph with the ``robust`` kernel (Cauchy by default), so a wrong one that
+   slipped through is bounded.
+4. The graph is solved incrementally with iSAM2 (``slamkit.backend.Isam2PoseGraph``) at every
+   keyframe. ``finish()`` runs ``loop_rounds`` more rounds of loop search over all keyframe pairs
+   in the final estimate and one batch Levenberg-Marquardt solve with the robust kernel.
+5. ``map()``: a log-odds grid (``slamkit.maps.log_odds``) from the keyframe scans at their
+   estimated sensor poses.
+
+Observers (the recorder) subscribe through :class:`LidarSlamObserver`: ``on_keyframe`` and
+``on_loop_closure``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from slamkit.backend.isam2 import Isam2Params, Isam2PoseGraph
+from slamkit.backend.solvers import OptimizeConfig, optimize
+from slamkit.data.sequence import Event, Odometry, Scan, Sequence
+from slamkit.errors import ConfigError, DataError
+from slamkit.frontend.icp import IcpConfig, IcpTarget, icp, scan_to_points
+from slamkit.frontend.keyframes import KeyframeConfig
+from slamkit.frontend.loop_closure import LoopClosure, LoopClosureConfig, loop_candidates, verify_loop
+from slamkit.frontend.preprocess import despeckle
+from slamkit.geometry import se2
+from slamkit.maps.log_odds import LogOddsConfig, LogOddsMap
+from slamkit.models import diff_drive
+
+MOTION_PRIORS = ("odometry", "constant_velocity", "identity")
+
+
+@dataclass(frozen=True)
+class LidarSlamConfig:
+    keyframes: KeyframeConfig = KeyframeConfig()
+    #: scan-to-submap matching: the new scan sees places the submap does not (and vice versa),
+    #: so the worst 10% of correspondences are trimmed (measured on a 20 m warehouse tour:
+    #: front-end ATE 0.011 m trimmed vs 0.154 m untrimmed)
+    icp: IcpConfig = IcpConfig(trim_fraction=0.9)
+    loops: LoopClosureConfig = LoopClosureConfig(icp=IcpConfig(trim_fraction=0.9))
+    #: rounds of loop search over all keyframe pairs in ``finish()`` (each followed by a solve)
+    loop_rounds: int = 2
+    robust: str = "cauchy"
+    submap_keyframes: int = 3
+    #: keyframes on either side of i in the loop-closure target (0: keyframe i's scan alone)
+    loop_submap_keyframes: int = 0
+    #: a scan match is replaced by the motion prior when its fitness is below this
+    min_match_fitness: float = 0.3
+    #: ``odometry`` (wheel odometry since the previous scan), ``constant_velocity`` or ``identity``
+    motion_prior: str = "odometry"
+    #: match every scan (True) or only the scans that the prior already makes keyframes
+    match_every_scan: bool = True
+    #: search loop closures at every new keyframe (False: only in ``finish()``)
+    online_loop_closure: bool = True
+    #: the lidar's pose in the body frame (x, y, theta)
+    body_xytheta_lidar: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    despeckle_jump_m: float = 0.3
+    #: returns beyond this are not used for matching or mapping (None: up to the sensor maximum)
+    max_range_m: float | None = None
+    #: iSAM2 relinearisation threshold (tangent units) and skip
+    isam2: Isam2Params = Isam2Params(relinearize_threshold=0.01, relinearize_skip=1, final_updates=0)
+    #: the information of an edge that fell back to the motion prior: sigmas (m, m, rad)
+    fallback_sigmas: tuple[float, float, float] = (0.05, 0.05, 0.02)
+    map: LogOddsConfig = LogOddsConfig(resolution_m=0.1)
+
+    def __post_init__(self) -> None:
+        if self.robust not in ("none", "huber", "cauchy"):
+            raise ConfigError(f"lidar_slam.robust must be none, huber or cauchy, got {self.robust!r}")
+        if self.motion_prior not in MOTION_PRIORS:
+            raise ConfigError(f"lidar_slam.motion_prior must be one of {MOTION_PRIORS}, got {self.motion_prior!r}")
+        if self.loop_rounds < 0 or self.submap_keyframes < 1 or self.loop_submap_keyframes < 0:
+            raise ConfigError("lidar_slam: loop_rounds and loop_submap_keyframes must be >= 0, "
+                              "submap_keyframes >= 1")
+        if self.max_range_m is not None and not self.max_range_m > 0:
+            raise ConfigError(f"lidar_slam.max_range_m must be > 0, got {self.max_range_m}")
+        if len(self.body_xytheta_lidar) != 3 or len(self.fallback_sigmas) != 3 or min(self.fallback_sigmas) <= 0:
+            raise ConfigError("lidar_slam: body_xytheta_lidar is (x, y, theta) and fallback_sigmas three "
+                              "positive sigmas")
+
+
+@dataclass(frozen=True)
+class Keyframe:
+    """What an observer sees when keyframe ``index`` is added: its stamp, its pose when added and
+    its scan (body-frame points)."""
+
+    index: int
+    stamp_s: float
+    world_xytheta_body: np.ndarray
+    body_xy_points: np.ndarray
+
+
+@dataclass(frozen=True)
+class LidarSlamEstimate:
+    """The trajectory of every scan (``stamps_s`` (N,), ``world_xytheta_body`` (N, 3)); the
+    keyframes (``keyframe_scans`` indexes into the scans; poses (K, 3); ``frontend_poses``: the
+    chained scan matches before any loop closure); the accepted loop closures and the edges that
+    were injected from outside (``add_constraint``)."""
+
+    stamps_s: np.ndarray
+    world_xytheta_body: np.ndarray
+    keyframe_scans: np.ndarray
+    keyframe_stamps_s: np.ndarray
+    keyframe_poses: np.ndarray
+    frontend_poses: np.ndarray
+    loops: tuple[LoopClosure, ...]
+    injected: tuple[tuple[int, int], ...]
+    counters: dict[str, float]
+
+
+class LidarSlamObserver(Protocol):
+    def on_keyframe(self, keyframe: Keyframe) -> None: ...
+
+    def on_loop_closure(self, closure: LoopClosure) -> None: ...
+
+
+class NullLidarSlamObserver:
+    def on_keyframe(self, keyframe: Keyframe) -> None:
+        pass
+
+    def on_loop_closure(self, closure: LoopClosure) -> None:
+        pass
+
+
+@dataclass
+class _KeyframeStore:
+    stamps: list[float] = field(default_factory=list)
+    scans: list[int] = field(default_factory=list)
+    points: list[np.ndarray] = field(default_factory=list)
+    ranges: list[np.ndarray] = field(default_factory=list)
+    angles: list[np.ndarray] = field(default_factory=list)
+    frontend: list[np.ndarray] = field(default_factory=list)
+    path_m: list[float] = field(default_factory=list)
+
+
+class LidarSlam:
+    """Streaming lidar SLAM (see the module docstring): ``step(event)`` with Scan and Odometry
+    events in time order, ``estimate()``, ``finish()`` (final loop rounds and batch solve) and
+    ``map()``. ``initial_world_xytheta_body`` is the pose of the first scan."""
+
+    def __init__(self, config: LidarSlamConfig = LidarSlamConfig(),
+                 initial_world_xytheta_body: np.ndarray | None = None,
+                 observer: LidarSlamObserver | None = None, name: str = "lidar_slam"):
+        self.config = config
+        self.observer = observer if observer is not None else NullLidarSlamObserver()
+        self._initial = np.zeros(3) if initial_world_xytheta_body is None else \
+            np.asarray(initial_world_xytheta_body, float).reshape(3)
+        self._body_T_lidar = np.asarray(config.body_xytheta_lidar, dtype=float)
+        self._graph = Isam2PoseGraph(config.robust, params=config.isam2, name=name)
+        self._kf = _KeyframeStore()
+        # per scan: stamp, anchor keyframe, anchor_T_scan
+        self._scan_stamps: list[float] = []
+        self._scan_anchor: list[int] = []
+        self._scan_rel: list[np.ndarray] = []
+        self._odom = self._initial.copy()        # integrated wheel odometry at the latest event
+        self._odom_at_scan: np.ndarray | None = None
+        self._last_motion = np.zeros(3)           # previous scan-to-scan motion (body frame)
+        self._last_stamp: float | None = None
+        self._target: IcpTarget | None = None     # submap in the newest keyframe's frame
+        self._loops: list[LoopClosure] = []
+        self._tried: set[tuple[int, int]] = set()
+        self._injected: list[tuple[int, int]] = []
+        self._tree: cKDTree | None = None
+        self._tree_size = 0
+        self._finished = False
+        self.counters = {"scans": 0, "matched_scans": 0, "match_fallbacks": 0, "loop_candidates": 0,
+                         "loop_closures_online": 0, "loop_closures_final": 0, "icp_iterations": 0}
+
+    # ---- streaming ---------------------------------------------------------------------------
+
+    def step(self, event: Event) -> None:
+        if isinstance(event, Odometry):
+            self._odom = np.asarray(diff_drive.motion(self._odom, np.array([event.v_mps, event.omega_radps]),
+                                                      event.dt_s))
+        elif isinstance(event, Scan):
+            self._scan(event)
+
+    def run(self, sequence: Sequence) -> "LidarSlam":
+        """Feed every event of ``sequence``; returns self (call ``finish()`` next)."""
+        for event in sequence:
+            self.step(event)
+        return self
+
+    def _points(self, scan: Scan) -> tuple[np.ndarray, np.ndarray, float]:
+        r = despeckle(scan.ranges_m, self.config.despeckle_jump_m)
+        max_range = float(scan.max_range_m)
+        if self.config.max_range_m is not None:
+            max_range = min(max_range, self.config.max_range_m)
+            r = np.where(r < max_range, r, np.nan)
+        pts = scan_to_points(r, scan.angles_rad, max_range)
+        if np.any(self._body_T_lidar != 0):
+            pts = se2.transform_points(self._body_T_lidar, pts)
+        return pts, r.astype(np.float32), max_range
+
+    def _prior(self, stamp_s: float) -> np.ndarray:
+        """The motion since the previous scan that the matcher starts from (body frame)."""
+        kind = self.config.motion_prior
+        if kind == "odometry":
+            return se2.between(self._odom_at_scan, self._odom)
+        if kind == "constant_velocity" and self._last_stamp is not None:
+            return self._last_motion
+        return np.zeros(3)
+
+    def _scan(self, scan: Scan) -> None:
+        if self._finished:
+            raise DataError("LidarSlam.step after finish(): start a new LidarSlam")
+        cfg = self.config
+        pts, ranges, max_range = self._points(scan)
+        self._max_range = max_range
+        stamp = float(scan.stamp_s)
+        n = len(self._scan_stamps)
+        self.counters["scans"] += 1
+        if not self._kf.stamps:
+            self._odom_at_scan = self._odom.copy()
+            self._last_stamp = stamp
+            self._add_keyframe(n, stamp, pts, ranges, scan.angles_rad, self._initial, None, None)
+            self._record_scan(stamp, 0, np.zeros(3))
+            return
+        prior = self._prior(stamp)
+        k = len(self._kf.stamps) - 1
+        prev_rel = self._scan_rel[-1] if self._scan_anchor[-1] == k else np.zeros(3)
+        guess = se2.compose(prev_rel, prior)       # keyframe k -> this scan
+        rel, info = guess, None
+        if cfg.match_every_scan or self._is_keyframe(guess):
+            rel, info = self._match(pts, guess)
+        self._odom_at_scan = self._odom.copy()
+        self._last_motion = se2.between(prev_rel, rel)
+        self._last_stamp = stamp
+        if self._is_keyframe(rel):
+            world_T_k = self._graph.poses()[k]
+            if info is None:
+                info = self._fallback_information()
+            self._add_keyframe(n, stamp, pts, ranges, scan.angles_rad, se2.compose(world_T_k, rel), rel, info)
+            self._record_scan(stamp, k + 1, np.zeros(3))
+        else:
+            self._record_scan(stamp, k, rel)
+
+    def _record_scan(self, stamp: float, anchor: int, rel: np.ndarray) -> None:
+        self._scan_stamps.append(stamp)
+        self._scan_anchor.append(anchor)
+        self._scan_rel.append(np.asarray(rel, float))
+
+    def _is_keyframe(self, k_T_scan: np.ndarray) -> bool:
+        c = self.config.keyframes
+        return bool(np.hypot(k_T_scan[0], k_T_scan[1]) >= c.min_translation_m
+                    or abs(k_T_scan[2]) >= c.min_rotation_rad)
+
+    def _fallback_information(self) -> np.ndarray:
+        return np.diag(np.asarray(self.config.fallback_sigmas, float) ** -2)
+
+    def _match(self, pts: np.ndarray, guess: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+        """Scan points against the submap from ``guess``: (k_T_scan, information) or the guess
+        and None when the match is not trusted."""
+        cfg = self.config
+        if self._target is None or len(pts) < cfg.icp.min_correspondences:
+            self.counters["match_fallbacks"] += 1
+            return guess, None
+        res = icp(pts, self._target, guess, cfg.icp)
+        self.counters["matched_scans"] += 1
+        self.counters["icp_iterations"] += res.iterations
+        if res.fitness < cfg.min_match_fitness or not np.all(np.isfinite(res.covariance)):
+            self.counters["match_fallbacks"] += 1
+            return guess, None
+        info = np.linalg.inv(res.covariance)
+        return res.target_T_source, 0.5 * (info + info.T)
+
+    def _add_keyframe(self, scan_index: int, stamp: float, pts: np.ndarray, ranges: np.ndarray,
+                      angles: np.ndarray, world_T_k: np.ndarray, rel: np.ndarray | None,
+                      info: np.ndarray | None) -> None:
+        kf = self._kf
+        k = len(kf.stamps)
+        self._graph.add_pose(k, world_T_k)
+        if rel is not None:
+            self._graph.add_edge(k - 1, k, rel, info, robust_edge=False)
+            kf.frontend.append(se2.compose(kf.frontend[-1], rel))
+            kf.path_m.append(kf.path_m[-1] + float(np.hypot(rel[0], rel[1])))
+        else:
+            kf.frontend.append(world_T_k.copy())
+            kf.path_m.append(0.0)
+        kf.stamps.append(stamp)
+        kf.scans.append(scan_index)
+        kf.points.append(pts)
+        kf.ranges.append(ranges)
+        kf.angles.append(np.asarray(angles, float))
+        extra = 0
+        if self.config.online_loop_closure and k > 0:
+            found = self._close_loops_at(k)
+            extra = 2 if found else 0
+        self._graph.update(extra)
+        self.observer.on_keyframe(Keyframe(k, stamp, self._graph.poses()[k].copy(), pts))
+        self._target = self._submap_at(k, range(max(0, k - self.config.submap_keyframes + 1), k + 1),
+                                       self._graph.poses(), self.config.icp.normal_neighbours)
+
+    # ---- loop closure ------------------------------------------------------------------------
+
+    def _candidates_for(self, j: int) -> list[int]:
+        cfg = self.config.loops
+        poses = self._graph.poses()
+        if self._tree is None or self._tree_size != j:
+            self._tree, self._tree_size = cKDTree(poses[:j, :2]), j
+        near = self._tree.query_ball_point(poses[j, :2], cfg.search_radius_m)
+        path = self._kf.path_m
+        ok = [i for i in near if j - i >= cfg.min_index_gap and path[j] - path[i] >= cfg.min_path_gap_m
+              and (i, j) not in self._tried]
+        ok.sort(key=lambda i: float(np.hypot(*(poses[i, :2] - poses[j, :2]))))
+        return ok[:cfg.max_candidates_per_keyframe]
+
+    def _verify(self, i: int, j: int, poses: np.ndarray) -> LoopClosure | None:
+        cfg = self.config
+        pts_j = self._kf.points[j]
+        if min(len(self._kf.points[i]), len(pts_j)) < cfg.loops.icp.min_correspondences:
+            return None
+        self._tried.add((i, j))
+        self.counters["loop_candidates"] += 1
+        s = cfg.loop_submap_keyframes
+        K = len(self._kf.points)
+        target = self._submap_at(i, range(max(0, i - s), min(K, i + s + 1)), poses,
+                                 cfg.loops.icp.normal_neighbours)
+        if target is None:
+            return None
+        ok, res = verify_loop(target, pts_j, se2.between(poses[i], poses[j]), cfg.loops)
+        return LoopClosure(i, j, res.target_T_source, res) if ok else None
+
+    def _submap_at(self, k: int, members, poses: np.ndarray, neighbours: int) -> IcpTarget | None:
+        """Keyframes ``members``' points in keyframe k's frame, prepared for ICP (None: too few)."""
+        pts = np.concatenate([se2.transform_points(se2.between(poses[k], poses[m]), self._kf.points[m])
+                              for m in members])
+        if len(pts) < max(3, neighbours):
+            return None
+        return IcpTarget(pts, neighbours)
+
+    def _accept(self, closure: LoopClosure) -> None:
+        self._graph.add_edge(closure.i, closure.j, closure.i_T_j, closure.result.information, robust_edge=True)
+        self._loops.append(closure)
+        self._tree = None  # the estimate moves: candidates are searched in the new one
+        self.observer.on_loop_closure(closure)
+
+    def _close_loops_at(self, j: int) -> int:
+        poses = self._graph.poses()
+        found = 0
+        for i in self._candidates_for(j):
+            closure = self._verify(i, j, poses)
+            if closure is not None:
+                self._accept(closure)
+                found += 1
+        self.counters["loop_closures_online"] += found
+        return found
+
+    def add_constraint(self, i: int, j: int, i_xytheta_j: np.ndarray, information: np.ndarray) -> None:
+        """An edge between keyframes ``i`` and ``j`` from outside the system (a user's prior
+        knowledge, or an injected false closure in a robustness test); robust like a loop."""
+        K = len(self._kf.stamps)
+        if not (0 <= i < K and 0 <= j < K):
+            raise DataError(f"add_constraint: keyframes {i}, {j} out of range (0..{K - 1})")
+        self._graph.add_edge(i, j, i_xytheta_j, information, robust_edge=True)
+        self._injected.append((int(i), int(j)))
+        self._graph.update()
+
+    def finish(self) -> LidarSlamEstimate:
+        """``loop_rounds`` rounds of loop search over all keyframe pairs of the current
+        estimate, each followed by a batch Levenberg-Marquardt solve with the robust kernel
+        (the online iSAM2 estimate is the initial guess); returns the final estimate."""
+        if len(self._kf.stamps) < 2:
+            raise DataError("lidar SLAM needs at least 2 keyframes (scans with motion between them)")
+        cfg = self.config
+        poses = self._graph.poses().copy()
+        opt = OptimizeConfig(robust=cfg.robust, max_iterations=100)
+        solved = False
+        for _ in range(cfg.loop_rounds):
+            found = 0
+            for i, j in loop_candidates(poses, cfg.loops):
+                if (int(i), int(j)) in self._tried:
+                    continue
+                closure = self._verify(int(i), int(j), poses)
+                if closure is not None:
+                    self._accept(closure)
+                    found += 1
+            self.counters["loop_closures_final"] += found
+            poses = optimize(self._graph.graph(), opt).poses.copy()
+            solved = True
+        if not solved and (self._loops or self._injected):
+            poses = optimize(self._graph.graph(), opt).poses.copy()
+        self._final_poses = poses
+        self._finished = True
+        return self.estimate()
+
+    # ---- results -----------------------------------------------------------------------------
+
+    def keyframe_poses(self) -> np.ndarray:
+        return self._final_poses if self._finished else self._graph.poses()
+
+    def estimate(self) -> LidarSlamEstimate:
+        poses = self.keyframe_poses()
+        anchor = np.asarray(self._scan_anchor, dtype=np.int64)
+        rel = np.asarray(self._scan_rel, dtype=float).reshape(-1, 3)
+        world = se2.compose(poses[anchor], rel) if len(anchor) else np.zeros((0, 3))
+        kf = self._kf
+        return LidarSlamEstimate(np.asarray(self._scan_stamps), world, np.asarray(kf.scans, dtype=np.int64),
+                                 np.asarray(kf.stamps), poses.copy(), np.asarray(kf.frontend).reshape(-1, 3),
+                                 tuple(self._loops), tuple(self._injected), dict(self.counters))
+
+    def keyframe_scans(self) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
+        """(body-frame points, lidar ranges (NaN: no return), beam angles) of every keyframe."""
+        return tuple(self._kf.points), tuple(self._kf.ranges), tuple(self._kf.angles)
+
+    def sensor_poses(self, world_xytheta_body: np.ndarray) -> np.ndarray:
+        """Lidar poses of body poses (N, 3)."""
+        return se2.compose(np.asarray(world_xytheta_body, float).reshape(-1, 3), self._body_T_lidar)
+
+    @property
+    def max_range_m(self) -> float:
+        return getattr(self, "_max_range", 0.0)
+
+    def map(self, config: LogOddsConfig | None = None, world_xytheta_body: np.ndarray | None = None,
+            margin_m: float = 1.0) -> LogOddsMap:
+        """Log-odds map of the keyframe scans at ``world_xytheta_body`` (K, 3) (default: the
+        current keyframe estimate), covering every return plus ``margin_m``."""
+        cfg = config or self.config.map
+        poses = self.keyframe_poses() if world_xytheta_body is None else np.asarray(world_xytheta_body, float)
+        return occupancy_map(self.sensor_poses(poses), self._kf.angles, self._kf.ranges, self.max_range_m,
+                             cfg, margin_m)
+
+
+def occupancy_map(world_xytheta_sensors: np.ndarray, angles_rad, ranges_m, max_range_m: float,
+                  config: LogOddsConfig, margin_m: float = 1.0) -> LogOddsMap:
+    """Log-odds map of scans (per-scan angles and ranges, NaN: no return) at sensor poses (K, 3),
+    covering every return plus ``margin_m``."""
+    ends = [se2.transform_points(p, np.column_stack([r * np.cos(a), r * np.sin(a)])[np.isfinite(r)])
+            for p, a, r in zip(world_xytheta_sensors, angles_rad, ranges_m)]
+    xy = np.concatenate(ends + [world_xytheta_sensors[:, :2]])
+    m = LogOddsMap.covering(xy.min(axis=0) - margin_m, xy.max(axis=0) + margin_m, config)
+    for p, a, r in zip(world_xytheta_sensors, angles_rad, ranges_m):
+        m.update(p, a, r, max_range_m)
+    return m
