@@ -22,14 +22,17 @@ ALLOWED = {
     "frontend": {"geometry", "models", "maps", "data"},
     "planning": {"geometry", "maps"},
     "control": {"geometry", "models", "maps"},
+    # running robot components (lidar SLAM ...): everything above but metrics, experiments, viz
+    "systems": {"geometry", "models", "maps", "sim", "data", "estimation", "backend", "frontend",
+                "planning", "control", "vision"},
     "metrics": {"geometry", "data"},
     "experiments": {"geometry", "models", "maps", "sim", "data", "estimation", "backend",
-                    "frontend", "planning", "control", "metrics"},
+                    "frontend", "planning", "control", "systems", "metrics"},
     # benchmarks time slamkit against same-run references (raw GTSAM, casadi.Opti, peers)
     "bench": {"geometry", "models", "maps", "sim", "data", "estimation", "backend", "frontend",
-              "planning", "control", "metrics", "experiments"},
+              "planning", "control", "systems", "metrics", "experiments"},
     "viz": {"geometry", "models", "maps", "sim", "data", "estimation", "backend", "frontend",
-            "planning", "control", "metrics", "experiments"},
+            "planning", "control", "systems", "metrics", "experiments"},
     "cli": None,  # may import everything
 }
 BASE_MODULES = {"errors", "timing", "config", "paths", "naming", "_native", "_text", "__init__"}

@@ -133,23 +133,9 @@ def convert_cmd(
     """Write a recording as a ROS bag (LaserScan, Odometry, Imu, NavSatFix) through rosbags."""
     from slamkit.data.formats.rosbag import write_bag
 
-    summary = write_bag(out, load_recording(source), ros_version=1 if out.suffix == ".bag" else 2)
+    summary = write_bag(out, registry.load_recording(source), ros_version=1 if out.suffix == ".bag" else 2)
     typer.echo(f"wrote {summary.path}: " + ", ".join(f"{t} {n}" for t, n in summary.messages.items())
                + ("; skipped " + ", ".join(f"{k} {n}" for k, n in summary.skipped_events.items())
                   if summary.skipped_events else ""))
 
 
-def load_recording(source: str):
-    """A Sequence from a registry laser log, a CARMEN log file or a .slamseq file."""
-    from slamkit.data.formats.carmen import load_carmen_sequence
-    from slamkit.data.formats.sequence import SequenceReader
-
-    target = registry.resolve(source)
-    if isinstance(target, Path):
-        if target.suffix == ".slamseq":
-            return SequenceReader(target)
-        return load_carmen_sequence(target)
-    if target.format != "carmen":
-        raise DataError(f"dataset {target.name!r} is a {target.kind} ({target.format}); convert reads "
-                        "laser logs and .slamseq files")
-    return load_carmen_sequence(registry.path_of(target.name), target.name.removesuffix("-log"))

@@ -374,6 +374,29 @@ def load_pose_graph_source(name_or_path: str | Path, policy: str = "keep") -> tu
     return load_pose_graph(target, policy=policy), None
 
 
+def load_recording(source: str | Path):
+    """A Sequence from a registry laser log (``intel-log``), a CARMEN log file or a .slamseq file."""
+    from slamkit.data.formats.carmen import load_carmen_sequence
+    from slamkit.data.formats.sequence import SequenceReader
+
+    target = resolve(source)
+    if isinstance(target, Path):
+        if target.suffix == ".slamseq":
+            return SequenceReader(target)
+        return load_carmen_sequence(target)
+    if target.format != "carmen":
+        raise DataError(f"dataset {target.name!r} is a {target.kind} ({target.format}), not a laser log "
+                        "or a .slamseq recording")
+    return load_carmen_sequence(path_of(target.name), target.name.removesuffix("-log"))
+
+
+def relations_of(name: str) -> Path | None:
+    """Local path of a registry laser log's relations file (None when it has none)."""
+    entry = get(name)
+    rel = [f for f in entry.files if f.path.endswith(".relations")]
+    return path_of(entry.name, rel[0].path) if rel else None
+
+
 # --- fetching ----------------------------------------------------------------------------------
 
 

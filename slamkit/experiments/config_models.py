@@ -131,12 +131,26 @@ class LocalPlanningPipeline(_Pipeline):
 
 # --- lidar_slam ----------------------------------------------------------------------------------
 
+class LogEntryModel(BaseModel):
+    model_config = STRICT
+    name: str | None = None
+    path: str
+    relations: str | None = None
+    duration_s: Annotated[float, Field(gt=0, le=1e6)] | None = None
+
+
 class LidarSlamPipeline(_Pipeline):
     pipeline: Literal["lidar_slam"]
     seeds: Seeds = [0]
-    worlds: Annotated[list[dict[str, Any]], Field(min_length=1)]
+    #: simulated grid worlds and/or recorded laser logs (a registry name or {name, path, relations})
+    worlds: list[dict[str, Any]] = []
+    logs: list[Union[str, LogEntryModel]] = []
     slam: dict[str, Any] = {}
     robust_variants: Annotated[list[Literal["none", "huber", "cauchy"]], Field(min_length=1)] | None = None
+    motion_priors: Annotated[list[Literal["odometry", "constant_velocity", "identity"]],
+                             Field(min_length=1)] | None = None
+    false_loop_closures: Annotated[int, Field(ge=0, le=1000)] = 0
+    false_loop_seed: int = 0
     mcl: Union[bool, dict[str, Any], None] = None
 
 
@@ -190,9 +204,13 @@ def check_pipeline(config: dict[str, Any], doc: YamlDocument | None = None, sour
                          {name: params}, doc, source, ("controller_params",))
             _nested(model_of(cfg[name]), params, doc, source, ("controller_params", name))
     elif isinstance(model, LidarSlamPipeline):
-        from slamkit.experiments.lidar_slam import LidarSlamConfig, MclCheckConfig
+        from slamkit.experiments.lidar_slam import MclCheckConfig
         from slamkit.sim.grid_world import GridScenario
+        from slamkit.systems.lidar_slam import LidarSlamConfig
 
+        if not model.worlds and not model.logs:
+            where = doc.where(()) if doc is not None else source
+            raise ConfigError(f"{where}: lidar_slam needs 'worlds' (grid scenarios) or 'logs' (laser logs)")
         _nested(model_of(LidarSlamConfig), model.slam, doc, source, ("slam",))
         if isinstance(model.mcl, dict):
             _nested(model_of(MclCheckConfig), model.mcl, doc, source, ("mcl",))

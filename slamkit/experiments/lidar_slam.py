@@ -1,98 +1,89 @@
-"""Lidar SLAM on simulated grid worlds: ICP odometry, loop closure, a GTSAM pose graph with a
-robust kernel, and a log-odds map scored against the world's ground-truth grid.
+"""The ``lidar_slam`` pipeline: :class:`slamkit.systems.lidar_slam.LidarSlam` fed simulated grid
+worlds and recorded laser logs, scored and reported. The SLAM system itself (scan matching,
+keyframes, loop closure, pose graph, map) lives in ``slamkit.systems.lidar_slam``; this module
+only feeds it a Sequence, times it and scores what it returns.
 
-Pipeline (Lu & Milios, "Globally consistent range scan alignment", Autonomous Robots 4, 1997,
-in its modern pose-graph form, Grisetti et al., "A tutorial on graph-based SLAM", 2010):
+Simulated worlds (``worlds``): the world's ground truth scores the keyframes -- ``ate_odometry_m``
+(wheel odometry), ``ate_frontend_m`` (chained scan matches, before loop closure), ``ate_rmse_m``
+(after loop closure), all RMSE over the keyframes after SE(2) alignment; ``ate_reduction`` =
+before / after -- and the world's grid scores the map: ``map_iou``, ``map_precision``,
+``map_recall`` (``map_frontend_iou`` of the front-end map) with IoU as defined in
+``slamkit.maps.log_odds`` (occupied cells, p > 0.5, against the truth max-pooled to the map
+resolution, on the cells the map observed), the maps built after the SE(2) alignment ATE uses.
+Optionally ``false_loop_closures`` wrong edges (keyframes more than 10 m apart claimed to
+coincide) are injected before the final solve to show what the robust kernel is for, and
+``mcl`` runs global localization on each built map.
 
-1. Wheel odometry is integrated to every scan (exact-arc model); scans are despeckled
-   (``slamkit.frontend.preprocess``).
-2. Keyframes by travelled distance/rotation (``slamkit.frontend.keyframes``). Each new keyframe
-   is matched by point-to-line ICP against a local submap (the last ``submap_keyframes``
-   keyframes, in the previous keyframe's frame), starting from the wheel odometry between the
-   two; the ICP result and its covariance become an odometry edge. Chaining these edges is the
-   "before loop closure" estimate.
-3. ``loop_rounds`` rounds: loop candidates by distance in the current estimate, verified by ICP
-   fitness (``slamkit.frontend.loop_closure``), added as edges, then the whole graph is solved
-   by Levenberg-Marquardt with the ``robust`` kernel (``slamkit.backend``). Optionally,
-   ``false_loop_closures`` wrong edges are injected (between keyframes more than 10 m apart,
-   claiming they coincide, with a typical loop-closure information) to show what the robust
-   kernel is for.
-4. Log-odds map from the optimised keyframe poses (``slamkit.maps.log_odds``), and, for
-   contrast, from the front-end poses.
+Laser logs (``logs``: a registry name such as ``intel-log`` or ``{name, path, relations}``):
+the relation error of Kuemmerle et al. 2009 (``slamkit.metrics.relations``) of the trajectory of
+every scan, stamped with the scans' ipc timestamps, and of the raw odometry; ``realtime_factor``
+(log duration / processing time), ``time_total_s``, time per scan, the process's peak memory,
+loop-closure counts. The report sets them beside the published numbers (:data:`PUBLISHED`);
+``plots/`` holds each map at the configured resolution with the trajectory over it and the time
+per scan along the log.
 
-Metrics (names carry units): ``ate_odometry_m`` (wheel odometry), ``ate_frontend_m`` (ICP
-odometry, before loop closure), ``ate_rmse_m`` (after loop closure), all RMSE over the keyframes
-after SE(2) alignment; ``ate_reduction`` = before / after; ``map_iou``, ``map_precision``,
-``map_recall`` of the optimised map (``map_frontend_iou`` of the front-end map) with IoU defined
-in ``slamkit.maps.log_odds``: occupied cells (p > 0.5) against the ground truth max-pooled to
-the map resolution, counted only on the cells the map observed.
-
-``run(config, folder, progress, observer=None)`` is the ``lidar_slam`` pipeline kind; the
-observer (the Rerun recorder lives in ``slamkit.viz.lidar_slam``) gets ``on_step`` per keyframe
-(when it ``wants_steps``) and, from the runner, ``on_output`` with the ``PipelineOutput`` whose
-``payload`` is the list of :class:`LidarSlamResult` of every run.
+``run(config, folder, progress, observer=None)`` is the pipeline kind; the observer (the Rerun
+recorder, ``slamkit.viz.lidar_slam``) gets ``on_step`` per keyframe (when it ``wants_steps``)
+and, from the runner, ``on_output`` with the ``PipelineOutput`` whose ``payload`` is the list of
+:class:`LidarSlamResult` of every run.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import resource
+import sys
+import time
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
 
-from slamkit.backend.solvers import OptimizeConfig, optimize
 from slamkit.data.pose_graph import PoseGraph
 from slamkit.data.sequence import Odometry, Scan, Sequence
 from slamkit.data.trajectory import Trajectory
-from slamkit.paths import file_in
 from slamkit.errors import ConfigError
 from slamkit.experiments.observers import StepSnapshot
 from slamkit.experiments.results import RunRecord, markdown_table
-from slamkit.frontend.icp import IcpConfig, IcpTarget, icp, scan_to_points
-from slamkit.frontend.keyframes import KeyframeConfig, KeyframeSelector
-from slamkit.frontend.loop_closure import LoopClosure, LoopClosureConfig, detect_loops
-from slamkit.frontend.preprocess import despeckle
+from slamkit.frontend.icp import IcpConfig
+from slamkit.frontend.keyframes import KeyframeConfig
+from slamkit.frontend.loop_closure import LoopClosure, LoopClosureConfig
 from slamkit.geometry import se2
-from slamkit.maps.log_odds import LogOddsConfig, LogOddsMap, MapQuality, build_map, map_quality
+from slamkit.maps.log_odds import LogOddsConfig, LogOddsMap, MapQuality, map_quality
 from slamkit.maps.occupancy_grid import OccupancyGrid
 from slamkit.metrics.alignment import align
 from slamkit.metrics.ate import ate
+from slamkit.metrics.relations import RelationErrors, read_relations, relation_errors
 from slamkit.models import diff_drive
+from slamkit.paths import file_in
+from slamkit.backend.isam2 import Isam2Params
+from slamkit.systems.lidar_slam import Keyframe, LidarSlam, LidarSlamConfig, occupancy_map
 
-
-@dataclass(frozen=True)
-class LidarSlamConfig:
-    keyframes: KeyframeConfig = KeyframeConfig()
-    #: scan-to-submap matching: the new scan sees places the submap does not (and vice versa),
-    #: so the worst 10% of correspondences are trimmed (measured on a 20 m warehouse tour:
-    #: front-end ATE 0.011 m trimmed vs 0.154 m untrimmed)
-    icp: IcpConfig = IcpConfig(trim_fraction=0.9)
-    loops: LoopClosureConfig = LoopClosureConfig(icp=IcpConfig(trim_fraction=0.9))
-    loop_rounds: int = 2
-    robust: str = "cauchy"
-    submap_keyframes: int = 3
-    #: an ICP odometry edge is replaced by wheel odometry when its fitness is below this
-    min_odometry_fitness: float = 0.3
-    map: LogOddsConfig = LogOddsConfig(resolution_m=0.1)
-    despeckle_jump_m: float = 0.3
-    false_loop_closures: int = 0
-    false_loop_seed: int = 0
-
-    def __post_init__(self) -> None:
-        if self.robust not in ("none", "huber", "cauchy"):
-            raise ConfigError(f"lidar_slam.robust must be none, huber or cauchy, got {self.robust!r}")
-        if self.loop_rounds < 0 or self.submap_keyframes < 1:
-            raise ConfigError("lidar_slam: loop_rounds must be >= 0 and submap_keyframes >= 1")
+#: mean +- std of the translational relation error (m) published by Kuemmerle et al., "On
+#: measuring the accuracy of SLAM algorithms", Autonomous Robots 27(4), 2009 (as transcribed in
+#: the datasets' MANIFEST): scan matching, RBPF (GMapping, 50 particles), graph mapping
+PUBLISHED: dict[str, dict[str, tuple[float, float]]] = {
+    "intel": {"scan matching": (0.220, 0.296), "RBPF (50 particles)": (0.070, 0.083),
+              "graph mapping": (0.031, 0.026)},
+    "fr079": {"scan matching": (0.258, 0.427), "RBPF (50 particles)": (0.061, 0.044),
+              "graph mapping": (0.056, 0.042)},
+    "mit-csail": {"scan matching": (0.106, 0.325), "RBPF (50 particles)": (0.049, 0.049),
+                  "graph mapping": (0.004, 0.009)},
+    "fr-clinic": {"scan matching": (0.434, 1.615), "RBPF (50 particles)": (0.637, 2.638),
+                  "graph mapping": (0.143, 0.180)},
+}
 
 
 @dataclass(frozen=True)
 class LidarSlamResult:
-    """Everything one run produced. Pose arrays are (K, 3) over the K keyframes;
-    ``keyframe_points[k]`` are keyframe k's despeckled scan end points in its body frame.
-    ``map`` / ``frontend_map`` are built from the optimised / front-end poses; when the world's
-    grid is known they are built after the SE(2) alignment to the ground truth that ATE uses
-    (so that they can be scored cell by cell), otherwise in the estimate's frame."""
+    """Everything one run produced. Keyframe arrays are (K, 3); ``scan_stamps_s`` (N,) and
+    ``scan_poses`` (N, 3) the trajectory of every scan; ``keyframe_points[k]`` keyframe k's
+    despeckled scan end points in the body frame, ``keyframe_ranges_m[k]`` / ``keyframe_angles_rad[k]``
+    its lidar ranges (NaN: no return) and beam angles. ``map`` / ``frontend_map`` are built from
+    the optimised / front-end poses; when the world's grid is known they are built after the
+    SE(2) alignment to the ground truth that ATE uses (so they can be scored cell by cell),
+    otherwise in the estimate's frame. ``scan_step_s`` is the processing time of every scan."""
 
     name: str
     stamps_s: np.ndarray
@@ -108,95 +99,20 @@ class LidarSlamResult:
     frontend_map: LogOddsMap
     metrics: Mapping[str, float]
     quality: MapQuality | None = None
-    angles_rad: np.ndarray | None = None
-    keyframe_ranges_m: np.ndarray | None = None
+    keyframe_angles_rad: tuple[np.ndarray, ...] = ()
+    keyframe_ranges_m: tuple[np.ndarray, ...] = ()
     max_range_m: float = 20.0
     config: LidarSlamConfig = field(default_factory=LidarSlamConfig)
     truth: OccupancyGrid | None = None
-    frontend: "FrontEnd | None" = field(default=None, repr=False)
+    scan_stamps_s: np.ndarray | None = None
+    scan_poses: np.ndarray | None = None
+    scan_step_s: np.ndarray | None = None
+    relations: RelationErrors | None = None
+    label: str = ""
+    body_xytheta_lidar: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
-
-# ---------------------------------------------------------------------------------------------
-# front end
-
-
-@dataclass(frozen=True)
-class FrontEnd:
-    stamps_s: np.ndarray
-    odometry_poses: np.ndarray
-    frontend_poses: np.ndarray
-    keyframe_points: tuple[np.ndarray, ...]
-    keyframe_ranges_m: np.ndarray
-    angles_rad: np.ndarray
-    max_range_m: float
-    edge_from: np.ndarray
-    edge_to: np.ndarray
-    measurements: np.ndarray
-    information: np.ndarray
-    icp_iterations: np.ndarray
-    icp_fallbacks: int
-
-
-def _odometry_information(sigma_xy_m: float = 0.05, sigma_theta_rad: float = 0.02) -> np.ndarray:
-    return np.diag([sigma_xy_m ** -2, sigma_xy_m ** -2, sigma_theta_rad ** -2])
-
-
-def run_frontend(sequence: Sequence, config: LidarSlamConfig = LidarSlamConfig(),
-                 on_keyframe=None) -> FrontEnd:
-    """Wheel odometry to every scan, keyframes, ICP odometry edges (see module docstring)."""
-    pose = (np.zeros(3) if sequence.initial_pose_xytheta is None
-            else np.asarray(sequence.initial_pose_xytheta, float).reshape(3))
-    selector = KeyframeSelector(config.keyframes)
-    stamps, odo, est, pts_list, ranges = [], [], [], [], []
-    ef, et, meas, info, iters = [], [], [], [], []
-    fallbacks = 0
-    angles = None
-    max_range = 20.0
-    for ev in sequence:
-        if isinstance(ev, Odometry):
-            pose = np.asarray(diff_drive.motion(pose, np.array([ev.v_mps, ev.omega_radps]), ev.dt_s))
-            continue
-        if not isinstance(ev, Scan) or not selector.offer(ev.stamp_s, pose):
-            continue
-        angles, max_range = np.asarray(ev.angles_rad, float), float(ev.max_range_m)
-        r = despeckle(ev.ranges_m, config.despeckle_jump_m)
-        pts = scan_to_points(r, angles, max_range)
-        k = len(stamps)
-        if k == 0:
-            world_T_k = pose.copy()
-        else:
-            guess = se2.between(odo[-1], pose)
-            # local submap: the last few keyframes' points in keyframe k-1's frame
-            lo = max(0, k - config.submap_keyframes)
-            sub = np.concatenate([se2.transform_points(se2.between(est[k - 1], est[m]), pts_list[m])
-                                  for m in range(lo, k)])
-            res = None
-            if len(pts) >= config.icp.min_correspondences and len(sub) >= config.icp.min_correspondences:
-                res = icp(pts, IcpTarget(sub, config.icp.normal_neighbours), guess, config.icp)
-            if (res is not None and res.fitness >= config.min_odometry_fitness
-                    and np.all(np.isfinite(res.covariance))):
-                rel, inf_k = res.target_T_source, np.linalg.inv(res.covariance)
-            else:
-                fallbacks += 1
-                rel, inf_k = guess, _odometry_information()
-            iters.append(0 if res is None else res.iterations)
-            world_T_k = se2.compose(est[k - 1], rel)
-            ef.append(k - 1)
-            et.append(k)
-            meas.append(rel)
-            info.append(0.5 * (inf_k + inf_k.T))
-        stamps.append(float(ev.stamp_s))
-        odo.append(pose.copy())
-        est.append(world_T_k)
-        pts_list.append(pts)
-        ranges.append(r)
-        if on_keyframe is not None:
-            on_keyframe(k, float(ev.stamp_s), world_T_k, pts)
-    if len(stamps) < 2:
-        raise ConfigError(f"sequence {sequence.name!r} yields fewer than 2 keyframes with scans")
-    return FrontEnd(np.array(stamps), np.array(odo), np.array(est), tuple(pts_list), np.array(ranges),
-                    angles, max_range, np.array(ef), np.array(et), np.array(meas).reshape(-1, 3),
-                    np.array(info).reshape(-1, 3, 3), np.array(iters), fallbacks)
+    def sensor_poses(self, world_xytheta_body: np.ndarray) -> np.ndarray:
+        return se2.compose(np.asarray(world_xytheta_body, float).reshape(-1, 3), self.body_xytheta_lidar)
 
 
 def false_loop_edges(poses: np.ndarray, n: int, rng: np.random.Generator, min_separation_m: float = 10.0,
@@ -211,22 +127,6 @@ def false_loop_edges(poses: np.ndarray, n: int, rng: np.random.Generator, min_se
         if np.hypot(*(poses[i, :2] - poses[j, :2])) > min_separation_m and (i, j) not in pairs:
             pairs.append((int(i), int(j)))
     return pairs, np.zeros((len(pairs), 3)), np.repeat(info[None], len(pairs), axis=0)
-
-
-def _graph(fe: FrontEnd, poses: np.ndarray, loops: list[LoopClosure],
-           false_pairs: list[tuple[int, int]], false_meas: np.ndarray, false_info: np.ndarray,
-           name: str) -> PoseGraph:
-    ef = [fe.edge_from] + [np.array([lc.i for lc in loops], dtype=np.int64)]
-    et = [fe.edge_to] + [np.array([lc.j for lc in loops], dtype=np.int64)]
-    meas = [fe.measurements] + [np.array([lc.i_T_j for lc in loops]).reshape(-1, 3)]
-    info = [fe.information] + [np.array([lc.result.information for lc in loops]).reshape(-1, 3, 3)]
-    if false_pairs:
-        ef.append(np.array([p[0] for p in false_pairs]))
-        et.append(np.array([p[1] for p in false_pairs]))
-        meas.append(false_meas)
-        info.append(false_info)
-    return PoseGraph(2, np.arange(len(poses)), poses, np.concatenate(ef), np.concatenate(et),
-                     np.concatenate(meas), np.concatenate(info), name=name)
 
 
 def ate_keyframes_m(ground_truth: Trajectory, stamps_s: np.ndarray, poses: np.ndarray) -> float:
@@ -251,66 +151,141 @@ def _ground_truth_at(ground_truth: Trajectory, stamps_s: np.ndarray) -> np.ndarr
     return ground_truth.xytheta()[idx]
 
 
+class _KeyframeSnapshots:
+    """Adapter: the system's keyframe hook -> the pipeline observer's per-step snapshots."""
+
+    def __init__(self, observer, name: str):
+        self.observer, self.name = observer, name
+
+    def on_keyframe(self, kf: Keyframe) -> None:
+        self.observer.on_step(StepSnapshot("lidar_slam", self.name, kf.index, kf.stamp_s,
+                                           {"world_xytheta_body": kf.world_xytheta_body,
+                                            "body_p_scan": kf.body_xy_points}))
+
+    def on_loop_closure(self, closure: LoopClosure) -> None:
+        pass
+
+
+def config_for(sequence: Sequence, config: LidarSlamConfig) -> LidarSlamConfig:
+    """``config`` with the lidar mounting the recording states (``metadata['body_xytheta_lidar']``)
+    unless the config sets one."""
+    mount = sequence.metadata.get("body_xytheta_lidar")
+    if mount is not None and not np.any(config.body_xytheta_lidar):
+        return replace(config, body_xytheta_lidar=tuple(float(v) for v in mount))
+    return config
+
+
 def run_slam(sequence: Sequence, truth: OccupancyGrid | None = None,
-             config: LidarSlamConfig = LidarSlamConfig(), observer=None,
-             frontend: FrontEnd | None = None) -> LidarSlamResult:
-    """The whole pipeline on one sequence (the map covers ``truth``'s area when given).
-    ``frontend``: reuse an earlier :func:`run_frontend` of the same sequence and config (for
-    back-end comparisons such as robust kernels)."""
-    wants = observer is not None and observer.wants_steps
-
-    def on_keyframe(k, stamp, pose, pts):
-        if wants:
-            observer.on_step(StepSnapshot("lidar_slam", sequence.name, k, stamp,
-                                          {"world_xytheta_body": pose, "body_p_scan": pts}))
-
-    fe = frontend if frontend is not None else run_frontend(sequence, config, on_keyframe)
-    poses = fe.frontend_poses.copy()
-    loops: list[LoopClosure] = []
-    tried: set[tuple[int, int]] = set()
-    rng = np.random.default_rng(config.false_loop_seed)
-    false_pairs, false_meas, false_info = false_loop_edges(fe.frontend_poses, config.false_loop_closures, rng)
-    opt_cfg = OptimizeConfig(robust=config.robust, max_iterations=100)
-    graph = _graph(fe, poses, loops, false_pairs, false_meas, false_info, sequence.name)
-    for _ in range(config.loop_rounds):
-        found, _n = detect_loops(poses, list(fe.keyframe_points), config.loops, exclude=tried)
-        tried.update((lc.i, lc.j) for lc in found)
-        loops.extend(found)
-        graph = _graph(fe, poses, loops, false_pairs, false_meas, false_info, sequence.name)
-        poses = optimize(graph, opt_cfg).poses.copy()
-    if config.loop_rounds == 0 and false_pairs:
-        poses = optimize(graph, opt_cfg).poses.copy()
+             config: LidarSlamConfig = LidarSlamConfig(), observer=None, false_loop_closures: int = 0,
+             false_loop_seed: int = 0, relations=None, label: str = "") -> LidarSlamResult:
+    """Feed ``sequence`` to a :class:`LidarSlam` (timing every event), inject
+    ``false_loop_closures`` wrong edges, finish, build the maps (covering ``truth``'s area when
+    given) and score: ATE against the ground truth, map quality against ``truth``, relation
+    errors against ``relations`` (a :class:`~slamkit.metrics.relations.Relations`)."""
+    config = config_for(sequence, config)
+    hooks = _KeyframeSnapshots(observer, sequence.name) if observer is not None and observer.wants_steps else None
+    system = LidarSlam(config, sequence.initial_pose_xytheta, hooks, name=sequence.name)
+    odom = (np.zeros(3) if sequence.initial_pose_xytheta is None
+            else np.asarray(sequence.initial_pose_xytheta, float).reshape(3))
+    odom_at_scan, scan_step = [], []
+    clock = time.perf_counter
+    t_start = clock()
+    for ev in sequence:
+        t0 = clock()
+        system.step(ev)
+        if isinstance(ev, Scan):
+            scan_step.append(clock() - t0)
+            odom_at_scan.append(odom)
+        elif isinstance(ev, Odometry):
+            odom = np.asarray(diff_drive.motion(odom, np.array([ev.v_mps, ev.omega_radps]), ev.dt_s))
+    before = system.estimate()
+    rng = np.random.default_rng(false_loop_seed)
+    false_pairs, false_meas, false_info = false_loop_edges(before.keyframe_poses, false_loop_closures, rng)
+    for (i, j), z, info in zip(false_pairs, false_meas, false_info):
+        system.add_constraint(i, j, z, info)
+    t_finish = clock()
+    est = system.finish()
+    t_end = clock()
+    points, ranges, angles = system.keyframe_scans()
+    stamps = est.keyframe_stamps_s
+    poses, fe_poses = est.keyframe_poses, est.frontend_poses
+    odom_at_scan = np.asarray(odom_at_scan).reshape(-1, 3)
+    # the system skips nothing: scan n of the sequence is scan n of the estimate
+    odo_kf = odom_at_scan[est.keyframe_scans]
     gt_poses = None
-    map_poses, fe_map_poses = poses, fe.frontend_poses
+    map_poses, fe_map_poses = poses, fe_poses
     if sequence.ground_truth is not None:
-        gt_poses = _ground_truth_at(sequence.ground_truth, fe.stamps_s)
+        gt_poses = _ground_truth_at(sequence.ground_truth, stamps)
         if truth is not None:
             # SLAM fixes the map only up to a rigid motion: score it in the frame of the same SE(2)
             # alignment ATE uses (an early heading error would otherwise count on every wall)
-            map_poses = align_se2(poses, gt_poses, fe.stamps_s)
-            fe_map_poses = align_se2(fe.frontend_poses, gt_poses, fe.stamps_s)
-    slam_map = build_map(map_poses, fe.angles_rad, fe.keyframe_ranges_m, fe.max_range_m, truth, config.map)
-    fe_map = build_map(fe_map_poses, fe.angles_rad, fe.keyframe_ranges_m, fe.max_range_m, truth, config.map)
+            map_poses = align_se2(poses, gt_poses, stamps)
+            fe_map_poses = align_se2(fe_poses, gt_poses, stamps)
+    t_map = clock()
+    slam_map = _map(system, map_poses, truth, config.map)
+    fe_map = _map(system, fe_map_poses, truth, config.map)
+    time_map = clock() - t_map
+    c = est.counters
     metrics: dict[str, float] = {
-        "num_keyframes": float(len(poses)), "num_loop_closures": float(len(loops)),
+        "num_keyframes": float(len(poses)), "num_scans": float(len(est.stamps_s)),
+        "num_loop_closures": float(len(est.loops)),
+        "loop_closures_online": float(c["loop_closures_online"]),
+        "loop_closures_final": float(c["loop_closures_final"]),
+        "loop_candidates": float(c["loop_candidates"]),
         "num_false_loop_closures": float(len(false_pairs)),
-        "icp_iterations_mean": float(np.mean(fe.icp_iterations)) if len(fe.icp_iterations) else 0.0,
-        "icp_fallbacks": float(fe.icp_fallbacks),
+        "icp_iterations_mean": c["icp_iterations"] / max(c["matched_scans"], 1),
+        "icp_fallbacks": float(c["match_fallbacks"]),
     }
+    duration = float(est.stamps_s[-1] - est.stamps_s[0])
+    total = t_end - t_start
+    step = np.asarray(scan_step)
+    tenth = max(1, len(step) // 10)
+    metrics.update(time_total_s=total, time_finish_s=t_end - t_finish, time_map_s=time_map,
+                   realtime_factor=duration / total, log_duration_s=duration,
+                   time_per_scan_median_ms=1e3 * float(np.median(step)),
+                   time_per_scan_p99_ms=1e3 * float(np.percentile(step, 99)),
+                   time_per_scan_last_over_first=float(np.mean(step[-tenth:]) / np.mean(step[:tenth])),
+                   peak_rss_mb=_peak_rss_mb())
     if sequence.ground_truth is not None:
-        before = ate_keyframes_m(sequence.ground_truth, fe.stamps_s, fe.frontend_poses)
-        after = ate_keyframes_m(sequence.ground_truth, fe.stamps_s, poses)
-        metrics.update(ate_odometry_m=ate_keyframes_m(sequence.ground_truth, fe.stamps_s, fe.odometry_poses),
-                       ate_frontend_m=before, ate_rmse_m=after, ate_reduction=before / max(after, 1e-12))
+        before_m = ate_keyframes_m(sequence.ground_truth, stamps, fe_poses)
+        after_m = ate_keyframes_m(sequence.ground_truth, stamps, poses)
+        metrics.update(ate_odometry_m=ate_keyframes_m(sequence.ground_truth, stamps, odo_kf),
+                       ate_frontend_m=before_m, ate_rmse_m=after_m, ate_reduction=before_m / max(after_m, 1e-12))
     quality = None
     if truth is not None:
         quality = map_quality(slam_map, truth)
         metrics.update(quality.as_metrics("map_"))
         metrics["map_frontend_iou"] = map_quality(fe_map, truth).iou
-    return LidarSlamResult(sequence.name, fe.stamps_s, fe.odometry_poses, fe.frontend_poses, poses,
-                           gt_poses, fe.keyframe_points, graph, tuple(loops), tuple(false_pairs),
-                           slam_map, fe_map, metrics, quality, fe.angles_rad, fe.keyframe_ranges_m,
-                           fe.max_range_m, config, truth, fe)
+    rel = None
+    if relations is not None:
+        rel = relation_errors(est.stamps_s, est.world_xytheta_body, relations)
+        metrics.update({k: float(v) for k, v in rel.to_dict().items()})
+        odo_rel = relation_errors(est.stamps_s, odom_at_scan, relations)
+        metrics.update(relation_trans_mean_m_odometry=odo_rel.translation_m.mean,
+                       relation_trans_std_m_odometry=odo_rel.translation_m.std,
+                       relation_rot_mean_deg_odometry=odo_rel.rotation_deg.mean,
+                       relation_rot_std_deg_odometry=odo_rel.rotation_deg.std)
+    return LidarSlamResult(sequence.name, stamps, odo_kf, fe_poses, poses, gt_poses, points,
+                           system.graph(), est.loops, tuple(false_pairs), slam_map, fe_map, metrics,
+                           quality, angles, ranges, system.max_range_m, config, truth, est.stamps_s,
+                           est.world_xytheta_body, step, rel, label or sequence.name,
+                           np.asarray(config.body_xytheta_lidar, float))
+
+
+def _map(system: LidarSlam, poses: np.ndarray, truth: OccupancyGrid | None, config: LogOddsConfig) -> LogOddsMap:
+    if truth is None:
+        return system.map(config, poses)
+    _, ranges, angles = system.keyframe_scans()
+    m = LogOddsMap.like(truth, config)
+    for p, a, r in zip(system.sensor_poses(poses), angles, ranges):
+        m.update(p, a, r, system.max_range_m)
+    return m
+
+
+def _peak_rss_mb() -> float:
+    """The process's peak resident memory so far (MB; Linux reports ru_maxrss in KiB)."""
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return peak / (1024.0 ** 2 if sys.platform == "darwin" else 1024.0)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -327,9 +302,10 @@ def _dataclass_from(cls, values: Mapping[str, Any] | None, where: str):
 
 
 def slam_config_from(values: Mapping[str, Any] | None) -> LidarSlamConfig:
-    """``LidarSlamConfig`` from a plain mapping (nested ``keyframes``, ``icp``, ``loops``, ``map``)."""
+    """``LidarSlamConfig`` from a plain mapping (nested ``keyframes``, ``icp``, ``loops``, ``map``,
+    ``isam2``; lists for the tuple fields)."""
     values = dict(values or {})
-    nested = {"keyframes": KeyframeConfig, "icp": IcpConfig, "map": LogOddsConfig}
+    nested = {"keyframes": KeyframeConfig, "icp": IcpConfig, "map": LogOddsConfig, "isam2": Isam2Params}
     kwargs: dict[str, Any] = {}
     for key, value in values.items():
         if key in nested:
@@ -339,6 +315,8 @@ def slam_config_from(values: Mapping[str, Any] | None) -> LidarSlamConfig:
             icp_v = v.pop("icp", None)
             loops = _dataclass_from(LoopClosureConfig, v, "lidar_slam.slam.loops")
             kwargs[key] = replace(loops, icp=_dataclass_from(IcpConfig, icp_v, "lidar_slam.slam.loops.icp"))
+        elif key in ("body_xytheta_lidar", "fallback_sigmas"):
+            kwargs[key] = tuple(float(x) for x in value)
         else:
             kwargs[key] = value
     return _dataclass_from(LidarSlamConfig, kwargs, "lidar_slam.slam")
@@ -412,22 +390,74 @@ def localize_on_map(result: LidarSlamResult, sequence: Sequence, config: MclChec
             "mcl_updates": float(len(ok))}
 
 
+@dataclass(frozen=True)
+class LogEntry:
+    """A recorded log: its name, the recording (a registry name or a file), the relations file
+    it is scored on (None: unscored) and, optionally, only its first ``duration_s`` seconds."""
+
+    name: str
+    source: str
+    relations: str | None
+    duration_s: float | None = None
+
+
+def log_entry(raw: str | Mapping[str, Any]) -> LogEntry:
+    """A ``logs`` item: a registry name (``intel-log``; its relations come from the registry) or
+    ``{name, path, relations, duration_s}`` (``path`` a file or a registry name)."""
+    from slamkit.data import registry
+
+    if isinstance(raw, str):
+        raw = {"path": raw}
+    raw = dict(raw)
+    if "path" not in raw:
+        raise ConfigError("lidar_slam.logs: an entry is a registry name or {name, path, relations}")
+    target = registry.resolve(str(raw["path"]))
+    rel = raw.get("relations")
+    if isinstance(target, Path):
+        name = str(raw.get("name") or target.name.split(".")[0])
+    else:
+        name = str(raw.get("name") or target.name.removesuffix("-log"))
+        if rel is None:
+            rel = registry.relations_of(target.name)
+    duration = raw.get("duration_s")
+    return LogEntry(name, str(raw["path"]), None if rel is None else str(rel),
+                    None if duration is None else float(duration))
+
+
+def first_seconds(sequence: Sequence, duration_s: float) -> Sequence:
+    """The events of the first ``duration_s`` seconds of ``sequence`` (a slice of a log)."""
+    if not sequence.events:
+        return sequence
+    end = sequence.events[0].stamp_s + duration_s
+    return replace(sequence, events=tuple(e for e in sequence.events if e.stamp_s <= end),
+                   metadata={**sequence.metadata, "duration_s": duration_s})
+
+
+def _label(robust: str, prior: str) -> str:
+    return f"lidar_slam/{robust}" + ("" if prior == "odometry" else f"/{prior}")
+
+
 def run(config: Mapping[str, Any], folder, progress, observer=None):
-    """The ``lidar_slam`` pipeline: every world x seed through :func:`run_slam`; with an ``mcl``
-    mapping (fields of :class:`MclCheckConfig`) also global localization on each built map."""
+    """The ``lidar_slam`` pipeline: every world x seed and every log through :func:`run_slam`,
+    once per robust kernel (``robust_variants``) and motion prior (``motion_priors``); with an
+    ``mcl`` mapping (fields of :class:`MclCheckConfig`) also global localization on each map
+    built in a simulated world."""
+    from slamkit.experiments.config_models import seed_list
     from slamkit.experiments.pipeline import PipelineOutput
 
-    worlds = config.get("worlds")
-    if not worlds:
-        raise ConfigError("lidar_slam: 'worlds' must list at least one grid scenario mapping")
-    from slamkit.experiments.config_models import seed_list
-
+    worlds, logs = config.get("worlds") or [], [log_entry(x) for x in config.get("logs") or []]
+    if not worlds and not logs:
+        raise ConfigError("lidar_slam: 'worlds' (grid scenario mappings) or 'logs' (laser logs) must "
+                          "list at least one entry")
     seeds = seed_list(config.get("seeds", [0]))
     slam_cfg = slam_config_from(config.get("slam"))
-    variants = config.get("robust_variants") or [slam_cfg.robust]
+    robusts = config.get("robust_variants") or [slam_cfg.robust]
+    priors = config.get("motion_priors") or [slam_cfg.motion_prior]
+    variants = [(r, p) for r in robusts for p in priors]
+    n_false, false_seed = int(config.get("false_loop_closures", 0)), int(config.get("false_loop_seed", 0))
     mcl_cfg = None if not config.get("mcl") else _dataclass_from(
         MclCheckConfig, config["mcl"] if isinstance(config["mcl"], Mapping) else {}, "lidar_slam.mcl")
-    advance = progress.task("lidar_slam", len(worlds) * len(seeds) * len(variants))
+    advance = progress.task("lidar_slam", (len(worlds) * len(seeds) + len(logs)) * len(variants))
     runs: list[RunRecord] = []
     results: list[LidarSlamResult] = []
     for world in worlds:
@@ -438,26 +468,46 @@ def run(config: Mapping[str, Any], folder, progress, observer=None):
             if mcl_cfg is not None:
                 from slamkit.sim.grid_world import simulate_grid_sequence
 
-                second, _ = simulate_grid_sequence(sim.scenario, np.random.default_rng(int(seed) + mcl_cfg.seed_offset),
-                                                   grid=grid)
+                second, _ = simulate_grid_sequence(sim.scenario,
+                                                   np.random.default_rng(int(seed) + mcl_cfg.seed_offset), grid=grid)
                 second = trim_to_free_space(second, grid)
-            fe = None  # the front-end does not depend on the kernel: run it once per sequence
-            for robust in variants:
-                res = run_slam(seq, grid, replace(slam_cfg, robust=robust), observer, frontend=fe)
-                fe = res.frontend
+            for robust, prior in variants:
+                label = _label(robust, prior)
+                res = run_slam(seq, grid, replace(slam_cfg, robust=robust, motion_prior=prior), observer,
+                               n_false, false_seed, label=f"{seq.name}_{robust}" + ("" if prior == "odometry" else f"_{prior}"))
                 results.append(res)
-                label = f"lidar_slam/{robust}"
                 metrics = dict(res.metrics)
                 if second is not None:
                     metrics.update(localize_on_map(res, second, mcl_cfg))
                 runs.append(RunRecord(seq.name, label, metrics, seed=int(seed),
-                                      params={"robust": robust,
-                                              "false_loop_closures": slam_cfg.false_loop_closures}))
-                _write_trajectory(folder, res, f"{seq.name}_s{seed}_{robust}")
+                                      params={"robust": robust, "motion_prior": prior,
+                                              "false_loop_closures": n_false}))
+                stem = f"{seq.name}_s{seed}_{robust}" + ("" if prior == "odometry" else f"_{prior}")
+                _write_trajectory(folder, res.stamps_s, res.optimised_poses, stem)
+                _write_trajectory(folder, res.stamps_s, res.frontend_poses, f"{stem}_frontend")
                 advance()
+    from slamkit.data import registry
+
+    for entry in logs:
+        seq = replace(registry.load_recording(entry.source), name=entry.name)
+        if entry.duration_s is not None:
+            seq = first_seconds(seq, entry.duration_s)
+        relations = read_relations(entry.relations) if entry.relations else None
+        for robust, prior in variants:
+            suffix = ("" if len(robusts) == 1 else f"_{robust}") + ("" if prior == "odometry" else f"_{prior}")
+            res = run_slam(seq, None, replace(slam_cfg, robust=robust, motion_prior=prior), observer,
+                           relations=relations, label=f"{entry.name}{suffix}")
+            results.append(res)
+            runs.append(RunRecord(entry.name, _label(robust, prior), dict(res.metrics),
+                                  params={"robust": robust, "motion_prior": prior, "source": entry.source,
+                                          "relations": entry.relations or ""}))
+            _write_trajectory(folder, res.scan_stamps_s, res.scan_poses, f"{entry.name}{suffix}")
+            advance()
     _plot(folder.plots, results)
+    report = report_markdown(config, [r for r in runs if r.seed is not None],
+                             [r for r in runs if r.seed is None])
     # the runner hands this output (``payload``: the LidarSlamResult list) to observer.on_output
-    return PipelineOutput(runs, report_markdown(config, runs), payload=results)
+    return PipelineOutput(runs, report, payload=results)
 
 
 def _sim_parts(sim):
@@ -487,32 +537,79 @@ def trim_to_free_space(sequence: Sequence, grid: OccupancyGrid | None) -> Sequen
                     gt.subset(keep), sequence.world_p_landmarks, sequence.initial_pose_xytheta, meta)
 
 
-def _write_trajectory(folder, res: LidarSlamResult, stem: str) -> None:
+def _write_trajectory(folder, stamps_s: np.ndarray, poses: np.ndarray, stem: str) -> None:
     from slamkit.data.formats.tum import write_tum
 
-    write_tum(file_in(folder.trajectories, stem, ".tum", "world name"),
-              Trajectory.from_se2(res.stamps_s, res.optimised_poses))
-    write_tum(file_in(folder.trajectories, f"{stem}_frontend", ".tum", "world name"),
-              Trajectory.from_se2(res.stamps_s, res.frontend_poses))
+    write_tum(file_in(folder.trajectories, stem, ".tum", "run name"), Trajectory.from_se2(stamps_s, poses))
 
 
-def report_markdown(config: Mapping[str, Any], runs: list[RunRecord]) -> str:
-    header = ["world", "seed", "estimator", "keyframes", "loops", "false loops", "ATE odometry (m)",
-              "ATE before LC (m)", "ATE after LC (m)", "reduction", "map IoU", "precision", "recall",
-              "front-end map IoU", "MCL converged after (updates)"]
-    rows = [[r.dataset, r.seed, r.estimator, int(r.metrics["num_keyframes"]),
-             int(r.metrics["num_loop_closures"]), int(r.metrics["num_false_loop_closures"]),
-             r.metrics.get("ate_odometry_m"), r.metrics.get("ate_frontend_m"), r.metrics.get("ate_rmse_m"),
-             r.metrics.get("ate_reduction"), r.metrics.get("map_iou"), r.metrics.get("map_precision"),
-             r.metrics.get("map_recall"), r.metrics.get("map_frontend_iou"),
-             r.metrics.get("mcl_converged_after_updates")] for r in runs]
+def report_markdown(config: Mapping[str, Any], sim_runs: list[RunRecord], log_runs: list[RunRecord]) -> str:
     text = f"# Lidar SLAM: {config.get('name', 'lidar_slam')}\n\n"
-    text += ("ATE: RMSE over keyframes after SE(2) alignment; 'before LC' chains the ICP odometry, "
-             "'after LC' is the optimised pose graph. Map IoU: occupied cells (p > 0.5) against the "
-             "ground truth max-pooled to the map resolution, on the cells the map observed. MCL: "
-             "global localization from a uniform prior on the built map along a second tour; "
-             "updates until it stays within 0.3 m / 10 deg (nan: not within the budget).\n\n")
-    return text + markdown_table(header, rows) + "\n"
+    if sim_runs:
+        header = ["world", "seed", "estimator", "keyframes", "loops", "false loops", "ATE odometry (m)",
+                  "ATE before LC (m)", "ATE after LC (m)", "reduction", "map IoU", "precision", "recall",
+                  "front-end map IoU", "MCL converged after (updates)"]
+        rows = [[r.dataset, r.seed, r.estimator, int(r.metrics["num_keyframes"]),
+                 int(r.metrics["num_loop_closures"]), int(r.metrics["num_false_loop_closures"]),
+                 r.metrics.get("ate_odometry_m"), r.metrics.get("ate_frontend_m"), r.metrics.get("ate_rmse_m"),
+                 r.metrics.get("ate_reduction"), r.metrics.get("map_iou"), r.metrics.get("map_precision"),
+                 r.metrics.get("map_recall"), r.metrics.get("map_frontend_iou"),
+                 r.metrics.get("mcl_converged_after_updates")] for r in sim_runs]
+        text += ("## Simulated worlds\n\nATE: RMSE over keyframes after SE(2) alignment; 'before LC' "
+                 "chains the scan matches, 'after LC' is the optimised pose graph. Map IoU: occupied "
+                 "cells (p > 0.5) against the ground truth max-pooled to the map resolution, on the cells "
+                 "the map observed. MCL: global localization from a uniform prior on the built map along "
+                 "a second tour; updates until it stays within 0.3 m / 10 deg (nan: not within the "
+                 "budget).\n\n")
+        text += markdown_table(header, rows) + "\n"
+    if log_runs:
+        text += _log_report(log_runs)
+    return text
+
+
+def _pm(mean: float | None, std: float | None, digits: int = 3) -> str:
+    if mean is None:
+        return ""
+    return f"{mean:.{digits}f} +- {std:.{digits}f}"
+
+
+def _log_report(runs: list[RunRecord]) -> str:
+    text = ("## Laser logs\n\nRelation error (Kuemmerle et al., Autonomous Robots 27(4), 2009): for every "
+            "manually verified relation, the error of the estimated displacement between the two scans "
+            "(poses stamped with the scans' ipc timestamps); mean +- std over all relations. Raw "
+            "odometry is scored on the same relations. Real-time factor: log duration / processing "
+            "time (every scan matched, loop search, iSAM2, the final batch solve; map building "
+            "excluded) on this machine.\n\n")
+    header = ["log", "estimator", "translation (m)", "rotation (deg)", "relations", "raw odometry (m)",
+              "keyframes", "loops (online + final)", "real-time factor", "time (s)",
+              "time per scan median / p99 (ms)", "peak RSS (MB)"]
+    rows = []
+    for r in runs:
+        m = r.metrics
+        rows.append([r.dataset, r.estimator, _pm(m.get("relation_trans_mean_m"), m.get("relation_trans_std_m")),
+                     _pm(m.get("relation_rot_mean_deg"), m.get("relation_rot_std_deg"), 2),
+                     int(m["relation_count"]) if "relation_count" in m else "",
+                     _pm(m.get("relation_trans_mean_m_odometry"), m.get("relation_trans_std_m_odometry"), 2),
+                     int(m["num_keyframes"]),
+                     f"{int(m['loop_closures_online'])} + {int(m['loop_closures_final'])}",
+                     f"{m['realtime_factor']:.1f}", f"{m['time_total_s']:.1f}",
+                     f"{m['time_per_scan_median_ms']:.1f} / {m['time_per_scan_p99_ms']:.1f}",
+                     f"{m['peak_rss_mb']:.0f}"])
+    text += markdown_table(header, rows) + "\n"
+    names = sorted({r.dataset for r in runs if r.dataset in PUBLISHED})
+    if names:
+        text += ("\nPublished translational relation errors (m, mean +- std; Kuemmerle et al. 2009, "
+                 "Table 3) beside slamkit's:\n\n")
+        methods = list(next(iter(PUBLISHED.values())))
+        ours = {}
+        for r in runs:
+            if "relation_trans_mean_m" in r.metrics:
+                ours.setdefault(r.dataset, []).append(
+                    f"{_pm(r.metrics['relation_trans_mean_m'], r.metrics['relation_trans_std_m'])} "
+                    f"({r.estimator.removeprefix('lidar_slam/')})")
+        rows = [[n] + [_pm(*PUBLISHED[n][k]) for k in methods] + ["<br>".join(ours.get(n, []))] for n in names]
+        text += markdown_table(["log"] + methods + ["slamkit"], rows) + "\n"
+    return text
 
 
 def _plot(plots, results: list[LidarSlamResult]) -> None:
@@ -524,14 +621,14 @@ def _plot(plots, results: list[LidarSlamResult]) -> None:
     import matplotlib.pyplot as plt
 
     for k, res in enumerate(results):
+        if res.ground_truth_poses is None:
+            _plot_log(plt, plots, res)
+            continue
         fig, axes = plt.subplots(1, 2, figsize=(12, 6))
         m = res.map
-        h, w = m.shape
-        extent = [m.origin_xy_m[0], m.origin_xy_m[0] + w * m.resolution_m,
-                  m.origin_xy_m[1], m.origin_xy_m[1] + h * m.resolution_m]
         for ax, mp, poses, title in ((axes[0], res.frontend_map, res.frontend_poses, "before loop closure"),
                                      (axes[1], res.map, res.optimised_poses, "after loop closure")):
-            ax.imshow(1.0 - mp.probability(), cmap="gray", origin="lower", extent=extent, vmin=0, vmax=1)
+            ax.imshow(1.0 - mp.probability(), cmap="gray", origin="lower", extent=_extent(m), vmin=0, vmax=1)
             if res.ground_truth_poses is not None:
                 ax.plot(res.ground_truth_poses[:, 0], res.ground_truth_poses[:, 1], color="tab:green",
                         lw=0.8, label="ground truth")
@@ -547,3 +644,41 @@ def _plot(plots, results: list[LidarSlamResult]) -> None:
         fig.tight_layout()
         fig.savefig(file_in(plots, f"map_{k:02d}_{res.name}", ".png", "world name"), dpi=100)
         plt.close(fig)
+
+
+def _extent(m: LogOddsMap) -> list[float]:
+    h, w = m.shape
+    return [m.origin_xy_m[0], m.origin_xy_m[0] + w * m.resolution_m,
+            m.origin_xy_m[1], m.origin_xy_m[1] + h * m.resolution_m]
+
+
+def _plot_log(plt, plots, res: LidarSlamResult) -> None:
+    """The map at its own resolution (one pixel per cell) with the trajectory over it, and the
+    time per scan along the log."""
+    m = res.map
+    h, w = m.shape
+    fig = plt.figure(figsize=(w / 100.0, h / 100.0), dpi=100)
+    ax = fig.add_axes((0.0, 0.0, 1.0, 1.0))
+    ax.imshow(1.0 - m.probability(), cmap="gray", origin="lower", extent=_extent(m), vmin=0, vmax=1,
+              interpolation="nearest")
+    ax.plot(res.scan_poses[:, 0], res.scan_poses[:, 1], color="tab:blue", lw=0.6, alpha=0.8)
+    ax.set_axis_off()
+    fig.savefig(file_in(plots, f"map_{res.label}", ".png", "log name"), dpi=100)
+    plt.close(fig)
+    step_ms = 1e3 * np.asarray(res.scan_step_s)
+    fig, ax = plt.subplots(figsize=(9, 3.5))
+    t = res.scan_stamps_s - res.scan_stamps_s[0]
+    ax.plot(t, step_ms, ",", color="0.6", label="per scan")
+    window = max(1, len(step_ms) // 100)
+    ax.plot(t[window - 1:], np.convolve(step_ms, np.ones(window) / window, mode="valid"), color="tab:blue",
+            label=f"mean over {window} scans")
+    ax.axhline(1e3 * float(np.median(np.diff(res.scan_stamps_s))), color="tab:red", lw=0.8,
+               label="scan period")
+    ax.set_yscale("log")
+    ax.set_xlabel("log time (s)")
+    ax.set_ylabel("processing time (ms)")
+    ax.set_title(f"{res.label}: time per scan (real-time factor {res.metrics['realtime_factor']:.1f})")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(file_in(plots, f"time_per_scan_{res.label}", ".png", "log name"), dpi=100)
+    plt.close(fig)

@@ -38,7 +38,7 @@ Observers (the recorder) subscribe through :class:`LidarSlamObserver`: ``on_keyf
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Protocol
 
 import numpy as np
@@ -413,6 +413,12 @@ class LidarSlam:
         return self.estimate()
 
     # ---- results -----------------------------------------------------------------------------
+
+    def graph(self):
+        """The pose graph so far (keyframes, scan-match edges, loop closures, injected edges) as a
+        :class:`~slamkit.data.pose_graph.PoseGraph` with the current estimate as its poses."""
+        g = self._graph.graph()
+        return replace(g, poses=self.keyframe_poses().copy()) if self._finished else g
 
     def keyframe_poses(self) -> np.ndarray:
         return self._final_poses if self._finished else self._graph.poses()

@@ -1,18 +1,22 @@
-"""Rerun recordings of lidar SLAM runs (``slamkit.experiments.lidar_slam``).
+"""Rerun recordings of lidar SLAM runs (``slamkit.experiments.lidar_slam``, the system in
+``slamkit.systems.lidar_slam``), simulated worlds and recorded logs alike.
 
-Entity tree per run (``<run>`` = ``<world>_<robust>``; mirrors the frame tree):
+Entity tree per run (``<run>`` = the result's label, ``<world>_<robust>`` or the log's name;
+mirrors the frame tree):
 
-    <run>/world/ground_truth_map        occupied cells of the true grid (static)
-    <run>/world/ground_truth            the true keyframe path (static)
+    <run>/world/ground_truth_map        occupied cells of the true grid (static, simulated worlds)
+    <run>/world/ground_truth            the true keyframe path (static, simulated worlds)
     <run>/world/trajectory/frontend     chained ICP odometry: before loop closure (static)
     <run>/world/trajectory/optimised    the pose graph after loop closure (static)
+    <run>/world/trajectory/scans        every scan's pose (static, recorded logs)
     <run>/world/keyframes               keyframe positions after optimisation (static)
     <run>/world/loop_closures           accepted loop-closure edges (static)
     <run>/world/false_loop_closures     injected wrong edges, when any (static)
     <run>/world/robot                   optimised keyframe pose over the ``keyframe`` timeline
     <run>/world/robot/scan              the keyframe's scan end points in the robot frame
     <run>/map/occupancy                 the growing log-odds map as an image (p(occupied),
-                                        rows flipped so north is up), every ``map_every`` keyframes
+                                        rows flipped so north is up), ``map_frames`` times along
+                                        the run (at most 0.1 m per cell)
     <run>/plots/icp_fitness ...         not logged: numbers live in results.json
 
 Timelines: ``keyframe`` (index) and ``sim_time`` (seconds).
@@ -20,6 +24,7 @@ Timelines: ``keyframe`` (index) and ``sim_time`` (seconds).
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -57,10 +62,10 @@ def _map_image(m: LogOddsMap) -> np.ndarray:
 
 
 def run_label(result) -> str:
-    return f"{result.name}_{result.config.robust}"
+    return result.label or f"{result.name}_{result.config.robust}"
 
 
-def log_lidar_slam(stream: rr.RecordingStream, result, prefix: str = "", map_every: int = 10) -> None:
+def log_lidar_slam(stream: rr.RecordingStream, result, prefix: str = "", map_frames: int = 40) -> None:
     """Log one ``LidarSlamResult`` under ``prefix`` (see the module docstring)."""
     p = f"{prefix}/" if prefix else ""
     if result.truth is not None:
@@ -78,6 +83,10 @@ def log_lidar_slam(stream: rr.RecordingStream, result, prefix: str = "", map_eve
                rr.LineStrips3D([_xyz(fe[:, :2])], radii=[0.02], colors=[COLOR_FRONTEND]), static=True)
     stream.log(f"{p}world/trajectory/optimised",
                rr.LineStrips3D([_xyz(opt[:, :2])], radii=[0.03], colors=[COLOR_OPTIMISED]), static=True)
+    if result.scan_poses is not None and result.ground_truth_poses is None:
+        # a recorded log: the trajectory of every scan (what the relations score)
+        stream.log(f"{p}world/trajectory/scans", rr.LineStrips3D([_xyz(result.scan_poses[:, :2])], radii=[0.01],
+                                                                 colors=[COLOR_OPTIMISED]), static=True)
     stream.log(f"{p}world/keyframes", rr.Points3D(_xyz(opt[:, :2]), radii=[0.06], colors=[COLOR_OPTIMISED],
                                                   labels=[str(k) for k in range(len(opt))]),
                static=True)
@@ -98,14 +107,21 @@ def log_lidar_slam(stream: rr.RecordingStream, result, prefix: str = "", map_eve
     quat_xyzw = np.column_stack([np.zeros(len(opt)), np.zeros(len(opt)), np.sin(half), np.cos(half)])
     stream.send_columns(f"{p}world/robot", indexes=times,
                         columns=rr.Transform3D.columns(translation=_xyz(opt[:, :2]), quaternion=quat_xyzw))
-    m = LogOddsMap(result.map.shape, result.map.origin_xy_m, result.map.config)
+    # the growing map: every keyframe integrated, an image logged map_frames times (at 0.1 m per
+    # cell or finer maps coarsened to it, so a 45-minute log stays a few MB)
+    cfg = result.map.config
+    coarse = replace(cfg, resolution_m=max(cfg.resolution_m, 0.1))
+    hi = result.map.origin_xy_m + np.array(result.map.shape[::-1]) * result.map.resolution_m
+    m = LogOddsMap.covering(result.map.origin_xy_m, hi, coarse)
+    every = max(1, len(opt) // max(map_frames, 1))
+    sensor = result.sensor_poses(opt)
     for i, pts in enumerate(result.keyframe_points):
         stream.set_time("keyframe", sequence=i)
         stream.set_time("sim_time", duration=float(result.stamps_s[i]))
         stream.log(f"{p}world/robot/scan", rr.Points3D(_xyz(pts), radii=[0.03], colors=[COLOR_SCAN]))
-        if result.keyframe_ranges_m is not None:
-            m.update(opt[i], result.angles_rad, result.keyframe_ranges_m[i], result.max_range_m)
-            if i % map_every == 0 or i == len(opt) - 1:
+        if result.keyframe_ranges_m:
+            m.update(sensor[i], result.keyframe_angles_rad[i], result.keyframe_ranges_m[i], result.max_range_m)
+            if i % every == 0 or i == len(opt) - 1:
                 stream.log(f"{p}map/occupancy", rr.Image(_map_image(m), color_model="L"))
 
 

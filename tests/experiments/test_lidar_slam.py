@@ -18,14 +18,13 @@ import pytest
 
 from slamkit.errors import ConfigError
 from slamkit.experiments.lidar_slam import (
-    LidarSlamConfig,
     _sim_parts,
     _simulate,
-    run_frontend,
     run_slam,
     slam_config_from,
     trim_to_free_space,
 )
+from slamkit.systems.lidar_slam import LidarSlamConfig
 from slamkit.experiments.pipeline import run_pipeline
 from slamkit.frontend.icp import IcpConfig
 from slamkit.viz.pipelines import observer_for
@@ -73,7 +72,7 @@ def test_loop_closure_halves_ate_of_a_drifting_frontend(world):
 TINY = {"pipeline": "lidar_slam", "name": "tiny", "seeds": [0],
         "worlds": [{"name": "wh", "world": "warehouse", "world_size_m": [20.0, 20.0], "num_goals": 2,
                     "duration_s": 40.0}],
-        "slam": {"false_loop_closures": 1}, "robust_variants": ["cauchy", "none"],
+        "false_loop_closures": 1, "robust_variants": ["cauchy", "none"],
         "mcl": {"max_updates": 20}}
 
 

@@ -38,6 +38,7 @@ from slamkit._text import is_number_token, read_bytes, split_lines
 from slamkit.data.odometry import odometry_from_poses
 from slamkit.data.sequence import Scan, Sequence, beam_angles_rad
 from slamkit.errors import DataError
+from slamkit.geometry import se2
 
 #: bytes a decompressed log may have (the largest benchmark log is ~80 MB decompressed)
 MAX_LOG_BYTES = 2 * 1024**3
@@ -99,10 +100,15 @@ class CarmenLog:
         events += [Scan(float(laser.stamps_s[k]), laser.angles_rad[k] if per_scan else laser.angles_rad,
                         laser.ranges_m[k], laser.max_range_m) for k in order.tolist()]
         initial = poses[0] if len(poses) and np.isfinite(poses[0]).all() else None
+        # where the laser sits on the robot: the FLASER/ROBOTLASER1 laser pose in the robot frame
+        # (Freiburg 079: 4 cm behind the centre); None when the lines carry no poses
+        robot_T_laser = se2.between(laser.world_xytheta_robot, laser.world_xytheta_laser)
+        body_lidar = (tuple(float(v) for v in np.round(np.median(robot_T_laser, axis=0), 6))
+                      if len(robot_T_laser) and np.isfinite(robot_T_laser).all() else None)
         return Sequence.from_events(name or Path(self.path).name.split(".")[0], events,
                                     initial_pose_xytheta=initial,
                                     metadata={"source": self.path, "laser_max_range_m": laser.max_range_m,
-                                              "stamps": "ipc_timestamp",
+                                              "stamps": "ipc_timestamp", "body_xytheta_lidar": body_lidar,
                                               "scans_out_of_order": int(np.sum(np.diff(laser.stamps_s) < 0)),
                                               "scans_with_repeated_stamp": int(np.sum(~keep))})
 
