@@ -48,7 +48,7 @@ from slamkit.backend.isam2 import Isam2Params, Isam2PoseGraph
 from slamkit.backend.solvers import OptimizeConfig, optimize
 from slamkit.data.sequence import Event, Odometry, Scan, Sequence
 from slamkit.errors import ConfigError, DataError
-from slamkit.frontend.icp import IcpConfig, IcpTarget, icp, scan_to_points
+from slamkit.frontend.icp import IcpConfig, IcpTarget, icp, rotation_search, scan_to_points
 from slamkit.frontend.keyframes import KeyframeConfig
 from slamkit.frontend.loop_closure import LoopClosure, LoopClosureConfig, loop_candidates, verify_loop
 from slamkit.frontend.preprocess import despeckle
@@ -75,8 +75,15 @@ class LidarSlamConfig:
     loop_submap_keyframes: int = 0
     #: a scan match is replaced by the motion prior when its fitness is below this
     min_match_fitness: float = 0.3
-    #: ``odometry`` (wheel odometry since the previous scan), ``constant_velocity`` or ``identity``
+    #: ``odometry`` (wheel odometry since the previous scan), ``constant_velocity`` (the previous
+    #: scan-to-scan motion, scaled to the time since the previous scan) or ``identity``
     motion_prior: str = "odometry"
+    #: without odometry (``motion_prior`` other than ``odometry``), search the heading within
+    #: +- this many degrees before ICP, from the prior and from the previous scan's pose (the
+    #: robot may have stopped), and start from the better (``slamkit.frontend.icp.rotation_search``;
+    #: 0: off). Measured on the first 120 s of Intel lidar only: relation error 0.066 +- 0.129 m
+    #: without (a turn on the spot matched 18 deg off), 0.023 +- 0.025 m with +-10 deg
+    rotation_search_deg: float = 10.0
     #: match every scan (True) or only the scans that the prior already makes keyframes
     match_every_scan: bool = True
     #: search loop closures at every new keyframe (False: only in ``finish()``)
@@ -100,6 +107,8 @@ class LidarSlamConfig:
         if self.loop_rounds < 0 or self.submap_keyframes < 1 or self.loop_submap_keyframes < 0:
             raise ConfigError("lidar_slam: loop_rounds and loop_submap_keyframes must be >= 0, "
                               "submap_keyframes >= 1")
+        if not 0 <= self.rotation_search_deg <= 90:
+            raise ConfigError(f"lidar_slam.rotation_search_deg must lie in [0, 90], got {self.rotation_search_deg}")
         if self.max_range_m is not None and not self.max_range_m > 0:
             raise ConfigError(f"lidar_slam.max_range_m must be > 0, got {self.max_range_m}")
         if len(self.body_xytheta_lidar) != 3 or len(self.fallback_sigmas) != 3 or min(self.fallback_sigmas) <= 0:
@@ -184,6 +193,7 @@ class LidarSlam:
         self._odom_at_scan: np.ndarray | None = None
         self._last_motion = np.zeros(3)           # previous scan-to-scan motion (body frame)
         self._last_stamp: float | None = None
+        self._last_dt_s = 0.0
         self._target: IcpTarget | None = None     # submap in the newest keyframe's frame
         self._loops: list[LoopClosure] = []
         self._tried: set[tuple[int, int]] = set()
@@ -225,8 +235,10 @@ class LidarSlam:
         kind = self.config.motion_prior
         if kind == "odometry":
             return se2.between(self._odom_at_scan, self._odom)
-        if kind == "constant_velocity" and self._last_stamp is not None:
-            return self._last_motion
+        if kind == "constant_velocity" and self._last_dt_s > 0:
+            # scans are not evenly spaced (Intel's ipc stamps: 0.04 .. 0.9 s apart): scale the
+            # previous motion to this interval, at most 3x
+            return self._last_motion * min((stamp_s - self._last_stamp) / self._last_dt_s, 3.0)
         return np.zeros(3)
 
     def _scan(self, scan: Scan) -> None:
@@ -250,9 +262,10 @@ class LidarSlam:
         guess = se2.compose(prev_rel, prior)       # keyframe k -> this scan
         rel, info = guess, None
         if cfg.match_every_scan or self._is_keyframe(guess):
-            rel, info = self._match(pts, guess)
+            rel, info = self._match(pts, guess, None if cfg.motion_prior == "odometry" else prev_rel)
         self._odom_at_scan = self._odom.copy()
         self._last_motion = se2.between(prev_rel, rel)
+        self._last_dt_s = stamp - self._last_stamp
         self._last_stamp = stamp
         if self._is_keyframe(rel):
             world_T_k = self._graph.poses()[k]
@@ -276,13 +289,19 @@ class LidarSlam:
     def _fallback_information(self) -> np.ndarray:
         return np.diag(np.asarray(self.config.fallback_sigmas, float) ** -2)
 
-    def _match(self, pts: np.ndarray, guess: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
-        """Scan points against the submap from ``guess``: (k_T_scan, information) or the guess
-        and None when the match is not trusted."""
+    def _match(self, pts: np.ndarray, guess: np.ndarray, hold: np.ndarray | None = None
+               ) -> tuple[np.ndarray, np.ndarray | None]:
+        """Scan points against the submap from ``guess`` (or ``hold``, the previous scan's pose,
+        when its heading search scores better): (k_T_scan, information) or the guess and None
+        when the match is not trusted."""
         cfg = self.config
         if self._target is None or len(pts) < cfg.icp.min_correspondences:
             self.counters["match_fallbacks"] += 1
             return guess, None
+        if cfg.rotation_search_deg > 0 and hold is not None:
+            # without odometry the robot may also have stopped: both hypotheses, the better one
+            found = [rotation_search(pts, self._target, g, np.deg2rad(cfg.rotation_search_deg)) for g in (guess, hold)]
+            guess = min(found, key=lambda f: f[1])[0]
         res = icp(pts, self._target, guess, cfg.icp)
         self.counters["matched_scans"] += 1
         self.counters["icp_iterations"] += res.iterations
