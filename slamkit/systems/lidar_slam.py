@@ -200,6 +200,7 @@ class LidarSlam:
         self._injected: list[tuple[int, int]] = []
         self._tree: cKDTree | None = None
         self._tree_size = 0
+        self._moved_m = 0.0
         self._finished = False
         self.counters = {"scans": 0, "matched_scans": 0, "match_fallbacks": 0, "loop_candidates": 0,
                          "loop_closures_online": 0, "loop_closures_final": 0, "icp_iterations": 0}
@@ -340,17 +341,32 @@ class LidarSlam:
 
     # ---- loop closure ------------------------------------------------------------------------
 
+    #: keyframes added between rebuilds of the candidate KD-tree, and the radius margin that
+    #: covers how far the estimate may have moved since (positions are re-checked exactly)
+    TREE_REBUILD_EVERY = 64
+    TREE_MARGIN_M = 1.0
+
     def _candidates_for(self, j: int) -> list[int]:
+        """Earlier keyframes within the search radius of keyframe j in the current estimate, at
+        least the index and path gaps back, closest first. A KD-tree over the positions is
+        rebuilt every ``TREE_REBUILD_EVERY`` keyframes (O(K log K) each time, so O(log K)
+        amortised per keyframe); it is queried with a margin, the keyframes added since are
+        checked directly, and every hit is re-checked against the current positions. Loop
+        closures that corrected the estimate by more than half the margin in total since the
+        last rebuild (the graph may have moved that much) force a rebuild."""
         cfg = self.config.loops
         poses = self._graph.poses()
-        if self._tree is None or self._tree_size != j:
-            self._tree, self._tree_size = cKDTree(poses[:j, :2]), j
-        near = self._tree.query_ball_point(poses[j, :2], cfg.search_radius_m)
+        if (self._tree is None or j - self._tree_size >= self.TREE_REBUILD_EVERY
+                or self._moved_m > 0.5 * self.TREE_MARGIN_M):
+            self._tree, self._tree_size, self._moved_m = cKDTree(poses[:j, :2]), j, 0.0
+        near = self._tree.query_ball_point(poses[j, :2], cfg.search_radius_m + self.TREE_MARGIN_M)
+        near = np.concatenate([np.asarray(near, dtype=np.int64), np.arange(self._tree_size, j)])
+        d = np.hypot(*(poses[near, :2] - poses[j, :2]).T)
         path = self._kf.path_m
-        ok = [i for i in near if j - i >= cfg.min_index_gap and path[j] - path[i] >= cfg.min_path_gap_m
-              and (i, j) not in self._tried]
-        ok.sort(key=lambda i: float(np.hypot(*(poses[i, :2] - poses[j, :2]))))
-        return ok[:cfg.max_candidates_per_keyframe]
+        ok = [(float(dist), int(i)) for i, dist in zip(near, d)
+              if dist <= cfg.search_radius_m and j - i >= cfg.min_index_gap
+              and path[j] - path[i] >= cfg.min_path_gap_m and (int(i), j) not in self._tried]
+        return [i for _, i in sorted(ok)[:cfg.max_candidates_per_keyframe]]
 
     def _verify(self, i: int, j: int, poses: np.ndarray) -> LoopClosure | None:
         cfg = self.config
@@ -376,10 +392,11 @@ class LidarSlam:
             return None
         return IcpTarget(pts, neighbours)
 
-    def _accept(self, closure: LoopClosure) -> None:
+    def _accept(self, closure: LoopClosure, poses: np.ndarray) -> None:
+        correction = se2.between(se2.between(poses[closure.i], poses[closure.j]), closure.i_T_j)
+        self._moved_m += float(np.hypot(correction[0], correction[1]))
         self._graph.add_edge(closure.i, closure.j, closure.i_T_j, closure.result.information, robust_edge=True)
         self._loops.append(closure)
-        self._tree = None  # the estimate moves: candidates are searched in the new one
         self.observer.on_loop_closure(closure)
 
     def _close_loops_at(self, j: int) -> int:
@@ -388,7 +405,7 @@ class LidarSlam:
         for i in self._candidates_for(j):
             closure = self._verify(i, j, poses)
             if closure is not None:
-                self._accept(closure)
+                self._accept(closure, poses)
                 found += 1
         self.counters["loop_closures_online"] += found
         return found
@@ -420,7 +437,7 @@ class LidarSlam:
                     continue
                 closure = self._verify(int(i), int(j), poses)
                 if closure is not None:
-                    self._accept(closure)
+                    self._accept(closure, poses)
                     found += 1
             self.counters["loop_closures_final"] += found
             poses = optimize(self._graph.graph(), opt).poses.copy()

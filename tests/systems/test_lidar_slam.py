@@ -123,7 +123,7 @@ def intel():
 
 
 def test_intel_slice(intel):
-    """The first 120 s of the Intel log (591 scans, the robot leaves its start room and drives
+    """The first 120 s of the Intel log (611 scans, the robot leaves its start room and drives
     ~25 m through two corridors; 48 relations fall inside): measured relation error
     0.016 +- 0.010 m / 0.17 +- 0.11 deg with odometry; raw odometry 0.02 +- 0.03 m."""
     seq, relations = intel
