@@ -668,12 +668,13 @@ def _plot_log(plt, plots, res: LidarSlamResult) -> None:
     step_ms = 1e3 * np.asarray(res.scan_step_s)
     fig, ax = plt.subplots(figsize=(9, 3.5))
     t = res.scan_stamps_s - res.scan_stamps_s[0]
-    ax.plot(t, step_ms, ",", color="0.6", label="per scan")
+    ax.plot(t, step_ms, ".", ms=1.5, alpha=0.4, color="0.5", label="per scan")
     window = max(1, len(step_ms) // 100)
     ax.plot(t[window - 1:], np.convolve(step_ms, np.ones(window) / window, mode="valid"), color="tab:blue",
             label=f"mean over {window} scans")
-    ax.axhline(1e3 * float(np.median(np.diff(res.scan_stamps_s))), color="tab:red", lw=0.8,
-               label="scan period")
+    period_ms = 1e3 * float(np.median(np.diff(res.scan_stamps_s)))
+    ax.axhline(period_ms, color="tab:red", lw=0.8, label="scan period (real time)")
+    ax.axhline(period_ms / 10, color="tab:red", lw=0.8, ls="--", label="scan period / 10")
     ax.set_yscale("log")
     ax.set_xlabel("log time (s)")
     ax.set_ylabel("processing time (ms)")

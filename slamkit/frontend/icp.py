@@ -134,14 +134,19 @@ def scan_to_points(ranges_m: np.ndarray, angles_rad: np.ndarray, max_range_m: fl
 
 
 def estimate_normals(points: np.ndarray, tree: cKDTree, k: int) -> np.ndarray:
-    """Unit normals (N, 2) by PCA of each point's k nearest neighbours (batched 2x2 eigh)."""
+    """Unit normals (N, 2) by PCA of each point's k nearest neighbours: the eigenvector of the
+    smallest eigenvalue of the 2x2 scatter [[a, b], [b, c]], in closed form -- the major axis
+    lies at phi = atan2(2b, a - c) / 2, the normal is perpendicular to it (the sign of a normal
+    does not matter to point-to-line ICP)."""
     k = min(k, len(points))
     _, idx = tree.query(points, k=k)
     nb = points[idx]  # (N, k, 2)
     centred = nb - nb.mean(axis=1, keepdims=True)
-    cov = np.einsum("nki,nkj->nij", centred, centred)
-    _, vecs = np.linalg.eigh(cov)
-    return vecs[:, :, 0]  # eigenvector of the smallest eigenvalue
+    a = np.einsum("nk,nk->n", centred[..., 0], centred[..., 0])
+    b = np.einsum("nk,nk->n", centred[..., 0], centred[..., 1])
+    c = np.einsum("nk,nk->n", centred[..., 1], centred[..., 1])
+    phi = 0.5 * np.arctan2(2.0 * b, a - c)
+    return np.column_stack([-np.sin(phi), np.cos(phi)])
 
 
 def _correspondences(target: IcpTarget, moved: np.ndarray, config: IcpConfig):

@@ -39,7 +39,7 @@ Observers (the recorder) subscribe through :class:`LidarSlamObserver`: ``on_keyf
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import Protocol
+from typing import Literal, Protocol
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -57,6 +57,11 @@ from slamkit.maps.log_odds import LogOddsConfig, LogOddsMap
 from slamkit.models import diff_drive
 
 MOTION_PRIORS = ("odometry", "constant_velocity", "identity")
+#: the longest constant-velocity prediction between two scans (Intel's and fr079's largest odometry
+#: step between scans: 0.22 m and 0.33 m)
+MAX_PRIOR_STEP_M = 0.5
+#: without odometry, a scan match below this fitness is retried with a four times wider heading search
+WIDE_SEARCH_BELOW_FITNESS = 0.5
 
 
 @dataclass(frozen=True)
@@ -77,7 +82,7 @@ class LidarSlamConfig:
     min_match_fitness: float = 0.3
     #: ``odometry`` (wheel odometry since the previous scan), ``constant_velocity`` (the previous
     #: scan-to-scan motion, scaled to the time since the previous scan) or ``identity``
-    motion_prior: str = "odometry"
+    motion_prior: Literal["odometry", "constant_velocity", "identity"] = "odometry"
     #: without odometry (``motion_prior`` other than ``odometry``), search the heading within
     #: +- this many degrees before ICP, from the prior and from the previous scan's pose (the
     #: robot may have stopped), and start from the better (``slamkit.frontend.icp.rotation_search``;
@@ -203,7 +208,8 @@ class LidarSlam:
         self._moved_m = 0.0
         self._finished = False
         self.counters = {"scans": 0, "matched_scans": 0, "match_fallbacks": 0, "loop_candidates": 0,
-                         "loop_closures_online": 0, "loop_closures_final": 0, "icp_iterations": 0}
+                         "loop_closures_online": 0, "loop_closures_final": 0, "icp_iterations": 0,
+                         "wide_searches": 0}
 
     # ---- streaming ---------------------------------------------------------------------------
 
@@ -238,8 +244,10 @@ class LidarSlam:
             return se2.between(self._odom_at_scan, self._odom)
         if kind == "constant_velocity" and self._last_dt_s > 0:
             # scans are not evenly spaced (Intel's ipc stamps: 0.04 .. 0.9 s apart): scale the
-            # previous motion to this interval, at most 3x
-            return self._last_motion * min((stamp_s - self._last_stamp) / self._last_dt_s, 3.0)
+            # previous motion to this interval, at most 1.5x and to MAX_PRIOR_STEP_M (one bad
+            # match must not be extrapolated into the next: Intel lidar only jumped 3.3 m)
+            step = self._last_motion * min((stamp_s - self._last_stamp) / self._last_dt_s, 1.5)
+            return step * min(1.0, MAX_PRIOR_STEP_M / max(float(np.hypot(step[0], step[1])), 1e-12))
         return np.zeros(3)
 
     def _scan(self, scan: Scan) -> None:
@@ -262,13 +270,13 @@ class LidarSlam:
         prev_rel = self._scan_rel[-1] if self._scan_anchor[-1] == k else np.zeros(3)
         guess = se2.compose(prev_rel, prior)       # keyframe k -> this scan
         rel, info = guess, None
-        if cfg.match_every_scan or self._is_keyframe(guess):
+        if cfg.match_every_scan or self._is_keyframe(guess, stamp):
             rel, info = self._match(pts, guess, None if cfg.motion_prior == "odometry" else prev_rel)
         self._odom_at_scan = self._odom.copy()
         self._last_motion = se2.between(prev_rel, rel)
         self._last_dt_s = stamp - self._last_stamp
         self._last_stamp = stamp
-        if self._is_keyframe(rel):
+        if self._is_keyframe(rel, stamp):
             world_T_k = self._graph.poses()[k]
             if info is None:
                 info = self._fallback_information()
@@ -282,10 +290,12 @@ class LidarSlam:
         self._scan_anchor.append(anchor)
         self._scan_rel.append(np.asarray(rel, float))
 
-    def _is_keyframe(self, k_T_scan: np.ndarray) -> bool:
+    def _is_keyframe(self, k_T_scan: np.ndarray, stamp_s: float) -> bool:
+        """The rule of ``slamkit.frontend.keyframes`` on the motion since the newest keyframe."""
         c = self.config.keyframes
         return bool(np.hypot(k_T_scan[0], k_T_scan[1]) >= c.min_translation_m
-                    or abs(k_T_scan[2]) >= c.min_rotation_rad)
+                    or abs(k_T_scan[2]) >= c.min_rotation_rad
+                    or (c.max_interval_s is not None and stamp_s - self._kf.stamps[-1] >= c.max_interval_s))
 
     def _fallback_information(self) -> np.ndarray:
         return np.diag(np.asarray(self.config.fallback_sigmas, float) ** -2)
@@ -299,18 +309,30 @@ class LidarSlam:
         if self._target is None or len(pts) < cfg.icp.min_correspondences:
             self.counters["match_fallbacks"] += 1
             return guess, None
-        if cfg.rotation_search_deg > 0 and hold is not None:
-            # without odometry the robot may also have stopped: both hypotheses, the better one
-            found = [rotation_search(pts, self._target, g, np.deg2rad(cfg.rotation_search_deg)) for g in (guess, hold)]
-            guess = min(found, key=lambda f: f[1])[0]
+        search = cfg.rotation_search_deg > 0 and hold is not None
+        if search:
+            guess = self._heading(pts, (guess, hold), cfg.rotation_search_deg)
         res = icp(pts, self._target, guess, cfg.icp)
         self.counters["matched_scans"] += 1
         self.counters["icp_iterations"] += res.iterations
+        if search and res.fitness < WIDE_SEARCH_BELOW_FITNESS:
+            # a turn faster than the window (Intel: up to 40 deg between two scans): once more
+            # over a window four times as wide, keep the better match
+            wide = icp(pts, self._target, self._heading(pts, (guess, hold), 4 * cfg.rotation_search_deg), cfg.icp)
+            self.counters["wide_searches"] += 1
+            if wide.fitness > res.fitness:
+                res = wide
         if res.fitness < cfg.min_match_fitness or not np.all(np.isfinite(res.covariance)):
             self.counters["match_fallbacks"] += 1
             return guess, None
         info = np.linalg.inv(res.covariance)
         return res.target_T_source, 0.5 * (info + info.T)
+
+    def _heading(self, pts: np.ndarray, starts, half_window_deg: float) -> np.ndarray:
+        """The start (prior, or the previous pose: without odometry the robot may have stopped)
+        whose best heading within +-``half_window_deg`` fits the submap best, at that heading."""
+        found = [rotation_search(pts, self._target, g, np.deg2rad(half_window_deg)) for g in starts]
+        return min(found, key=lambda f: f[1])[0]
 
     def _add_keyframe(self, scan_index: int, stamp: float, pts: np.ndarray, ranges: np.ndarray,
                       angles: np.ndarray, world_T_k: np.ndarray, rel: np.ndarray | None,
