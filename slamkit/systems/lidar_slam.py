@@ -28,7 +28,9 @@ graph-based SLAM", IEEE ITS Magazine 2010; the local/global split of Cartographe
    slipped through is bounded.
 4. The graph is solved incrementally with iSAM2 (``slamkit.backend.Isam2PoseGraph``) at every
    keyframe. ``finish()`` runs ``loop_rounds`` more rounds of loop search over all keyframe pairs
-   in the final estimate and one batch Levenberg-Marquardt solve with the robust kernel.
+   in the final estimate and one batch Levenberg-Marquardt solve with the robust kernel; a loop
+   closure still in strong disagreement with the solution (whitened residual above
+   ``loop_chi2_max``) is dropped and the graph solved once more (the consistency check).
 5. ``map()``: a log-odds grid (``slamkit.maps.log_odds``) from the keyframe scans at their
    estimated sensor poses.
 
@@ -57,9 +59,6 @@ from slamkit.maps.log_odds import LogOddsConfig, LogOddsMap
 from slamkit.models import diff_drive
 
 MOTION_PRIORS = ("odometry", "constant_velocity", "identity")
-#: the longest constant-velocity prediction between two scans (Intel's and fr079's largest odometry
-#: step between scans: 0.22 m and 0.33 m)
-MAX_PRIOR_STEP_M = 0.5
 #: without odometry, a scan match below this fitness is retried with a four times wider heading search
 WIDE_SEARCH_BELOW_FITNESS = 0.5
 
@@ -76,6 +75,9 @@ class LidarSlamConfig:
     loop_rounds: int = 2
     robust: str = "cauchy"
     submap_keyframes: int = 3
+    #: the consistency check of ``finish()``: a loop closure whose whitened squared residual at the
+    #: robust solution exceeds this (the 99.9% quantile of chi-square with 3 dof) is dropped
+    loop_chi2_max: float = 16.27
     #: keyframes on either side of i in the loop-closure target (0: keyframe i's scan alone)
     loop_submap_keyframes: int = 0
     #: a scan match is replaced by the motion prior when its fitness is below this
@@ -203,13 +205,15 @@ class LidarSlam:
         self._loops: list[LoopClosure] = []
         self._tried: set[tuple[int, int]] = set()
         self._injected: list[tuple[int, int]] = []
+        self._edge_kind: list[str] = []
+        self._pruned_graph = None
         self._tree: cKDTree | None = None
         self._tree_size = 0
         self._moved_m = 0.0
         self._finished = False
         self.counters = {"scans": 0, "matched_scans": 0, "match_fallbacks": 0, "loop_candidates": 0,
                          "loop_closures_online": 0, "loop_closures_final": 0, "icp_iterations": 0,
-                         "wide_searches": 0}
+                         "wide_searches": 0, "loop_closures_rejected": 0}
 
     # ---- streaming ---------------------------------------------------------------------------
 
@@ -244,10 +248,8 @@ class LidarSlam:
             return se2.between(self._odom_at_scan, self._odom)
         if kind == "constant_velocity" and self._last_dt_s > 0:
             # scans are not evenly spaced (Intel's ipc stamps: 0.04 .. 0.9 s apart): scale the
-            # previous motion to this interval, at most 1.5x and to MAX_PRIOR_STEP_M (one bad
-            # match must not be extrapolated into the next: Intel lidar only jumped 3.3 m)
-            step = self._last_motion * min((stamp_s - self._last_stamp) / self._last_dt_s, 1.5)
-            return step * min(1.0, MAX_PRIOR_STEP_M / max(float(np.hypot(step[0], step[1])), 1e-12))
+            # previous motion to this interval, at most 3x
+            return self._last_motion * min((stamp_s - self._last_stamp) / self._last_dt_s, 3.0)
         return np.zeros(3)
 
     def _scan(self, scan: Scan) -> None:
@@ -342,6 +344,7 @@ class LidarSlam:
         self._graph.add_pose(k, world_T_k)
         if rel is not None:
             self._graph.add_edge(k - 1, k, rel, info, robust_edge=False)
+            self._edge_kind.append("odometry")
             kf.frontend.append(se2.compose(kf.frontend[-1], rel))
             kf.path_m.append(kf.path_m[-1] + float(np.hypot(rel[0], rel[1])))
         else:
@@ -418,6 +421,7 @@ class LidarSlam:
         correction = se2.between(se2.between(poses[closure.i], poses[closure.j]), closure.i_T_j)
         self._moved_m += float(np.hypot(correction[0], correction[1]))
         self._graph.add_edge(closure.i, closure.j, closure.i_T_j, closure.result.information, robust_edge=True)
+        self._edge_kind.append("loop")
         self._loops.append(closure)
         self.observer.on_loop_closure(closure)
 
@@ -439,6 +443,7 @@ class LidarSlam:
         if not (0 <= i < K and 0 <= j < K):
             raise DataError(f"add_constraint: keyframes {i}, {j} out of range (0..{K - 1})")
         self._graph.add_edge(i, j, i_xytheta_j, information, robust_edge=True)
+        self._edge_kind.append("injected")
         self._injected.append((int(i), int(j)))
         self._graph.update()
 
@@ -466,15 +471,41 @@ class LidarSlam:
             solved = True
         if not solved and (self._loops or self._injected):
             poses = optimize(self._graph.graph(), opt).poses.copy()
+        if solved or self._loops or self._injected:
+            poses = self._prune(poses, opt)
         self._final_poses = poses
         self._finished = True
         return self.estimate()
+
+    def _prune(self, poses: np.ndarray, opt: OptimizeConfig) -> np.ndarray:
+        """The consistency check: a loop closure (or injected edge) whose residual at the robust
+        solution exceeds ``loop_chi2_max`` (whitened, 3 dof) disagrees with the rest of the graph
+        -- the robust kernel only bounded its pull -- so it is dropped and the graph solved once
+        more without it."""
+        g = self._graph.graph()
+        kind = np.asarray(self._edge_kind)
+        err = se2.log(se2.between(g.measurements, se2.between(poses[g.edge_from], poses[g.edge_to])))
+        chi2 = np.einsum("ni,nij,nj->n", err, g.information, err)
+        bad = (kind != "odometry") & (chi2 > self.config.loop_chi2_max)
+        if not bad.any():
+            return poses
+        rejected = {(int(i), int(j)) for i, j in zip(g.edge_from[bad], g.edge_to[bad])}
+        self._loops = [lc for lc in self._loops if (lc.i, lc.j) not in rejected]
+        self._injected = [e for e in self._injected if e not in rejected]
+        self.counters["loop_closures_rejected"] += int(bad.sum())
+        keep = ~bad
+        pruned = replace(g, poses=poses, edge_from=g.edge_from[keep], edge_to=g.edge_to[keep],
+                         measurements=g.measurements[keep], information=g.information[keep])
+        self._pruned_graph = pruned
+        return optimize(pruned, opt).poses.copy()
 
     # ---- results -----------------------------------------------------------------------------
 
     def graph(self):
         """The pose graph so far (keyframes, scan-match edges, loop closures, injected edges) as a
         :class:`~slamkit.data.pose_graph.PoseGraph` with the current estimate as its poses."""
+        if self._pruned_graph is not None:
+            return replace(self._pruned_graph, poses=self.keyframe_poses().copy())
         g = self._graph.graph()
         return replace(g, poses=self.keyframe_poses().copy()) if self._finished else g
 
