@@ -600,7 +600,7 @@ def _log_report(runs: list[RunRecord]) -> str:
     names = sorted({r.dataset for r in runs if r.dataset in PUBLISHED})
     if names:
         text += ("\nPublished translational relation errors (m, mean +- std; Kuemmerle et al. 2009, "
-                 "Table 3) beside slamkit's:\n\n")
+                 "as transcribed in the datasets' MANIFEST) beside slamkit's:\n\n")
         methods = list(next(iter(PUBLISHED.values())))
         ours = {}
         for r in runs:

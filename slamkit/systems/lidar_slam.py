@@ -272,13 +272,20 @@ class LidarSlam:
         prev_rel = self._scan_rel[-1] if self._scan_anchor[-1] == k else np.zeros(3)
         guess = se2.compose(prev_rel, prior)       # keyframe k -> this scan
         rel, info = guess, None
-        if cfg.match_every_scan or self._is_keyframe(guess, stamp):
-            rel, info = self._match(pts, guess, None if cfg.motion_prior == "odometry" else prev_rel)
+        lidar_only = cfg.motion_prior != "odometry"
+        attempted = cfg.match_every_scan or self._is_keyframe(guess, stamp)
+        if attempted:
+            rel, info = self._match(pts, guess, prev_rel if lidar_only else None)
+        failed = attempted and info is None
+        if lidar_only and failed:
+            # without odometry a failed match leaves nothing to go on: the scan stays where the
+            # previous one was, and its prediction does not feed the next one
+            rel = prev_rel
         self._odom_at_scan = self._odom.copy()
         self._last_motion = se2.between(prev_rel, rel)
         self._last_dt_s = stamp - self._last_stamp
         self._last_stamp = stamp
-        if self._is_keyframe(rel, stamp):
+        if self._is_keyframe(rel, stamp) and not (lidar_only and failed):
             world_T_k = self._graph.poses()[k]
             if info is None:
                 info = self._fallback_information()
