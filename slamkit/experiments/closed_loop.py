@@ -40,7 +40,10 @@ from slamkit.control.potential_fields import PotentialFieldConfig, PotentialFiel
 from slamkit.control.protocols import (ControlOutput, ControlStatus, Controller, DistanceGrid,
                                        LocalWorld, Reference, RobotState)
 from slamkit.errors import ConfigError
-from slamkit.experiments.results import RunRecord, markdown_table, summarise, summary_markdown
+from slamkit.experiments.config_models import LocalPlanningPipeline
+from slamkit.experiments.observers import PipelineObserver
+from slamkit.experiments.pipeline import Pipeline, PipelineOutput, StepProgress
+from slamkit.experiments.results import ResultsFolder, RunRecord, markdown_table, summarise, summary_markdown
 from slamkit.maps.distance_field import distance_field_m
 from slamkit.maps.generators import OfficeConfig, WarehouseConfig, office, random_free_poses, warehouse
 from slamkit.maps.inflation import costmap
@@ -454,12 +457,11 @@ def plot(plots: Path, episodes: list[Episode], scenarios: Mapping[str, Scenario]
     plt.close(fig)
 
 
-def run(config: Mapping[str, Any], folder, progress, observer=None):
-    """Pipeline ``local_planning`` (registered in ``slamkit.experiments.pipeline.PIPELINES``):
-    controllers x seeded scenarios -> results.json runs/summary, report.md and plots; the
-    observer (``slamkit.viz.control.LocalPlanningObserver`` from the CLI) records the steps."""
-    from slamkit.experiments.pipeline import PipelineOutput
-
+def run(config: Mapping[str, Any], folder: ResultsFolder, progress: StepProgress,
+        observer: PipelineObserver | None = None) -> PipelineOutput[list[Episode]]:
+    """Pipeline ``local_planning`` (``PIPELINE`` below): controllers x seeded scenarios ->
+    results.json runs/summary, report.md and plots; the observer (the recorder the viz layer
+    registers, ``slamkit.viz.control.LocalPlanningObserver``) records the steps."""
     n = len(_seeds(dict(config.get("scenarios", {})).get("seeds", 5))) * len(
         list(config.get("controllers", ["dwa", "mpc"])))
     advance = progress.task("closed-loop episodes", n)
@@ -479,3 +481,8 @@ def run_pipeline(config: Mapping[str, Any], out_dir: str | Path, observer_factor
     cfg = dict(config)
     cfg.setdefault("pipeline", "local_planning")
     return _run(cfg, out_dir, progress=False, observer_factory=observer_factory).results
+
+
+PIPELINE: Pipeline[list[Episode]] = Pipeline(
+    "local_planning", run, LocalPlanningPipeline, list[Episode],
+    "controllers x seeded closed-loop scenarios")

@@ -547,3 +547,15 @@ def _plot(plots, results: list[LidarSlamResult]) -> None:
         fig.tight_layout()
         fig.savefig(file_in(plots, f"map_{k:02d}_{res.name}", ".png", "world name"), dpi=100)
         plt.close(fig)
+
+
+def _pipeline():
+    from slamkit.experiments.config_models import LidarSlamPipeline
+    from slamkit.experiments.pipeline import Pipeline
+
+    return Pipeline("lidar_slam", run, LidarSlamPipeline, list[LidarSlamResult],
+                    "lidar SLAM on simulated grid worlds x seeds x robust kernels")
+
+
+#: the ``lidar_slam`` pipeline kind (slamkit.experiments.pipeline)
+PIPELINE = _pipeline()

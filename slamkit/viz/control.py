@@ -29,6 +29,7 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
+from slamkit.experiments.closed_loop import Episode
 from slamkit.viz.recording import Recording, open_recording
 
 MAX_CANDIDATES = 60
@@ -118,10 +119,11 @@ class ClosedLoopRecorder:
 
 
 class LocalPlanningObserver:
-    """The ``local_planning`` pipeline's recorder (``slamkit.viz.pipelines.RECORDERS``): receives
+    """The ``local_planning`` pipeline's recorder (registered in ``slamkit.viz.pipelines``): receives
     ``slamkit.experiments.observers.StepSnapshot``s whose state carries the scenario, the
     controller and the closed-loop step, and draws them with :class:`ClosedLoopRecorder`."""
 
+    payload_type = list[Episode]
     wants_steps = True
     step_every = 1  # every closed-loop cycle
 
