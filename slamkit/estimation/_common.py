@@ -146,6 +146,15 @@ def symmetrize(P: np.ndarray) -> np.ndarray:
 # --------------------------------------------------------------------------------------------
 # bookkeeping shared by every filter
 # --------------------------------------------------------------------------------------------
+def nis_values(nu: np.ndarray, S: np.ndarray) -> np.ndarray:
+    """nu^T S^-1 nu for one innovation (d,) with S (d, d), or a stack (n, d) with (n, d, d)."""
+    nu = np.asarray(nu, dtype=float)
+    S = np.asarray(S, dtype=float)
+    if nu.ndim == 1:
+        nu, S = nu[None], S[None]
+    return np.einsum("ni,ni->n", nu, np.linalg.solve(S, nu[..., None])[..., 0])
+
+
 class FilterBase:
     """Implements the Estimator protocol's plumbing; subclasses implement the maths.
 
@@ -253,9 +262,9 @@ class FilterBase:
     def _record_nis(self, nu: np.ndarray, S: np.ndarray) -> None:
         """Record nu^T S^-1 nu for one (or a stack of) innovation(s) of dimension d."""
         nu = np.asarray(nu, dtype=float)
-        S = np.asarray(S, dtype=float)
-        if nu.ndim == 1:
-            nu, S = nu[None], S[None]
-        values = np.einsum("ni,ni->n", nu, np.linalg.solve(S, nu[..., None])[..., 0])
-        self._nis.extend(values.tolist())
-        self._nis_dof.extend([nu.shape[-1]] * len(values))
+        self._record_nis_values(nis_values(nu, S), dof=nu.shape[-1])
+
+    def _record_nis_values(self, values: np.ndarray, dof: int) -> None:
+        """Record NIS values already computed (e.g. by a fused kernel) of innovations of ``dof``."""
+        self._nis.extend(np.asarray(values, dtype=float).ravel().tolist())
+        self._nis_dof.extend([dof] * np.size(values))
