@@ -5,6 +5,8 @@ One table spans the filters of ``slamkit.estimation`` (their rows and constructi
 ``slamkit.estimation.registry``) and the smoothers of ``slamkit.backend`` (ARCHITECTURE.md
 section 6 names: ``ekf``, ``ukf``, ``pf``, ``mcl``, ``histogram``, ``ekf_slam``, ``fastslam``,
 ``batch``, ``isam2``, ``fixed_lag``). Smoother modules are imported only when one is built.
+Both tables are a :class:`slamkit.naming.Registry`: snake_case names, old spellings accepted
+with a deprecation warning, an unknown name one ConfigError with the closest suggestion.
 
 Every factory reads the noise the filter should assume from ``Sequence.metadata``
 (``odometry_sigma``, ``range_bearing_sigma``; see ``slamkit.sim.landmark_world``) unless the
@@ -26,6 +28,7 @@ import numpy as np
 from slamkit.data.estimate import BatchEstimator, Estimator, Prior
 from slamkit.data.sequence import Sequence
 from slamkit.errors import ConfigError
+from slamkit.naming import Registry
 
 #: what a factory returns for one sequence
 Factory = Callable[[Sequence], "Estimator | BatchEstimator"]
@@ -69,7 +72,8 @@ def _filter_rows() -> dict[str, EstimatorSpec]:
             for name, f in filters.REGISTRY.items()}
 
 
-REGISTRY: dict[str, EstimatorSpec] = {**_filter_rows(), **{s.name: s for s in SMOOTHERS}}
+REGISTRY: Registry[EstimatorSpec] = Registry("estimator", {**_filter_rows(),
+                                                           **{s.name: s for s in SMOOTHERS}})
 
 
 def names() -> list[str]:
@@ -77,10 +81,8 @@ def names() -> list[str]:
 
 
 def spec(name: str) -> EstimatorSpec:
-    try:
-        return REGISTRY[name]
-    except KeyError:
-        raise ConfigError(f"unknown estimator {name!r}; known: {', '.join(REGISTRY)}") from None
+    """The row of ``name`` (an old spelling warns; an unknown name is a ConfigError)."""
+    return REGISTRY[name]
 
 
 def _resolve(target: str) -> Any:
@@ -141,6 +143,7 @@ def factory(name: str, params: Mapping[str, Any] | None = None, seed: int = 0) -
     ``seed`` seeds the estimator's own ``np.random.Generator`` (particle methods), so a run is
     reproducible and independent of the sequence's noise."""
     s = spec(name)
+    name = s.name
     params = dict(params or {})
     try:
         cls = _resolve(s.target)

@@ -46,6 +46,8 @@ def _refused(tmp_path, text: str | bytes, loader=validate_pipeline_config) -> st
      "c.yaml:3: estimators.ekf.gate_probabilty: unknown key (did you mean 'gate_probability'?)"),
     ("pipeline: filter_vs_smoother\nscenarios: [mild]\nestimators: [kalmann]\n",
      "unknown estimator 'kalmann'"),
+    ("pipeline: filter_vs_smoother\nscenarios: [mild]\nestimators: [isam]\n",
+     "c.yaml:3: estimators.isam: unknown estimator 'isam' (did you mean 'isam2'?); known: ekf, "),
     ("pipeline: local_planning\nclosed_loop: {max_time_s: 1.0e+20}\n",
      "c.yaml:2: closed_loop.max_time_s: Input should be less than or equal to 86400 (got 1e+20)"),
     ("pipeline: lidar_slam\nworlds: [{world: office}]\nslam: {keyframes: {min_translaton_m: 1}}\n",
