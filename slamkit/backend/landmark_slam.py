@@ -35,20 +35,23 @@ Estimators (``slamkit.data.estimate`` protocols, registry names ``batch``, ``isa
   is re-initialised as a new variable.
 
 Pose covariances are reported, like the filters', in world-frame (x, y, theta): GTSAM's Pose2
-marginals live in the body-frame tangent and are rotated by the heading (first order).
+marginals live in the body-frame tangent and are rotated by the heading (first order). The noise
+is :class:`slamkit.data.noise.NoiseParams`, the same reader of the sequence's metadata the
+filters use (issue 18).
 """
 
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any
 
 import gtsam
 import numpy as np
 from gtsam.symbol_shorthand import L, X
 
 from slamkit.data.estimate import Estimate, Prior
+from slamkit.data.noise import NoiseParams, prior_of
 from slamkit.data.sequence import Event, Odometry, RangeBearing, Sequence, event_problem
 from slamkit.data.trajectory import Trajectory
 from slamkit.geometry import se2
@@ -59,50 +62,13 @@ from slamkit.models import diff_drive
 # ---- configuration ------------------------------------------------------------------------------
 
 @dataclass(frozen=True)
-class SmootherNoise:
-    """Noise the smoothers assume (SI). ``from_metadata`` reads a Sequence's
-    ``odometry_sigma`` = (sigma_v_mps, sigma_omega_radps), ``range_bearing_sigma`` =
-    (sigma_range_m, sigma_bearing_rad) and ``initial_pose_sigma`` = (x_m, y_m, theta_rad)."""
-
-    sigma_v_mps: float = 0.1
-    sigma_omega_radps: float = 0.05
-    sigma_range_m: float = 0.1
-    sigma_bearing_rad: float = 0.02
-    initial_pose_sigma: tuple[float, float, float] = (1e-3, 1e-3, 1e-3)
-
-    def __post_init__(self) -> None:
-        values = (self.sigma_v_mps, self.sigma_omega_radps, self.sigma_range_m,
-                  self.sigma_bearing_rad, *self.initial_pose_sigma)
-        if len(self.initial_pose_sigma) != 3 or not all(np.isfinite(v) and v > 0 for v in values):
-            raise ConfigError(f"smoother noise sigmas must be positive and finite, got {self}")
-
-    @classmethod
-    def from_metadata(cls, metadata: Mapping[str, Any]) -> "SmootherNoise":
-        kwargs: dict[str, Any] = {}
-        for key, names in (("odometry_sigma", ("sigma_v_mps", "sigma_omega_radps")),
-                           ("range_bearing_sigma", ("sigma_range_m", "sigma_bearing_rad"))):
-            if key in metadata:
-                values = np.asarray(metadata[key], dtype=float).reshape(-1)
-                if values.size != 2:
-                    raise ConfigError(f"metadata field {key} must have 2 values, got {values.size}")
-                kwargs.update(zip(names, values.tolist()))
-        if "initial_pose_sigma" in metadata:
-            values = np.asarray(metadata["initial_pose_sigma"], dtype=float).reshape(-1)
-            if values.size != 3:
-                raise ConfigError(f"metadata field initial_pose_sigma must have 3 values, "
-                                  f"got {values.size}")
-            kwargs["initial_pose_sigma"] = tuple(values.tolist())
-        return cls(**kwargs)
-
-
-@dataclass(frozen=True)
 class LandmarkSLAMConfig:
     """``noise`` None means "read it from the sequence metadata" (``solve``) or the defaults
     (``reset``). ``odometry_floor_sigma`` (m, m, rad) is added in quadrature to every odometry
     factor (see module docstring). LM tolerances are GTSAM's defaults; the iSAM2 settings apply
     to ``isam2`` and the incremental fixed-lag smoother."""
 
-    noise: SmootherNoise | None = None
+    noise: NoiseParams | None = None
     odometry_floor_sigma: tuple[float, float, float] = (1e-3, 1e-3, 1e-4)
     max_iterations: int = 100
     relative_error_tol: float = 1e-5
@@ -128,16 +94,9 @@ class LandmarkSLAMConfig:
             raise ConfigError("max_iterations and relinearize_skip must be >= 1")
 
 
-def prior_from_sequence(sequence: Sequence, noise: SmootherNoise) -> Prior:
-    """The start pose the sequence declares (origin if none) with ``initial_pose_sigma``."""
-    start = (np.zeros(3) if sequence.initial_pose_xytheta is None
-             else np.asarray(sequence.initial_pose_xytheta, dtype=float).reshape(3))
-    return Prior(start, np.diag(np.square(noise.initial_pose_sigma)))
-
-
 # ---- factor helpers -----------------------------------------------------------------------------
 
-def odometry_factor_terms(odometry: Odometry, noise: SmootherNoise,
+def odometry_factor_terms(odometry: Odometry, noise: NoiseParams,
                           floor_sigma: tuple[float, float, float]) -> tuple[gtsam.Pose2, np.ndarray]:
     """Relative pose and its covariance (Pose2 tangent at the measurement) for one Odometry."""
     u = np.array([odometry.v_mps, odometry.omega_radps])
@@ -177,7 +136,7 @@ class _LandmarkSmootherBase:
         self.config = config
         self._ready = False
         #: the noise a batch solve() takes from the sequence's metadata when the config has none
-        self._sequence_noise: SmootherNoise | None = None
+        self._sequence_noise: NoiseParams | None = None
 
     # -- protocol ------------------------------------------------------------------------------
     def reset(self, prior: Prior) -> None:
@@ -187,7 +146,7 @@ class _LandmarkSmootherBase:
             raise EstimationError(f"{self.name}: prior contains NaN or infinite values")
         if np.any(np.linalg.eigvalsh(0.5 * (cov + cov.T)) <= 0):
             raise EstimationError(f"{self.name}: prior covariance must be positive definite")
-        self.noise = self.config.noise or self._sequence_noise or SmootherNoise()
+        self.noise = self.config.noise or self._sequence_noise or NoiseParams()
         self._bearing_range_model = gtsam.noiseModel.Diagonal.Sigmas(
             np.array([self.noise.sigma_bearing_rad, self.noise.sigma_range_m]))
         self._stamps: list[float | None] = [None]      # X(0)'s stamp is set by the first event
@@ -327,11 +286,15 @@ class BatchLandmarkSLAM(_LandmarkSmootherBase):
     name = "batch"
 
     def solve(self, sequence: Sequence) -> Estimate:
-        """reset from the sequence's start pose and metadata noise, feed every event, solve."""
-        noise = self.config.noise or SmootherNoise.from_metadata(sequence.metadata)
+        """reset from the sequence's start pose and metadata noise, feed every event, solve.
+
+        The prior is the declared start pose (the origin if none) with ``initial_pose_sigma``
+        as given: :func:`slamkit.data.noise.prior_of` without the runner's ground-truth start
+        and sigma floor (see there why)."""
+        noise = self.config.noise or NoiseParams.from_metadata(sequence.metadata)
         self._sequence_noise = noise
         try:
-            self.reset(prior_from_sequence(sequence, noise))
+            self.reset(prior_of(sequence, noise, sigma_floor=0.0, start_from_ground_truth=False))
         finally:
             self._sequence_noise = None
         for event in sequence:

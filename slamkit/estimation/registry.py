@@ -20,9 +20,9 @@ from typing import Any, Mapping
 import numpy as np
 
 from slamkit.data.estimate import Estimator
+from slamkit.data.noise import SENSOR_SIGMAS, NoiseParams
 from slamkit.data.sequence import Sequence
 from slamkit.errors import ConfigError
-from slamkit.estimation._common import NoiseParams
 from slamkit.estimation.ekf import EKFLocalization, EKFLocalizationConfig
 from slamkit.estimation.ekf_slam import EKFSLAM, EKFSLAMConfig
 from slamkit.estimation.fastslam import FastSLAM, FastSLAMConfig
@@ -61,7 +61,6 @@ REGISTRY: Registry[FilterSpec] = Registry("filter", [(s.name, s) for s in [
 ]])
 
 NAMES: tuple[str, ...] = tuple(REGISTRY)
-_NOISE_FIELDS = tuple(f.name for f in dataclasses.fields(NoiseParams))
 
 
 def make_estimator(name: str, sequence: Sequence, params: Mapping[str, Any] | None = None,
@@ -71,7 +70,7 @@ def make_estimator(name: str, sequence: Sequence, params: Mapping[str, Any] | No
     spec = REGISTRY[name]
     params = dict(params or {})
     noise = NoiseParams.from_metadata(sequence.metadata,
-                                      **{k: float(params.pop(k)) for k in _NOISE_FIELDS if k in params})
+                                      **{k: float(params.pop(k)) for k in SENSOR_SIGMAS if k in params})
     fields = {f.name for f in dataclasses.fields(spec.config_cls)}
     unknown = sorted(set(params) - fields)
     if unknown:

@@ -8,12 +8,13 @@ section 6 names: ``ekf``, ``ukf``, ``pf``, ``mcl``, ``histogram``, ``ekf_slam``,
 Both tables are a :class:`slamkit.naming.Registry`: snake_case names, old spellings accepted
 with a deprecation warning, an unknown name one ConfigError with the closest suggestion.
 
-Every factory reads the noise the filter should assume from ``Sequence.metadata``
-(``odometry_sigma``, ``range_bearing_sigma``; see ``slamkit.sim.landmark_world``) unless the
-config overrides it (``sigma_v_mps``, ``sigma_omega_radps``, ``sigma_range_m``,
-``sigma_bearing_rad``); other parameters go to the estimator's config dataclass by field name.
-Localisation filters (``ekf``, ``ukf``, ``pf``, ``mcl``) are given the sequence's true landmark
-map; SLAM filters and smoothers are not.
+Every factory reads the noise the estimator should assume from ``Sequence.metadata`` with
+:class:`slamkit.data.noise.NoiseParams` (``odometry_sigma``, ``range_bearing_sigma``; see
+``slamkit.sim.landmark_world``) unless the config overrides it (``sigma_v_mps``,
+``sigma_omega_radps``, ``sigma_range_m``, ``sigma_bearing_rad``); other parameters go to the
+estimator's config dataclass by field name. Localisation filters (``ekf``, ``ukf``, ``pf``,
+``mcl``) are given the sequence's true landmark map; SLAM filters and smoothers are not. Every online estimator starts from :func:`prior_of` (``slamkit.data.noise``, imported
+here for the runner).
 """
 
 from __future__ import annotations
@@ -25,15 +26,15 @@ from typing import Any, Callable, Literal, Mapping
 
 import numpy as np
 
-from slamkit.data.estimate import BatchEstimator, Estimator, Prior
+from slamkit.data.estimate import BatchEstimator, Estimator
+from slamkit.data.noise import SENSOR_SIGMAS, NoiseParams
+from slamkit.data.noise import prior_of  # noqa: F401  (the runner's and the benchmarks' prior)
 from slamkit.data.sequence import Sequence
 from slamkit.errors import ConfigError
 from slamkit.naming import Registry
 
 #: what a factory returns for one sequence
 Factory = Callable[[Sequence], "Estimator | BatchEstimator"]
-
-NOISE_FIELDS = ("sigma_v_mps", "sigma_omega_radps", "sigma_range_m", "sigma_bearing_rad")
 
 
 @dataclass(frozen=True)
@@ -111,11 +112,6 @@ def available() -> list[str]:
     return [n for n in REGISTRY if is_available(n)]
 
 
-def _smoother_noise(module: Any, sequence: Sequence, overrides: Mapping[str, Any]) -> Any:
-    noise = module.SmootherNoise.from_metadata(sequence.metadata)
-    return dataclasses.replace(noise, **{k: float(v) for k, v in overrides.items()}) if overrides else noise
-
-
 def _config(cls: type, params: Mapping[str, Any], where: str) -> Any:
     fields = {f.name for f in dataclasses.fields(cls)}
     unknown = sorted(set(params) - fields)
@@ -150,7 +146,7 @@ def factory(name: str, params: Mapping[str, Any] | None = None, seed: int = 0) -
     except (ImportError, AttributeError) as exc:
         raise ConfigError(f"estimator {name!r} is not available in this installation ({exc})") from None
     module = importlib.import_module(s.target.split(":")[0])
-    noise_params = {k: params.pop(k) for k in NOISE_FIELDS if k in params}
+    noise_params = {k: params.pop(k) for k in SENSOR_SIGMAS if k in params}
     config_cls = getattr(module, s.config, None) if s.config else None
 
     def build(sequence: Sequence):
@@ -160,25 +156,11 @@ def factory(name: str, params: Mapping[str, Any] | None = None, seed: int = 0) -
             rng = np.random.default_rng(seed) if s.random else None
             return make_estimator(name, sequence, {**noise_params, **params}, rng=rng)
         # smoothers carry their noise inside their config (slamkit.backend.landmark_slam)
-        config = _config(config_cls, {"noise": _smoother_noise(module, sequence, noise_params),
-                                      **params}, f"estimator {name!r}")
+        noise = NoiseParams.from_metadata(sequence.metadata,
+                                          **{k: float(v) for k, v in noise_params.items()})
+        config = _config(config_cls, {"noise": noise, **params}, f"estimator {name!r}")
         if hasattr(cls, "from_sequence"):
             return cls.from_sequence(sequence, config=config)
         return cls(config=config)
 
     return EstimatorFactory(name, s.kind, build)
-
-
-def prior_of(sequence: Sequence, sigma_floor: float = 1e-6) -> Prior:
-    """The prior every estimator starts from: the sequence's initial pose (the true one for
-    simulated worlds and datasets with ground truth; the origin otherwise) and
-    ``metadata['initial_pose_sigma']`` (x, y, theta) as its standard deviations."""
-    if sequence.initial_pose_xytheta is not None:
-        pose = np.asarray(sequence.initial_pose_xytheta, dtype=float).reshape(3)
-    elif sequence.ground_truth is not None:
-        pose = sequence.ground_truth.xytheta()[0]
-    else:
-        pose = np.zeros(3)
-    sigma = np.asarray(sequence.metadata.get("initial_pose_sigma", (1e-3, 1e-3, 1e-3)), dtype=float)
-    sigma = np.maximum(sigma.reshape(3), sigma_floor)
-    return Prior(pose, np.diag(sigma**2))

@@ -8,9 +8,10 @@ import numpy as np
 import pytest
 
 from slamkit.backend.landmark_slam import (BatchLandmarkSLAM, FixedLagLandmarkSLAM,
-                                           Isam2LandmarkSLAM, LandmarkSLAMConfig, SmootherNoise,
-                                           odometry_factor_terms, prior_from_sequence)
+                                           Isam2LandmarkSLAM, LandmarkSLAMConfig,
+                                           odometry_factor_terms)
 from slamkit.data.estimate import BatchEstimator, Estimator, Prior
+from slamkit.data.noise import NoiseParams, prior_of
 from slamkit.data.sequence import Gps, Odometry, RangeBearing, Sequence
 from slamkit.data.trajectory import Trajectory
 from slamkit.errors import ConfigError, EstimationError
@@ -65,15 +66,14 @@ def circle_sequence(seed: int, noisy: bool = True, steps: int = 300, dt: float =
 def run(estimator, sequence: Sequence):
     if isinstance(estimator, BatchLandmarkSLAM):
         return estimator.solve(sequence)
-    noise = SmootherNoise.from_metadata(sequence.metadata)
-    estimator.reset(prior_from_sequence(sequence, noise))
+    estimator.reset(prior_of(sequence))
     for event in sequence:
         estimator.step(event)
     return estimator.estimate()
 
 
 def make(kind: str, sequence: Sequence, **kwargs):
-    config = LandmarkSLAMConfig(noise=SmootherNoise.from_metadata(sequence.metadata), **kwargs)
+    config = LandmarkSLAMConfig(noise=NoiseParams.from_metadata(sequence.metadata), **kwargs)
     return {"batch": BatchLandmarkSLAM, "isam2": Isam2LandmarkSLAM,
             "fixed_lag": FixedLagLandmarkSLAM}[kind](config)
 
@@ -96,7 +96,7 @@ def test_odometry_factor_worked_example():
     """v = 1 m/s, omega = 0, dt = 0.1 s: Z = (0.1, 0, 0); L = df/du = [[0.1, 0], [0, 0.005],
     [0, 0.1]] so with sigma_v = 0.1, sigma_omega = 0.05: Q = [[1e-4, 0, 0], [0, 6.25e-8,
     1.25e-6], [0, 1.25e-6, 2.5e-5]], plus the floor diag(1e-8, 1e-8, 1e-10)."""
-    z, cov = odometry_factor_terms(Odometry(1.0, 0.1, 1.0, 0.0), SmootherNoise(0.1, 0.05),
+    z, cov = odometry_factor_terms(Odometry(1.0, 0.1, 1.0, 0.0), NoiseParams(0.1, 0.05),
                                    (1e-4, 1e-4, 1e-5))
     np.testing.assert_allclose([z.x(), z.y(), z.theta()], [0.1, 0, 0], atol=1e-15)
     expected = np.array([[1e-4, 0, 0], [0, 6.25e-8, 1.25e-6], [0, 1.25e-6, 2.5e-5]])
@@ -216,7 +216,7 @@ def test_protocols_and_bookkeeping():
         assert isinstance(est, Estimator) and est.name == kind
         with pytest.raises(EstimationError):
             est.step(seq.events[0])
-        est.reset(prior_from_sequence(seq, SmootherNoise.from_metadata(seq.metadata)))
+        est.reset(prior_of(seq))
         for event in seq:
             est.step(event)
         est.step(Gps(2.0, np.zeros(2), 1.0))
@@ -232,8 +232,8 @@ def test_bad_config_and_metadata():
     with pytest.raises(ConfigError):
         LandmarkSLAMConfig(fixed_lag_kind="sliding")
     with pytest.raises(ConfigError):
-        SmootherNoise.from_metadata({"odometry_sigma": [0.1]})
-    assert SmootherNoise.from_metadata({"range_bearing_sigma": [0.2, 0.01]}).sigma_range_m == 0.2
+        NoiseParams.from_metadata({"odometry_sigma": [0.1]})
+    assert NoiseParams.from_metadata({"range_bearing_sigma": [0.2, 0.01]}).sigma_range_m == 0.2
 
 
 @pytest.mark.parametrize("kind", ["batch", "isam2", "fixed_lag"])
