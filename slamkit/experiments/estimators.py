@@ -12,8 +12,10 @@ Every factory reads the noise the estimator should assume from ``Sequence.metada
 :class:`slamkit.data.noise.NoiseParams` (``odometry_sigma``, ``range_bearing_sigma``; see
 ``slamkit.sim.landmark_world``) unless the config overrides it (``sigma_v_mps``,
 ``sigma_omega_radps``, ``sigma_range_m``, ``sigma_bearing_rad``); other parameters go to the
-estimator's config dataclass by field name. Localisation filters (``ekf``, ``ukf``, ``pf``,
-``mcl``) are given the sequence's true landmark map; SLAM filters and smoothers are not. Every online estimator starts from :func:`prior_of` (``slamkit.data.noise``, imported
+estimator's config dataclass by field name (one per smoother: ``BatchLandmarkSLAMConfig``,
+``Isam2LandmarkSLAMConfig``, ``FixedLagLandmarkSLAMConfig``). Localisation filters (``ekf``,
+``ukf``, ``pf``, ``mcl``) are given the sequence's true landmark map; SLAM filters and smoothers
+are not. Every online estimator starts from :func:`prior_of` (``slamkit.data.noise``, imported
 here for the runner).
 """
 
@@ -56,11 +58,11 @@ class EstimatorSpec:
 #: the GTSAM smoothers (slamkit.backend); the filters' rows come from slamkit.estimation.registry
 SMOOTHERS: tuple[EstimatorSpec, ...] = (
     EstimatorSpec("batch", "batch", "slamkit.backend.landmark_slam:BatchLandmarkSLAM", False,
-                  "LandmarkSLAMConfig", False, "batch Levenberg-Marquardt over the whole sequence"),
+                  "BatchLandmarkSLAMConfig", False, "batch Levenberg-Marquardt over the whole sequence"),
     EstimatorSpec("isam2", "smoother", "slamkit.backend.landmark_slam:Isam2LandmarkSLAM", False,
-                  "LandmarkSLAMConfig", False, "iSAM2 incremental smoothing"),
+                  "Isam2LandmarkSLAMConfig", False, "iSAM2 incremental smoothing"),
     EstimatorSpec("fixed_lag", "smoother", "slamkit.backend.landmark_slam:FixedLagLandmarkSLAM",
-                  False, "LandmarkSLAMConfig", False, "fixed-lag smoother (lag in seconds)"),
+                  False, "FixedLagLandmarkSLAMConfig", False, "fixed-lag smoother (lag in seconds)"),
 )
 
 

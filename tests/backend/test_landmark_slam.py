@@ -7,8 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from slamkit.backend.landmark_slam import (BatchLandmarkSLAM, FixedLagLandmarkSLAM,
-                                           Isam2LandmarkSLAM, LandmarkSLAMConfig,
+from slamkit.backend.landmark_slam import (BatchLandmarkSLAM, BatchLandmarkSLAMConfig,
+                                           FixedLagLandmarkSLAM, FixedLagLandmarkSLAMConfig,
+                                           Isam2LandmarkSLAM, Isam2LandmarkSLAMConfig,
                                            odometry_factor_terms)
 from slamkit.data.estimate import BatchEstimator, Estimator, Prior
 from slamkit.data.noise import NoiseParams, prior_of
@@ -72,10 +73,15 @@ def run(estimator, sequence: Sequence):
     return estimator.estimate()
 
 
-def make(kind: str, sequence: Sequence, **kwargs):
-    config = LandmarkSLAMConfig(noise=NoiseParams.from_metadata(sequence.metadata), **kwargs)
-    return {"batch": BatchLandmarkSLAM, "isam2": Isam2LandmarkSLAM,
-            "fixed_lag": FixedLagLandmarkSLAM}[kind](config)
+SMOOTHERS = {"batch": BatchLandmarkSLAM, "isam2": Isam2LandmarkSLAM, "fixed_lag": FixedLagLandmarkSLAM}
+
+
+def make(kind: str, sequence: Sequence, lag_s: float | None = None, **kwargs):
+    """Smoother ``kind`` with the sequence's noise; ``lag_s`` goes to the fixed-lag one only."""
+    cls = SMOOTHERS[kind]
+    if lag_s is not None and kind == "fixed_lag":
+        kwargs["lag_s"] = lag_s
+    return cls(cls.config_class(noise=NoiseParams.from_metadata(sequence.metadata), **kwargs))
 
 
 def errors(estimate, sequence):
@@ -227,13 +233,33 @@ def test_protocols_and_bookkeeping():
 
 
 def test_bad_config_and_metadata():
-    with pytest.raises(ConfigError):
-        LandmarkSLAMConfig(lag_s=0.0)
-    with pytest.raises(ConfigError):
-        LandmarkSLAMConfig(fixed_lag_kind="sliding")
+    with pytest.raises(ConfigError, match="lag_s must be positive, got 0.0"):
+        FixedLagLandmarkSLAMConfig(lag_s=0.0)
+    with pytest.raises(ConfigError, match="fixed_lag_kind must be 'incremental' or 'batch'"):
+        FixedLagLandmarkSLAMConfig(fixed_lag_kind="sliding")
+    with pytest.raises(ConfigError, match="max_iterations must be >= 1, got 0"):
+        BatchLandmarkSLAMConfig(max_iterations=0)
+    with pytest.raises(ConfigError, match="relinearize_skip must be >= 1, got 0"):
+        FixedLagLandmarkSLAMConfig(relinearize_skip=0)  # iSAM2's settings, inherited
+    with pytest.raises(ConfigError, match="odometry_floor_sigma must be 3 positive sigmas"):
+        Isam2LandmarkSLAMConfig(odometry_floor_sigma=(1e-3, 0.0, 1e-4))
     with pytest.raises(ConfigError):
         NoiseParams.from_metadata({"odometry_sigma": [0.1]})
     assert NoiseParams.from_metadata({"range_bearing_sigma": [0.2, 0.01]}).sigma_range_m == 0.2
+
+
+def test_each_smoother_takes_its_own_config():
+    # one config per smoother: a setting of another smoother is not a field of it
+    with pytest.raises(TypeError, match="lag_s"):
+        Isam2LandmarkSLAMConfig(lag_s=2.0)
+    with pytest.raises(TypeError, match="relinearize_threshold"):
+        BatchLandmarkSLAMConfig(relinearize_threshold=0.1)
+    with pytest.raises(ConfigError, match="isam2 is configured by Isam2LandmarkSLAMConfig, "
+                                          "not BatchLandmarkSLAMConfig"):
+        Isam2LandmarkSLAM(BatchLandmarkSLAMConfig())
+    for kind, cls in SMOOTHERS.items():
+        assert isinstance(cls().config, cls.config_class), kind
+    assert FixedLagLandmarkSLAM().config.relinearize_threshold == 0.01
 
 
 @pytest.mark.parametrize("kind", ["batch", "isam2", "fixed_lag"])

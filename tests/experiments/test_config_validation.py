@@ -48,6 +48,13 @@ def _refused(tmp_path, text: str | bytes, loader=validate_pipeline_config) -> st
      "unknown estimator 'kalmann'"),
     ("pipeline: filter_vs_smoother\nscenarios: [mild]\nestimators: [isam]\n",
      "c.yaml:3: estimators.isam: unknown estimator 'isam' (did you mean 'isam2'?); known: ekf, "),
+    # one config per smoother: iSAM2's options are its own, the lag belongs to fixed_lag
+    ("pipeline: filter_vs_smoother\nscenarios: [mild]\nestimators:\n  isam2: {relinearize_treshold: 0.1}\n",
+     "c.yaml:4: estimators.isam2.relinearize_treshold: unknown key (did you mean 'relinearize_threshold'?)"),
+    ("pipeline: filter_vs_smoother\nscenarios: [mild]\nestimators:\n  isam2: {lag_s: 2.0}\n",
+     "c.yaml:4: estimators.isam2.lag_s: unknown key; valid keys: compute_covariances, noise, "),
+    ("pipeline: filter_vs_smoother\nscenarios: [mild]\nestimators:\n  batch: {max_iterations: 0.5}\n",
+     "c.yaml:4: estimators.batch.max_iterations: Input should be a valid integer"),
     ("pipeline: local_planning\nclosed_loop: {max_time_s: 1.0e+20}\n",
      "c.yaml:2: closed_loop.max_time_s: Input should be less than or equal to 86400 (got 1e+20)"),
     ("pipeline: lidar_slam\nworlds: [{world: office}]\nslam: {keyframes: {min_translaton_m: 1}}\n",
