@@ -203,21 +203,21 @@ def check_pipeline(config: dict[str, Any], doc: YamlDocument | None = None, sour
 
 
 def _check_estimators(raw: Any, doc: YamlDocument | None, source: str) -> None:
-    from slamkit.config import _suggest
-    from slamkit.experiments.estimators import NOISE_FIELDS, REGISTRY, config_class
+    from slamkit.data.noise import SENSOR_SIGMAS
+    from slamkit.experiments.estimators import REGISTRY, config_class
 
     items = raw.items() if isinstance(raw, dict) else [
         (e, {}) if isinstance(e, str) else next(iter(e.items())) for e in raw if isinstance(e, (str, dict)) and e]
     for label, params in items:
         params = dict(params or {})
-        kind = str(params.pop("type", label))
-        if kind not in REGISTRY:
+        try:
+            kind = REGISTRY.canonical(str(params.pop("type", label)))
+        except ConfigError as exc:  # the registry's one message, with its suggestion
             where = doc.where(("estimators", label)) if doc is not None else source
-            raise ConfigError(f"{where}: estimators.{label}: unknown estimator {kind!r}"
-                              + _suggest(kind, list(REGISTRY)))
+            raise ConfigError(f"{where}: estimators.{label}: {exc}") from None
         cls = config_class(kind)
         fields = model_of(cls).model_fields if cls is not None else {}
-        noise = {k: (Annotated[float, Field(gt=0, le=1e6)] | None, None) for k in NOISE_FIELDS}
+        noise = {k: (Annotated[float, Field(gt=0, le=1e6)] | None, None) for k in SENSOR_SIGMAS}
         model = pydantic.create_model(f"{kind}Params", __config__=STRICT,
                                       **{k: (f.annotation, None) for k, f in fields.items()}, **noise)
         validate(model, params, doc, source, ("estimators", label))
