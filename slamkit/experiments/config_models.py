@@ -16,6 +16,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from slamkit.config import STRICT, YamlDocument, model_of, validate
 from slamkit.errors import ConfigError
+from slamkit.naming import suggestion
 from slamkit.paths import path_component
 
 Count = Annotated[int, Field(ge=1, le=100_000)]
@@ -121,8 +122,8 @@ class LocalPlanningScenarios(BaseModel):
 
 class LocalPlanningPipeline(_Pipeline):
     pipeline: Literal["local_planning"]
-    controllers: Annotated[list[Literal["potential_fields", "dwa", "mpc", "mpc_osqp", "mpc_fatrop"]],
-                           Field(min_length=1)] = ["dwa", "mpc"]
+    #: names in ``slamkit.control.registry.CONTROLLERS`` (checked in ``check_pipeline``)
+    controllers: Annotated[list[str], Field(min_length=1)] = ["dwa", "mpc"]
     scenarios: LocalPlanningScenarios = LocalPlanningScenarios()
     closed_loop: dict[str, Any] = {}
     controller_params: dict[str, dict[str, Any]] = {}
@@ -175,20 +176,21 @@ def check_pipeline(config: dict[str, Any], doc: YamlDocument | None = None, sour
         _check_estimators(config.get("estimators"), doc, source)
         _check_scenarios(model, doc, source)
     elif isinstance(model, LocalPlanningPipeline):
-        from slamkit.control.dwa import DWAConfig
-        from slamkit.control.mpc import MPCConfig
-        from slamkit.control.potential_fields import PotentialFieldConfig
+        from slamkit.control.registry import CONTROLLERS
         from slamkit.experiments.closed_loop import ClosedLoopConfig
 
         _nested(model_of(ClosedLoopConfig), model.closed_loop, doc, source, ("closed_loop",))
-        cfg = {"potential_fields": PotentialFieldConfig, "dwa": DWAConfig, "mpc": MPCConfig,
-               "mpc_osqp": MPCConfig, "mpc_fatrop": MPCConfig}
+        for i, name in enumerate(model.controllers):
+            if name not in CONTROLLERS:
+                where = doc.where(("controllers", i)) if doc is not None else source
+                raise ConfigError(f"{where}: controllers.{i}: unknown controller {name!r}"
+                                  + suggestion(name, CONTROLLERS) + f"; known: {', '.join(CONTROLLERS)}")
         for name, params in model.controller_params.items():
-            if name not in cfg:
+            if name not in CONTROLLERS:
                 validate(pydantic.create_model("ControllerParams", __config__=STRICT,
-                                               **{k: (dict, None) for k in cfg}),
+                                               **{k: (dict, None) for k in CONTROLLERS}),
                          {name: params}, doc, source, ("controller_params",))
-            _nested(model_of(cfg[name]), params, doc, source, ("controller_params", name))
+            _nested(model_of(CONTROLLERS.get(name).config), params, doc, source, ("controller_params", name))
     elif isinstance(model, LidarSlamPipeline):
         from slamkit.experiments.lidar_slam import LidarSlamConfig, MclCheckConfig
         from slamkit.sim.grid_world import GridScenario
