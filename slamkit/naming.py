@@ -4,7 +4,7 @@ Architecture note (issue 18): estimators, filters, planners, controllers and pip
 live in four tables with four spellings (``rrt-star`` beside ``ekf_slam``), each with its own
 unknown-name message. They are now each a :class:`Registry`, and every registered name follows
 one rule, :data:`NAME_RULE`: lower-case snake_case (``rrt_star``, ``dstar_lite``, ``mpc_osqp``),
-as ARCHITECTURE.md section 7 writes them. A name that differs only by hyphens (``rrt-star``) or
+as ARCHITECTURE.md section 6 writes them. A name that differs only by hyphens (``rrt-star``) or
 case, or an explicitly listed old spelling, is still accepted: the lookup returns the canonical
 name and emits one :class:`SlamkitDeprecationWarning` (a ``FutureWarning``, so Python shows it to
 users by default; the CLI prints it as ``warning: ...``). An unknown name is a

@@ -256,8 +256,3 @@ class FastSLAM(FilterBase):
     def _extras(self) -> dict:
         return {"n_resamples": self.n_resamples, "num_landmarks_max": int(self.count.max()),
                 "dropped_unlabelled_measurements": self._dropped}
-
-
-# Spellings used by slamkit.experiments.estimators' registry table.
-FastSlam = FastSLAM
-FastSlamConfig = FastSLAMConfig

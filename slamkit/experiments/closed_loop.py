@@ -34,11 +34,9 @@ from typing import Any, Callable, Iterable, Mapping, Protocol
 
 import numpy as np
 
-from slamkit.control.dwa import DWAConfig, DWAController
-from slamkit.control.mpc import MPCConfig, MPCController
-from slamkit.control.potential_fields import PotentialFieldConfig, PotentialFieldController
 from slamkit.control.protocols import (ControlOutput, ControlStatus, Controller, DistanceGrid,
                                        LocalWorld, Reference, RobotState)
+from slamkit.control.registry import CONTROLLERS, make_controller
 from slamkit.errors import ConfigError
 from slamkit.experiments.config_models import LocalPlanningPipeline
 from slamkit.experiments.observers import PipelineObserver
@@ -55,7 +53,6 @@ from slamkit.planning.protocols import PlanningProblem
 from slamkit.sim.moving_obstacles import MovingObstacles, crossing_obstacles
 
 SCENARIO_KINDS = ("office", "warehouse", "open")
-CONTROLLERS = ("potential_fields", "dwa", "mpc", "mpc_osqp", "mpc_fatrop")
 
 
 # --------------------------------------------------------------------------- scenarios
@@ -159,28 +156,6 @@ def make_scenario(seed: int, kind: str = "office", n_obstacles: int = 3,
         return Scenario(f"{kind}_{seed}", seed, grid, start, poses[1, :2].copy(), path, obstacles,
                         distance, cell_cost)
     raise ConfigError(f"could not draw a start/goal pair with a path in {kind} map (seed {seed})")
-
-
-# --------------------------------------------------------------------------- controllers
-
-
-def make_controller(name: str, params: Mapping[str, Any] | None = None, seed: int = 0) -> Controller:
-    """Registry names: potential_fields, dwa, mpc (IPOPT), mpc_osqp (the QP fast path), mpc_fatrop."""
-    params = dict(params or {})
-    try:
-        if name == "potential_fields":
-            return PotentialFieldController(PotentialFieldConfig(**params), rng=np.random.default_rng(seed))
-        if name == "dwa":
-            return DWAController(DWAConfig(**params))
-        if name in ("mpc", "mpc_osqp", "mpc_fatrop"):
-            params.setdefault("solver", {"mpc": "ipopt", "mpc_osqp": "osqp", "mpc_fatrop": "fatrop"}[name])
-            for key in ("u_min", "u_max", "du_max_per_s", "r_u", "r_du"):
-                if key in params:
-                    params[key] = tuple(params[key])
-            return MPCController(MPCConfig(**params))
-    except TypeError as exc:
-        raise ConfigError(f"controller {name!r}: {exc}") from exc
-    raise ConfigError(f"unknown controller {name!r}; choose from {CONTROLLERS}")
 
 
 # --------------------------------------------------------------------------- the loop
@@ -374,9 +349,10 @@ def compare(config: Mapping[str, Any], observer=None,
     ``observer`` that wants steps sees the episodes of the first ``record_scenarios`` scenarios
     (default 1, to keep recordings small)."""
     controllers = list(config.get("controllers", ["dwa", "mpc"]))
-    for c in controllers:
-        if c not in CONTROLLERS:
-            raise ConfigError(f"controllers: unknown controller {c!r}; choose from {CONTROLLERS}")
+    try:  # every name checked before the first episode runs
+        names = [CONTROLLERS.canonical(c) for c in controllers]
+    except ConfigError as exc:
+        raise ConfigError(f"controllers: {exc}") from None
     params = dict(config.get("controller_params", {}) or {})
     try:
         loop = ClosedLoopConfig(**dict(config.get("closed_loop", {}) or {}))
@@ -386,8 +362,8 @@ def compare(config: Mapping[str, Any], observer=None,
     watch = observer is not None and observer.wants_steps
     episodes = []
     scenarios = scenario_list(config)
-    for name in controllers:
-        ctl = make_controller(name, params.get(name))
+    for typed, name in zip(controllers, names):
+        ctl = make_controller(name, params.get(typed, params.get(name)))
         for i, sc in enumerate(scenarios):
             obs = [_PipelineStepAdapter(observer, name, sc)] if watch and i < n_record else []
             episodes.append(run_episode(sc, ctl, loop, obs))

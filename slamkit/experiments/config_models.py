@@ -17,6 +17,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from slamkit.config import STRICT, YamlDocument, model_of, validate
 from slamkit.errors import ConfigError
+from slamkit.naming import suggestion
 from slamkit.paths import path_component
 
 Count = Annotated[int, Field(ge=1, le=100_000)]
@@ -134,28 +135,29 @@ class LocalPlanningScenarios(BaseModel):
 
 class LocalPlanningPipeline(PipelineConfig):
     pipeline: Literal["local_planning"]
-    controllers: Annotated[list[Literal["potential_fields", "dwa", "mpc", "mpc_osqp", "mpc_fatrop"]],
-                           Field(min_length=1)] = ["dwa", "mpc"]
+    #: names in ``slamkit.control.registry.CONTROLLERS`` (checked in ``check_options``)
+    controllers: Annotated[list[str], Field(min_length=1)] = ["dwa", "mpc"]
     scenarios: LocalPlanningScenarios = LocalPlanningScenarios()
     closed_loop: dict[str, Any] = {}
     controller_params: dict[str, dict[str, Any]] = {}
     record_scenarios: Annotated[int, Field(ge=0, le=1000)] = 1
 
     def check_options(self, config: dict[str, Any], doc: YamlDocument | None, source: str) -> None:
-        from slamkit.control.dwa import DWAConfig
-        from slamkit.control.mpc import MPCConfig
-        from slamkit.control.potential_fields import PotentialFieldConfig
+        from slamkit.control.registry import CONTROLLERS
         from slamkit.experiments.closed_loop import ClosedLoopConfig
 
         _nested(model_of(ClosedLoopConfig), self.closed_loop, doc, source, ("closed_loop",))
-        cfg = {"potential_fields": PotentialFieldConfig, "dwa": DWAConfig, "mpc": MPCConfig,
-               "mpc_osqp": MPCConfig, "mpc_fatrop": MPCConfig}
+        for i, name in enumerate(self.controllers):
+            if name not in CONTROLLERS:
+                where = doc.where(("controllers", i)) if doc is not None else source
+                raise ConfigError(f"{where}: controllers.{i}: unknown controller {name!r}"
+                                  + suggestion(name, CONTROLLERS) + f"; known: {', '.join(CONTROLLERS)}")
         for name, params in self.controller_params.items():
-            if name not in cfg:
+            if name not in CONTROLLERS:
                 validate(pydantic.create_model("ControllerParams", __config__=STRICT,
-                                               **{k: (dict, None) for k in cfg}),
+                                               **{k: (dict, None) for k in CONTROLLERS}),
                          {name: params}, doc, source, ("controller_params",))
-            _nested(model_of(cfg[name]), params, doc, source, ("controller_params", name))
+            _nested(model_of(CONTROLLERS.get(name).config), params, doc, source, ("controller_params", name))
 
 
 # --- lidar_slam ----------------------------------------------------------------------------------
@@ -207,21 +209,21 @@ def check_pipeline(config: dict[str, Any], doc: YamlDocument | None = None, sour
 
 
 def _check_estimators(raw: Any, doc: YamlDocument | None, source: str) -> None:
-    from slamkit.config import _suggest
-    from slamkit.experiments.estimators import NOISE_FIELDS, REGISTRY, config_class
+    from slamkit.data.noise import SENSOR_SIGMAS
+    from slamkit.experiments.estimators import REGISTRY, config_class
 
     items = raw.items() if isinstance(raw, dict) else [
         (e, {}) if isinstance(e, str) else next(iter(e.items())) for e in raw if isinstance(e, (str, dict)) and e]
     for label, params in items:
         params = dict(params or {})
-        kind = str(params.pop("type", label))
-        if kind not in REGISTRY:
+        try:
+            kind = REGISTRY.canonical(str(params.pop("type", label)))
+        except ConfigError as exc:  # the registry's one message, with its suggestion
             where = doc.where(("estimators", label)) if doc is not None else source
-            raise ConfigError(f"{where}: estimators.{label}: unknown estimator {kind!r}"
-                              + _suggest(kind, list(REGISTRY)))
+            raise ConfigError(f"{where}: estimators.{label}: {exc}") from None
         cls = config_class(kind)
         fields = model_of(cls).model_fields if cls is not None else {}
-        noise = {k: (Annotated[float, Field(gt=0, le=1e6)] | None, None) for k in NOISE_FIELDS}
+        noise = {k: (Annotated[float, Field(gt=0, le=1e6)] | None, None) for k in SENSOR_SIGMAS}
         model = pydantic.create_model(f"{kind}Params", __config__=STRICT,
                                       **{k: (f.annotation, None) for k, f in fields.items()}, **noise)
         validate(model, params, doc, source, ("estimators", label))

@@ -19,6 +19,7 @@ from slamkit.experiments.runner import (
     score,
     world_pose_covariances,
 )
+from slamkit.naming import SlamkitDeprecationWarning
 
 
 def _straight_sequence(n: int = 21) -> Sequence:
@@ -265,6 +266,10 @@ def test_registry_names_and_errors() -> None:
     assert set(registry.names()) >= {"ekf_slam", "fastslam", "batch", "isam2", "fixed_lag"}
     with pytest.raises(ConfigError, match="unknown estimator 'kf9'"):
         registry.factory("kf9")
+    with pytest.raises(ConfigError, match=r"unknown estimator 'isam' \(did you mean 'isam2'\?\); known: ekf, "):
+        registry.factory("isam")
+    with pytest.warns(SlamkitDeprecationWarning, match="estimator name 'fixed-lag' is deprecated; write 'fixed_lag'"):
+        assert registry.factory("fixed-lag").name == "fixed_lag"
     seq = _straight_sequence()
     with pytest.raises(ConfigError, match="unknown parameter"):
         registry.factory("pf", {"n_particle": 10})(seq)

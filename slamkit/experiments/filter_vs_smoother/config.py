@@ -85,10 +85,10 @@ def parse_estimators(config: Mapping[str, Any]) -> list[EstimatorChoice]:
     out = []
     for label, params in items:
         params = dict(params)
-        kind = str(params.pop("type", label))
-        if kind not in REGISTRY:
-            raise ConfigError(f"filter_vs_smoother: unknown estimator {kind!r} (for {label!r}); known: "
-                              f"{', '.join(REGISTRY)}")
+        try:  # the registry's one message (with its suggestion); old spellings warn
+            kind = REGISTRY.canonical(str(params.pop("type", label)))
+        except ConfigError as exc:
+            raise ConfigError(f"filter_vs_smoother: estimators.{label}: {exc}") from None
         out.append(EstimatorChoice(path_component(label, "filter_vs_smoother: estimator label"), kind, params))
     return out
 
