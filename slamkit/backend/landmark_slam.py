@@ -163,8 +163,8 @@ def _world_cov_rotation(theta: float) -> np.ndarray:
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
-def _world_cov(pose_xytheta: np.ndarray, cov_body: np.ndarray) -> np.ndarray:
-    return se2.covariance_body_to_world(pose_xytheta, cov_body)
+def _world_cov(world_xytheta_body: np.ndarray, cov_body: np.ndarray) -> np.ndarray:
+    return se2.covariance_body_to_world(world_xytheta_body, cov_body)
 
 
 def _xytheta(pose: gtsam.Pose2) -> np.ndarray:
@@ -192,7 +192,7 @@ class _LandmarkSmootherBase:
 
     # -- protocol ------------------------------------------------------------------------------
     def reset(self, prior: Prior) -> None:
-        mean = np.asarray(prior.pose_xytheta, dtype=float).reshape(3)
+        mean = np.asarray(prior.world_xytheta_body, dtype=float).reshape(3)
         cov = np.asarray(prior.covariance, dtype=float).reshape(3, 3)
         if not (np.all(np.isfinite(mean)) and np.all(np.isfinite(cov))):
             raise EstimationError(f"{self.name}: prior contains NaN or infinite values")

@@ -84,7 +84,7 @@ def _record_cycles(n_scenarios: int, max_cycles: int) -> list[tuple[RobotState, 
             t = snap.t_s - loop.dt_s
             cycles.append((RobotState(self.x, self.u, t), Reference(self.sc.path_xy_m, loop.reference_speed_mps),
                            perceive(self.sc, self.x, t, loop)))
-            self.x, self.u = snap.pose_xytheta, snap.output.command
+            self.x, self.u = snap.world_xytheta_body, snap.output.command
 
     ctl = MPCController(MPCConfig())
     for seed in range(n_scenarios):

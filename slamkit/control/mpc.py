@@ -350,7 +350,7 @@ class OptimalControlProblem:
         distance field linearised along the warm start's positions."""
         c = self.config
         n, k = c.horizon, c.max_circles
-        x0 = state.pose_xytheta.copy()
+        x0 = state.world_xytheta_body.copy()
         u_prev = state.command.copy()
         spacing = max(reference.speed_mps, 1e-3) * c.dt_s
         ref = path_reference(reference.path_xy_m, x0[:2], spacing, n, x0[2])
@@ -811,7 +811,7 @@ class MPCController:
 
     def problem(self, state: RobotState, reference: Reference, world: LocalWorld) -> MPCProblem:
         """The numbers of this cycle's OCP (also used by the benchmark's reference build)."""
-        return self.ocp.instantiate(state, reference, world, self.warm_start(state.pose_xytheta, state.command))
+        return self.ocp.instantiate(state, reference, world, self.warm_start(state.world_xytheta_body, state.command))
 
     def compute(self, state: RobotState, reference: Reference, world: LocalWorld) -> ControlOutput:
         if not state.finite:
@@ -819,11 +819,11 @@ class MPCController:
             return non_finite_brake()
         t0 = time.perf_counter()
         c = self.config
-        if np.linalg.norm(reference.goal_xy_m - state.pose_xytheta[:2]) <= c.goal_tolerance_m:
+        if np.linalg.norm(reference.goal_xy_m - state.world_xytheta_body[:2]) <= c.goal_tolerance_m:
             cmd = brake_command(state.command, *c.du_max_per_s, c.dt_s)
             self.reset()
             return ControlOutput(cmd, ControlStatus.GOAL_REACHED, solve_time_s=time.perf_counter() - t0)
-        warm = self.warm_start(state.pose_xytheta, state.command)
+        warm = self.warm_start(state.world_xytheta_body, state.command)
         prob = self.ocp.instantiate(state, reference, world, warm)
         try:
             sol = self.backend.solve(prob, warm)

@@ -111,8 +111,8 @@ def prior_of(sequence: Sequence, noise: NoiseParams | None = None, *, sigma_floo
     origin) with the sigmas as given, and keeps those numbers. The two agree on every sequence
     slamkit writes (simulators and dataset readers declare the start and sigmas of 1e-3).
     """
-    if sequence.initial_pose_xytheta is not None:
-        pose = np.asarray(sequence.initial_pose_xytheta, dtype=float).reshape(3)
+    if sequence.initial_world_xytheta_body is not None:
+        pose = np.asarray(sequence.initial_world_xytheta_body, dtype=float).reshape(3)
     elif start_from_ground_truth and sequence.ground_truth is not None:
         pose = sequence.ground_truth.xytheta()[0]
     else:

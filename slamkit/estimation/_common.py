@@ -111,7 +111,7 @@ class FilterBase:
 
     # -- protocol ------------------------------------------------------------------------
     def reset(self, prior: Prior) -> None:
-        mean = np.asarray(prior.pose_xytheta, dtype=float).reshape(3)
+        mean = np.asarray(prior.world_xytheta_body, dtype=float).reshape(3)
         cov = np.asarray(prior.covariance, dtype=float).reshape(3, 3)  # checked by Prior itself
         self._stamps: list[float] = []
         self._poses: list[np.ndarray] = []

@@ -451,7 +451,7 @@ class ParticleFilterLocalization(FilterBase):
     # -- filter steps ------------------------------------------------------------------------
     def _reset(self, prior: Prior) -> None:
         n = self.config.n_particles
-        self.particles = sample_gaussian_poses(prior.pose_xytheta, prior.covariance, n, self.rng)
+        self.particles = sample_gaussian_poses(prior.world_xytheta_body, prior.covariance, n, self.rng)
         self.log_w = np.full(n, -np.log(n))
         self.n_resamples = 0
 

@@ -178,7 +178,7 @@ class ControlStep:
 
     step: int
     t_s: float
-    pose_xytheta: np.ndarray
+    world_xytheta_body: np.ndarray
     output: ControlOutput
     obstacle_xy_m: np.ndarray
     obstacle_radius_m: np.ndarray
@@ -207,13 +207,13 @@ class Episode:
     metrics: Mapping[str, float] = field(default_factory=dict)
 
 
-def perceive(scenario: Scenario, pose_xytheta: np.ndarray, t_s: float,
+def perceive(scenario: Scenario, world_xytheta_body: np.ndarray, t_s: float,
              config: ClosedLoopConfig) -> LocalWorld:
     obs = scenario.obstacles
     if len(obs) == 0:
         return LocalWorld(distance=scenario.distance, t_s=t_s)
     xy = obs.position_at(t_s)
-    seen = np.linalg.norm(xy - pose_xytheta[:2], axis=1) - obs.radius_m <= config.sensor_range_m
+    seen = np.linalg.norm(xy - world_xytheta_body[:2], axis=1) - obs.radius_m <= config.sensor_range_m
     return LocalWorld(xy[seen], obs.radius_m[seen], obs.velocity_at(t_s)[seen], scenario.distance, t_s)
 
 

@@ -144,8 +144,8 @@ def _odometry_information(sigma_xy_m: float = 0.05, sigma_theta_rad: float = 0.0
 def run_frontend(sequence: Sequence, config: LidarSlamConfig = LidarSlamConfig(),
                  on_keyframe=None) -> FrontEnd:
     """Wheel odometry to every scan, keyframes, ICP odometry edges (see module docstring)."""
-    pose = (np.zeros(3) if sequence.initial_pose_xytheta is None
-            else np.asarray(sequence.initial_pose_xytheta, float).reshape(3))
+    pose = (np.zeros(3) if sequence.initial_world_xytheta_body is None
+            else np.asarray(sequence.initial_world_xytheta_body, float).reshape(3))
     selector = KeyframeSelector(config.keyframes)
     stamps, odo, est, pts_list, ranges = [], [], [], [], []
     ef, et, meas, info, iters = [], [], [], [], []
@@ -484,7 +484,7 @@ def trim_to_free_space(sequence: Sequence, grid: OccupancyGrid | None) -> Sequen
     meta = dict(sequence.metadata)
     meta["trimmed_s"] = float(gt.stamps_s[-1] - end_s)
     return Sequence(sequence.name, tuple(e for e in sequence.events if e.stamp_s < end_s),
-                    gt.subset(keep), sequence.world_p_landmarks, sequence.initial_pose_xytheta, meta)
+                    gt.subset(keep), sequence.world_p_landmarks, sequence.initial_world_xytheta_body, meta)
 
 
 def _write_trajectory(folder, res: LidarSlamResult, stem: str) -> None:

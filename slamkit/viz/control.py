@@ -84,7 +84,7 @@ class ClosedLoopRecorder:
     def on_step(self, snap) -> None:
         s, p = self.stream, self.prefix
         s.set_time("sim_time", duration=float(snap.t_s))
-        x = np.asarray(snap.pose_xytheta)
+        x = np.asarray(snap.world_xytheta_body)
         self._trail.append(x[:2].copy())
         out = snap.output
         heading = 0.4 * np.array([np.cos(x[2]), np.sin(x[2])])

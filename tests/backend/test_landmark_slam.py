@@ -59,7 +59,7 @@ def circle_sequence(seed: int, noisy: bool = True, steps: int = 300, dt: float =
         name=f"circle_{seed}", events=tuple(events),
         ground_truth=Trajectory.from_se2(np.array(stamps), np.array(truth)),
         world_p_landmarks={i: landmarks[i] for i in range(num_landmarks)},
-        initial_pose_xytheta=np.zeros(3),
+        initial_world_xytheta_body=np.zeros(3),
         metadata={"odometry_sigma": list(sigma_u), "range_bearing_sigma": list(sigma_rb),
                   "initial_pose_sigma": [1e-3, 1e-3, 1e-3]})
 

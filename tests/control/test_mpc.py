@@ -239,7 +239,7 @@ WORLD_2 = LocalWorld(circle_xy_m=[[1.5, 0.2], [3.2, 1.5]], circle_radius_m=[0.2,
 def _solve_once(solver):
     ctl = MPCController(MPCConfig(solver=solver))
     state = RobotState([0.0, 0.1, 0.05], [0.3, 0.0])
-    warm = ctl.warm_start(state.pose_xytheta, state.command)
+    warm = ctl.warm_start(state.world_xytheta_body, state.command)
     prob = ctl.ocp.instantiate(state, REF_L, WORLD_2, warm)
     return ctl, prob, warm, ctl.backend.solve(prob, warm)
 

@@ -15,7 +15,7 @@ from slamkit.errors import ConfigError
 def _sequence(initial=None, ground_truth=True, metadata=None) -> Sequence:
     gt = Trajectory.from_se2(np.array([0.0, 1.0]), np.array([[2.0, -1.0, 0.5], [3.0, -1.0, 0.5]]))
     return Sequence("s", (Odometry(1.0, 1.0, 1.0, 0.0),), gt if ground_truth else None,
-                    initial_pose_xytheta=initial, metadata=metadata or {})
+                    initial_world_xytheta_body=initial, metadata=metadata or {})
 
 
 def test_metadata_keys_and_overrides() -> None:
@@ -44,13 +44,13 @@ def test_prior_of_worked_example() -> None:
     # the declared start, the metadata sigmas squared on the diagonal
     prior = prior_of(_sequence(initial=np.array([1.0, 2.0, 0.3]),
                                metadata={"initial_pose_sigma": [0.1, 0.2, 0.01]}))
-    np.testing.assert_array_equal(prior.pose_xytheta, [1.0, 2.0, 0.3])
+    np.testing.assert_array_equal(prior.world_xytheta_body, [1.0, 2.0, 0.3])
     np.testing.assert_allclose(prior.covariance, np.diag([0.01, 0.04, 1e-4]), rtol=1e-15)
     # no declared start: the ground truth's first pose; no metadata: 1e-3 on each axis
     prior = prior_of(_sequence())
-    np.testing.assert_allclose(prior.pose_xytheta, [2.0, -1.0, 0.5], atol=1e-15)
+    np.testing.assert_allclose(prior.world_xytheta_body, [2.0, -1.0, 0.5], atol=1e-15)
     np.testing.assert_allclose(prior.covariance, np.diag([1e-6] * 3), rtol=1e-15)
-    np.testing.assert_array_equal(prior_of(_sequence(ground_truth=False)).pose_xytheta, [0.0, 0.0, 0.0])
+    np.testing.assert_array_equal(prior_of(_sequence(ground_truth=False)).world_xytheta_body, [0.0, 0.0, 0.0])
 
 
 def test_prior_of_options_keep_the_batch_smoothers_numbers() -> None:
@@ -58,9 +58,9 @@ def test_prior_of_options_keep_the_batch_smoothers_numbers() -> None:
     declared; the batch smoother's solve() does neither (see prior_of)."""
     seq = _sequence(metadata={"initial_pose_sigma": [0.0, 1e-7, 0.1]})
     runner = prior_of(seq)
-    np.testing.assert_allclose(runner.pose_xytheta, [2.0, -1.0, 0.5], atol=1e-15)
+    np.testing.assert_allclose(runner.world_xytheta_body, [2.0, -1.0, 0.5], atol=1e-15)
     np.testing.assert_allclose(np.diag(runner.covariance), [1e-12, 1e-12, 1e-2], rtol=1e-15)
     batch = prior_of(seq, NoiseParams(initial_pose_sigma=(0.3, 1e-7, 0.1)), sigma_floor=0.0,
                      start_from_ground_truth=False)
-    np.testing.assert_array_equal(batch.pose_xytheta, [0.0, 0.0, 0.0])
+    np.testing.assert_array_equal(batch.world_xytheta_body, [0.0, 0.0, 0.0])
     np.testing.assert_allclose(np.diag(batch.covariance), [0.09, 1e-14, 1e-2], rtol=1e-15)

@@ -33,7 +33,7 @@ def sequence():
 
 def _prior(seq) -> Prior:
     sigma = np.asarray(seq.metadata["initial_pose_sigma"], float)
-    return Prior(np.asarray(seq.initial_pose_xytheta, float), np.diag(sigma**2))
+    return Prior(np.asarray(seq.initial_world_xytheta_body, float), np.diag(sigma**2))
 
 
 def _run(name, seq, seed=1) -> tuple[Estimator, Estimate]:

@@ -164,7 +164,7 @@ def _helix_sequence(n: int = 21) -> Sequence:
     R = so3.exp(np.column_stack([np.zeros(n), np.zeros(n), 0.5 * stamps]))
     events = tuple(Odometry(float(s), 0.1, 1.0, 0.0) for s in stamps[1:])
     return Sequence("helix", events, Trajectory(stamps, t, so3.to_quat_wxyz(R)),
-                    initial_pose_xytheta=np.zeros(3))
+                    initial_world_xytheta_body=np.zeros(3))
 
 
 class Offset3DFilter:

@@ -100,7 +100,7 @@ class CarmenLog:
                         laser.ranges_m[k], laser.max_range_m) for k in order.tolist()]
         initial = poses[0] if len(poses) and np.isfinite(poses[0]).all() else None
         return Sequence.from_events(name or Path(self.path).name.split(".")[0], events,
-                                    initial_pose_xytheta=initial,
+                                    initial_world_xytheta_body=initial,
                                     metadata={"source": self.path, "laser_max_range_m": laser.max_range_m,
                                               "stamps": "ipc_timestamp",
                                               "scans_out_of_order": int(np.sum(np.diff(laser.stamps_s) < 0)),
