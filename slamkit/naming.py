@@ -4,7 +4,7 @@ Architecture note (issue 18): estimators, filters, planners, controllers and pip
 live in four tables with four spellings (``rrt-star`` beside ``ekf_slam``), each with its own
 unknown-name message. They are now each a :class:`Registry`, and every registered name follows
 one rule, :data:`NAME_RULE`: lower-case snake_case (``rrt_star``, ``dstar_lite``, ``mpc_osqp``),
-as ARCHITECTURE.md section 7 writes them. A name that differs only by hyphens (``rrt-star``) or
+as ARCHITECTURE.md section 6 writes them. A name that differs only by hyphens (``rrt-star``) or
 case, or an explicitly listed old spelling, is still accepted: the lookup returns the canonical
 name and emits one :class:`SlamkitDeprecationWarning` (a ``FutureWarning``, so Python shows it to
 users by default; the CLI prints it as ``warning: ...``). An unknown name is a
@@ -17,6 +17,7 @@ target); the registry itself only decides names.
 from __future__ import annotations
 
 import difflib
+import importlib
 import re
 import warnings
 from typing import Generic, Iterable, Iterator, Mapping, TypeVar
@@ -38,6 +39,14 @@ def snake_case(name: str) -> str:
     return re.sub(r"[-\s]+", "_", str(name).strip()).lower()
 
 
+def load_target(target: str) -> object:
+    """The object a lazy ``"package.module:attribute"`` registry target names (imported now)."""
+    module_name, _, attr = target.partition(":")
+    if not attr:
+        raise ValueError(f"a registry target is 'module:attribute', got {target!r}")
+    return getattr(importlib.import_module(module_name), attr)
+
+
 def suggestion(name: str, options: Iterable[str]) -> str:
     """`` (did you mean 'x'?)`` for the closest option, or ``""``."""
     close = difflib.get_close_matches(str(name), list(options), n=1, cutoff=0.6)
@@ -45,7 +54,8 @@ def suggestion(name: str, options: Iterable[str]) -> str:
 
 
 class Registry(Mapping[str, T], Generic[T]):
-    """An ordered, read-only name -> entry table under :data:`NAME_RULE`.
+    """An ordered name -> entry table under :data:`NAME_RULE`, read-only except for
+    :meth:`register` / :meth:`unregister` (a user's own entries where a table accepts them).
 
     ``what`` names the kind of thing in messages (``"planner"``). ``deprecated`` maps old
     spellings that :func:`snake_case` does not already turn into a registered name.
@@ -104,6 +114,20 @@ class Registry(Mapping[str, T], Generic[T]):
 
     def names(self) -> list[str]:
         return list(self._entries)
+
+    # -- a user's own entries (tables that accept them, e.g. pipelines) --------------------------
+
+    def register(self, name: str, entry: T) -> None:
+        """Add ``name`` (under :data:`NAME_RULE`; a name already taken is a ConfigError)."""
+        if not isinstance(name, str) or not NAME_RULE.match(name):
+            raise ConfigError(f"{self.what} names must be snake_case ({NAME_RULE.pattern}), got {name!r}")
+        if self._resolve(name) is not None:
+            raise ConfigError(f"{self.what} {name!r} is already registered")
+        self._entries[name] = entry
+
+    def unregister(self, name: str) -> None:
+        """Remove an entry added with :meth:`register` (unknown names are a ConfigError)."""
+        del self._entries[self.canonical(name)]
 
     def __repr__(self) -> str:
         return f"Registry({self.what!r}, {self.names()})"

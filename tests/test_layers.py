@@ -104,13 +104,17 @@ def test_no_getattr_reads_of_protocol_objects(path: Path) -> None:
 
 def test_every_recorder_and_the_null_observer_satisfy_the_observer_protocol(tmp_path) -> None:
     from slamkit.experiments.observers import NullObserver, PipelineObserver
-    from slamkit.viz.pipelines import RECORDERS, observer_for
+    from slamkit.experiments.pipeline import PIPELINES, pipeline_of, recorder_of
+    from slamkit.viz.pipelines import observer_for
 
     assert isinstance(NullObserver(), PipelineObserver)
-    for kind in RECORDERS:
+    for kind in PIPELINES:
+        assert recorder_of(kind) is not None, f"no recorder registered against {kind}"
         observer = observer_for(kind, tmp_path / f"{kind}.rrd")
         assert isinstance(observer, PipelineObserver), kind
         assert isinstance(observer.wants_steps, bool) and observer.step_every >= 1
+        # the recorder reads the payload its pipeline declares
+        assert observer.payload_type == pipeline_of(kind).payload_type, kind
         observer.close()
 
 

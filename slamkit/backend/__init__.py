@@ -8,17 +8,22 @@ scores any solution in SE-Sync's objective. ``slamkit bench pose-graph`` lives i
 Landmark SLAM smoothers (landmark_slam.py), Estimator-protocol objects fed a Sequence:
 :class:`BatchLandmarkSLAM` (``batch``, also ``solve(sequence)``), :class:`Isam2LandmarkSLAM`
 (``isam2``) and :class:`FixedLagLandmarkSLAM` (``fixed_lag``), configured by
-:class:`LandmarkSLAMConfig`.
+:class:`BatchLandmarkSLAMConfig`, :class:`Isam2LandmarkSLAMConfig` and
+:class:`FixedLagLandmarkSLAMConfig` (shared fields in :class:`LandmarkSmootherConfig`); their noise
+is :class:`slamkit.data.noise.NoiseParams`, as the filters'.
 """
 
 from slamkit.backend.graph import build_graph
 from slamkit.backend.initialisation import InitialEstimate, initial_values
-from slamkit.backend.landmark_slam import (BatchLandmarkSLAM, FixedLagLandmarkSLAM,
-                                           Isam2LandmarkSLAM, LandmarkSLAMConfig, SmootherNoise)
+from slamkit.backend.landmark_slam import (BatchLandmarkSLAM, BatchLandmarkSLAMConfig,
+                                           FixedLagLandmarkSLAM, FixedLagLandmarkSLAMConfig,
+                                           Isam2LandmarkSLAM, Isam2LandmarkSLAMConfig,
+                                           LandmarkSmootherConfig)
 from slamkit.backend.objective import sesync_objective, sesync_weights
 from slamkit.backend.isam2 import Isam2Params, Isam2PoseGraph
 from slamkit.backend.solvers import OptimizeConfig, OptimizeResult, optimize
 
 __all__ = ["build_graph", "initial_values", "InitialEstimate", "optimize", "OptimizeConfig",
            "OptimizeResult", "Isam2Params", "Isam2PoseGraph", "sesync_objective", "sesync_weights", "BatchLandmarkSLAM",
-           "Isam2LandmarkSLAM", "FixedLagLandmarkSLAM", "LandmarkSLAMConfig", "SmootherNoise"]
+           "BatchLandmarkSLAMConfig", "Isam2LandmarkSLAM", "Isam2LandmarkSLAMConfig",
+           "FixedLagLandmarkSLAM", "FixedLagLandmarkSLAMConfig", "LandmarkSmootherConfig"]

@@ -36,19 +36,29 @@ Estimators (``slamkit.data.estimate`` protocols, registry names ``batch``, ``isa
 
 Pose covariances are reported, like the filters', in world-frame (x, y, theta): GTSAM's Pose2
 marginals live in the body-frame tangent and are rotated by the heading (first order).
+
+Configuration (issue 18: one config per smoother, where one class used to carry all three):
+:class:`LandmarkSmootherConfig` holds what they share (noise, odometry floor, covariances);
+:class:`BatchLandmarkSLAMConfig` adds the LM settings, :class:`Isam2LandmarkSLAMConfig` the
+iSAM2 ones and :class:`FixedLagLandmarkSLAMConfig` the lag on top of iSAM2's (its incremental
+kind runs iSAM2 inside). The pipeline's options for ``batch``, ``isam2`` and ``fixed_lag`` are
+validated against these classes, so an LM option given to ``isam2`` is an unknown key. The noise
+is :class:`slamkit.data.noise.NoiseParams`, the same reader of the sequence's metadata the
+filters use.
 """
 
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any
 
 import gtsam
 import numpy as np
 from gtsam.symbol_shorthand import L, X
 
 from slamkit.data.estimate import Estimate, Prior
+from slamkit.data.noise import NoiseParams, prior_of
 from slamkit.data.sequence import Event, Odometry, RangeBearing, Sequence, event_problem
 from slamkit.data.trajectory import Trajectory
 from slamkit.geometry import se2
@@ -59,85 +69,80 @@ from slamkit.models import diff_drive
 # ---- configuration ------------------------------------------------------------------------------
 
 @dataclass(frozen=True)
-class SmootherNoise:
-    """Noise the smoothers assume (SI). ``from_metadata`` reads a Sequence's
-    ``odometry_sigma`` = (sigma_v_mps, sigma_omega_radps), ``range_bearing_sigma`` =
-    (sigma_range_m, sigma_bearing_rad) and ``initial_pose_sigma`` = (x_m, y_m, theta_rad)."""
+class LandmarkSmootherConfig:
+    """What every landmark smoother takes. ``noise`` None means "read it from the sequence
+    metadata" (``solve``) or the defaults (``reset``). ``odometry_floor_sigma`` (m, m, rad) is
+    added in quadrature to every odometry factor (see module docstring)."""
 
-    sigma_v_mps: float = 0.1
-    sigma_omega_radps: float = 0.05
-    sigma_range_m: float = 0.1
-    sigma_bearing_rad: float = 0.02
-    initial_pose_sigma: tuple[float, float, float] = (1e-3, 1e-3, 1e-3)
-
-    def __post_init__(self) -> None:
-        values = (self.sigma_v_mps, self.sigma_omega_radps, self.sigma_range_m,
-                  self.sigma_bearing_rad, *self.initial_pose_sigma)
-        if len(self.initial_pose_sigma) != 3 or not all(np.isfinite(v) and v > 0 for v in values):
-            raise ConfigError(f"smoother noise sigmas must be positive and finite, got {self}")
-
-    @classmethod
-    def from_metadata(cls, metadata: Mapping[str, Any]) -> "SmootherNoise":
-        kwargs: dict[str, Any] = {}
-        for key, names in (("odometry_sigma", ("sigma_v_mps", "sigma_omega_radps")),
-                           ("range_bearing_sigma", ("sigma_range_m", "sigma_bearing_rad"))):
-            if key in metadata:
-                values = np.asarray(metadata[key], dtype=float).reshape(-1)
-                if values.size != 2:
-                    raise ConfigError(f"metadata field {key} must have 2 values, got {values.size}")
-                kwargs.update(zip(names, values.tolist()))
-        if "initial_pose_sigma" in metadata:
-            values = np.asarray(metadata["initial_pose_sigma"], dtype=float).reshape(-1)
-            if values.size != 3:
-                raise ConfigError(f"metadata field initial_pose_sigma must have 3 values, "
-                                  f"got {values.size}")
-            kwargs["initial_pose_sigma"] = tuple(values.tolist())
-        return cls(**kwargs)
-
-
-@dataclass(frozen=True)
-class LandmarkSLAMConfig:
-    """``noise`` None means "read it from the sequence metadata" (``solve``) or the defaults
-    (``reset``). ``odometry_floor_sigma`` (m, m, rad) is added in quadrature to every odometry
-    factor (see module docstring). LM tolerances are GTSAM's defaults; the iSAM2 settings apply
-    to ``isam2`` and the incremental fixed-lag smoother."""
-
-    noise: SmootherNoise | None = None
+    noise: NoiseParams | None = None
     odometry_floor_sigma: tuple[float, float, float] = (1e-3, 1e-3, 1e-4)
-    max_iterations: int = 100
-    relative_error_tol: float = 1e-5
-    absolute_error_tol: float = 1e-5
-    #: LM gives up when its damping reaches this; GTSAM's 1e5 default stops early here
-    lambda_upper_bound: float = 1e10
-    relinearize_threshold: float = 0.01
-    relinearize_skip: int = 1
-    lag_s: float = 5.0
-    fixed_lag_kind: str = "incremental"  # 'incremental' | 'batch'
     compute_covariances: bool = True
 
     def __post_init__(self) -> None:
         if len(self.odometry_floor_sigma) != 3 or min(self.odometry_floor_sigma) <= 0:
             raise ConfigError(f"odometry_floor_sigma must be 3 positive sigmas, got "
                               f"{self.odometry_floor_sigma}")
+
+
+@dataclass(frozen=True)
+class BatchLandmarkSLAMConfig(LandmarkSmootherConfig):
+    """``batch``: Levenberg-Marquardt over the whole graph; tolerances are GTSAM's defaults."""
+
+    max_iterations: int = 100
+    relative_error_tol: float = 1e-5
+    absolute_error_tol: float = 1e-5
+    #: LM gives up when its damping reaches this; GTSAM's 1e5 default stops early here
+    lambda_upper_bound: float = 1e10
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.max_iterations < 1:
+            raise ConfigError(f"max_iterations must be >= 1, got {self.max_iterations}")
+
+
+@dataclass(frozen=True)
+class Isam2LandmarkSLAMConfig(LandmarkSmootherConfig):
+    """``isam2``: ISAM2's fluid relinearisation (Kaess et al. 2012): a variable is relinearised
+    when its update exceeds ``relinearize_threshold``, checked every ``relinearize_skip``
+    updates."""
+
+    relinearize_threshold: float = 0.01
+    relinearize_skip: int = 1
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.relinearize_skip < 1:
+            raise ConfigError(f"relinearize_skip must be >= 1, got {self.relinearize_skip}")
+
+
+@dataclass(frozen=True)
+class FixedLagLandmarkSLAMConfig(Isam2LandmarkSLAMConfig):
+    """``fixed_lag``: keeps the last ``lag_s`` seconds. The ``incremental`` kind runs iSAM2
+    inside (so it takes iSAM2's settings, inherited); ``batch`` re-solves the window with LM and
+    exposes no marginals."""
+
+    lag_s: float = 5.0
+    fixed_lag_kind: str = "incremental"  # 'incremental' | 'batch'
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
         if not (np.isfinite(self.lag_s) and self.lag_s > 0):
             raise ConfigError(f"lag_s must be positive, got {self.lag_s}")
         if self.fixed_lag_kind not in ("incremental", "batch"):
             raise ConfigError(f"fixed_lag_kind must be 'incremental' or 'batch', got "
                               f"{self.fixed_lag_kind!r}")
-        if self.max_iterations < 1 or self.relinearize_skip < 1:
-            raise ConfigError("max_iterations and relinearize_skip must be >= 1")
 
 
-def prior_from_sequence(sequence: Sequence, noise: SmootherNoise) -> Prior:
-    """The start pose the sequence declares (origin if none) with ``initial_pose_sigma``."""
-    start = (np.zeros(3) if sequence.initial_pose_xytheta is None
-             else np.asarray(sequence.initial_pose_xytheta, dtype=float).reshape(3))
-    return Prior(start, np.diag(np.square(noise.initial_pose_sigma)))
+def _isam2_params(config: Isam2LandmarkSLAMConfig) -> gtsam.ISAM2Params:
+    params = gtsam.ISAM2Params()
+    params.setRelinearizeThreshold(config.relinearize_threshold)
+    params.relinearizeSkip = config.relinearize_skip
+    return params
 
 
 # ---- factor helpers -----------------------------------------------------------------------------
 
-def odometry_factor_terms(odometry: Odometry, noise: SmootherNoise,
+def odometry_factor_terms(odometry: Odometry, noise: NoiseParams,
                           floor_sigma: tuple[float, float, float]) -> tuple[gtsam.Pose2, np.ndarray]:
     """Relative pose and its covariance (Pose2 tangent at the measurement) for one Odometry."""
     u = np.array([odometry.v_mps, odometry.omega_radps])
@@ -158,8 +163,8 @@ def _world_cov_rotation(theta: float) -> np.ndarray:
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
-def _world_cov(pose_xytheta: np.ndarray, cov_body: np.ndarray) -> np.ndarray:
-    return se2.covariance_body_to_world(pose_xytheta, cov_body)
+def _world_cov(world_xytheta_body: np.ndarray, cov_body: np.ndarray) -> np.ndarray:
+    return se2.covariance_body_to_world(world_xytheta_body, cov_body)
 
 
 def _xytheta(pose: gtsam.Pose2) -> np.ndarray:
@@ -172,22 +177,28 @@ class _LandmarkSmootherBase:
     """Turns events into factors and new variables; subclasses decide when to optimise."""
 
     name = "landmark_smoother"
+    #: the config dataclass this smoother takes (its fields are the registry params)
+    config_class: type[LandmarkSmootherConfig] = LandmarkSmootherConfig
 
-    def __init__(self, config: LandmarkSLAMConfig = LandmarkSLAMConfig()) -> None:
+    def __init__(self, config: LandmarkSmootherConfig | None = None) -> None:
+        config = self.config_class() if config is None else config
+        if not isinstance(config, self.config_class):
+            raise ConfigError(f"{self.name} is configured by {self.config_class.__name__}, "
+                              f"not {type(config).__name__}")
         self.config = config
         self._ready = False
         #: the noise a batch solve() takes from the sequence's metadata when the config has none
-        self._sequence_noise: SmootherNoise | None = None
+        self._sequence_noise: NoiseParams | None = None
 
     # -- protocol ------------------------------------------------------------------------------
     def reset(self, prior: Prior) -> None:
-        mean = np.asarray(prior.pose_xytheta, dtype=float).reshape(3)
+        mean = np.asarray(prior.world_xytheta_body, dtype=float).reshape(3)
         cov = np.asarray(prior.covariance, dtype=float).reshape(3, 3)
         if not (np.all(np.isfinite(mean)) and np.all(np.isfinite(cov))):
             raise EstimationError(f"{self.name}: prior contains NaN or infinite values")
         if np.any(np.linalg.eigvalsh(0.5 * (cov + cov.T)) <= 0):
             raise EstimationError(f"{self.name}: prior covariance must be positive definite")
-        self.noise = self.config.noise or self._sequence_noise or SmootherNoise()
+        self.noise = self.config.noise or self._sequence_noise or NoiseParams()
         self._bearing_range_model = gtsam.noiseModel.Diagonal.Sigmas(
             np.array([self.noise.sigma_bearing_rad, self.noise.sigma_range_m]))
         self._stamps: list[float | None] = [None]      # X(0)'s stamp is set by the first event
@@ -325,13 +336,19 @@ class BatchLandmarkSLAM(_LandmarkSmootherBase):
     """Full-batch smoother (registry name ``batch``): every factor kept, LM over all of them."""
 
     name = "batch"
+    config_class = BatchLandmarkSLAMConfig
+    config: BatchLandmarkSLAMConfig
 
     def solve(self, sequence: Sequence) -> Estimate:
-        """reset from the sequence's start pose and metadata noise, feed every event, solve."""
-        noise = self.config.noise or SmootherNoise.from_metadata(sequence.metadata)
+        """reset from the sequence's start pose and metadata noise, feed every event, solve.
+
+        The prior is the declared start pose (the origin if none) with ``initial_pose_sigma``
+        as given: :func:`slamkit.data.noise.prior_of` without the runner's ground-truth start
+        and sigma floor (see there why)."""
+        noise = self.config.noise or NoiseParams.from_metadata(sequence.metadata)
         self._sequence_noise = noise
         try:
-            self.reset(prior_from_sequence(sequence, noise))
+            self.reset(prior_of(sequence, noise, sigma_floor=0.0, start_from_ground_truth=False))
         finally:
             self._sequence_noise = None
         for event in sequence:
@@ -406,12 +423,11 @@ class Isam2LandmarkSLAM(_LandmarkSmootherBase):
     """Incremental smoother (registry name ``isam2``): one ISAM2.update per event."""
 
     name = "isam2"
+    config_class = Isam2LandmarkSLAMConfig
+    config: Isam2LandmarkSLAMConfig
 
     def _reset_solver(self) -> None:
-        params = gtsam.ISAM2Params()
-        params.setRelinearizeThreshold(self.config.relinearize_threshold)
-        params.relinearizeSkip = self.config.relinearize_skip
-        self._isam = gtsam.ISAM2(params)
+        self._isam = gtsam.ISAM2(_isam2_params(self.config))
         self._online: list[np.ndarray] = []
 
     def _process(self, factors, values, stamps, stamp) -> None:
@@ -454,14 +470,13 @@ class FixedLagLandmarkSLAM(_LandmarkSmootherBase):
     """Fixed-lag smoother (registry name ``fixed_lag``) over the last ``config.lag_s`` seconds."""
 
     name = "fixed_lag"
+    config_class = FixedLagLandmarkSLAMConfig
+    config: FixedLagLandmarkSLAMConfig
 
     def _reset_solver(self) -> None:
         lag = float(self.config.lag_s)
         if self.config.fixed_lag_kind == "incremental":
-            params = gtsam.ISAM2Params()
-            params.setRelinearizeThreshold(self.config.relinearize_threshold)
-            params.relinearizeSkip = self.config.relinearize_skip
-            self._smoother = gtsam.IncrementalFixedLagSmoother(lag, params)
+            self._smoother = gtsam.IncrementalFixedLagSmoother(lag, _isam2_params(self.config))
         else:
             self._smoother = gtsam.BatchFixedLagSmoother(lag)
         self._key_stamp: dict[int, float] = {}

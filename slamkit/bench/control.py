@@ -33,12 +33,13 @@ from slamkit.control.dwa import DWAController
 from slamkit.control.mpc import MPCConfig, MPCController
 from slamkit.bench.mpc_reference import OptiMPC
 from slamkit.control.protocols import Reference, RobotState
-from slamkit.experiments.closed_loop import (ClosedLoopConfig, Episode, make_controller, make_scenario,
-                                             perceive, run_episode)
+from slamkit.control.registry import make_controller
+from slamkit.experiments.closed_loop import ClosedLoopConfig, Episode, make_scenario, perceive, run_episode
 from slamkit.bench.cases import BenchCase, compare
 
 KINDS = ("office", "warehouse", "open")
-CONTROLLERS = ("potential_fields", "dwa", "mpc", "mpc_osqp")
+#: the registry names (slamkit.control.registry) the closed-loop part compares
+CLOSED_LOOP_CONTROLLERS = ("potential_fields", "dwa", "mpc", "mpc_osqp")
 METRICS = (("success", "", "success_rate"), ("time_to_goal_s", "s", "time_to_goal_mean_s"),
            ("path_length_m", "m", "path_length_mean_m"), ("min_clearance_m", "m", "min_clearance_mean_m"),
            ("collisions", "", "collision_rate"), ("jerk_rms_mps3", "m/s^3", "jerk_rms_mean_mps3"))
@@ -51,7 +52,7 @@ def _load() -> float:
         return float("nan")
 
 
-def closed_loop_cases(n_scenarios: int, controllers=CONTROLLERS, kinds=KINDS
+def closed_loop_cases(n_scenarios: int, controllers=CLOSED_LOOP_CONTROLLERS, kinds=KINDS
                       ) -> tuple[list[BenchCase], list[Episode]]:
     scenarios = [make_scenario(seed, kinds[seed % len(kinds)]) for seed in range(n_scenarios)]
     cases, episodes = [], []
@@ -83,7 +84,7 @@ def _record_cycles(n_scenarios: int, max_cycles: int) -> list[tuple[RobotState, 
             t = snap.t_s - loop.dt_s
             cycles.append((RobotState(self.x, self.u, t), Reference(self.sc.path_xy_m, loop.reference_speed_mps),
                            perceive(self.sc, self.x, t, loop)))
-            self.x, self.u = snap.pose_xytheta, snap.output.command
+            self.x, self.u = snap.world_xytheta_body, snap.output.command
 
     ctl = MPCController(MPCConfig())
     for seed in range(n_scenarios):

@@ -4,6 +4,10 @@
 no warm start of primal or dual variables. Benchmarks time it against the tuned build in the same
 run, so the reported ratios say what the tuning (warm start, barrier strategy, the QP fast path)
 buys on identical problems.
+
+It writes the cost and constraints out itself instead of calling the OCP's CasADi functions, on
+purpose: ``tests/control/test_mpc.py`` uses it as an independent oracle for the tuned build (same
+first input to 1e-3), and its timing stays that of the textbook formulation.
 """
 
 from __future__ import annotations
@@ -13,7 +17,7 @@ import time
 import casadi as ca
 import numpy as np
 
-from slamkit.control.mpc import MPCConfig, _Problem, discrete_dynamics
+from slamkit.control.mpc import MPCConfig, MPCProblem, discrete_dynamics
 
 
 class OptiMPC:
@@ -56,7 +60,7 @@ class OptiMPC:
         opti.minimize(cost)
         opti.solver("ipopt", {"print_time": False}, {"print_level": 0, "sb": "yes"})
 
-    def solve(self, prob: _Problem) -> tuple[bool, np.ndarray, float]:
+    def solve(self, prob: MPCProblem) -> tuple[bool, np.ndarray, float]:
         """(success, u_0, wall time of ``opti.solve`` in seconds)."""
         c = self.config
         n, k = c.horizon, c.max_circles

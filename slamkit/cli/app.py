@@ -15,9 +15,11 @@ exceptions itself.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import sys
+import warnings
 
 import click
 import typer
@@ -25,6 +27,7 @@ import typer.exceptions
 from typer.core import TyperGroup
 
 from slamkit.errors import BackendError, NoResultError, SlamkitError
+from slamkit.naming import SlamkitDeprecationWarning
 
 EXIT_OK, EXIT_INTERNAL, EXIT_BAD_INPUT, EXIT_NO_RESULT = 0, 1, 2, 3
 
@@ -43,12 +46,31 @@ _PASS_THROUGH = tuple({typer.Exit, typer.Abort, click.exceptions.Exit, click.exc
                                                if c is not None)})
 
 
+@contextlib.contextmanager
+def _deprecations_as_one_line():
+    """An old spelling a user typed (``rrt-star``) is reported as ``warning: ...`` on stderr,
+    every time, without Python's file:line prefix."""
+    with warnings.catch_warnings():
+        previous = warnings.showwarning
+        warnings.simplefilter("always", SlamkitDeprecationWarning)
+
+        def show(message, category, filename, lineno, file=None, line=None):
+            if issubclass(category, SlamkitDeprecationWarning):
+                typer.echo(f"warning: {message}", err=True)
+            else:
+                previous(message, category, filename, lineno, file, line)
+
+        warnings.showwarning = show
+        yield
+
+
 class _SlamkitGroup(TyperGroup):
     """Runs every (sub)command under one handler: no traceback reaches the user unless asked."""
 
     def invoke(self, ctx: click.Context):
         try:
-            return super().invoke(ctx)
+            with _deprecations_as_one_line():
+                return super().invoke(ctx)
         except _PASS_THROUGH:
             raise
         except SlamkitError as exc:

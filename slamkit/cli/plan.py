@@ -2,7 +2,8 @@
 
 MAP is a registry name of a grid map (``slamkit data list``: ``arena``, ``den312d`` ...) or a
 MovingAI ``.map`` file. Coordinates are world metres (a MovingAI cell (x, y) has its centre at
-(x + 0.5, y + 0.5)). A thin shell over :func:`plan_on_map`, which notebooks can call directly.
+(x + 0.5, y + 0.5)). A thin shell over :func:`slamkit.experiments.planning.plan_on_map`, which
+notebooks can call directly.
 """
 
 from __future__ import annotations
@@ -14,44 +15,6 @@ import typer
 from rich.console import Console
 
 from slamkit.cli.app import EXIT_NO_RESULT, app, dumps_json, non_negative, positive
-from slamkit.errors import DataError
-
-
-def load_grid(map_name_or_path: str):
-    """An OccupancyGrid from a registry name or a MovingAI .map path."""
-    from slamkit.data import registry
-    from slamkit.maps.movingai import load_map
-
-    found = registry.resolve(map_name_or_path)
-    note = registry.resolution_note(map_name_or_path)
-    if note:
-        typer.echo(f"note: {note}", err=True)
-    if isinstance(found, Path):
-        return load_map(found)
-    if found.format != "movingai":
-        raise DataError(f"dataset {found.name!r} is a {found.kind} ({found.format}), not a grid map")
-    return load_map(registry.path_of(found.name))
-
-
-def plan_on_map(map_name_or_path: str, start_xy_m, goal_xy_m, planner: str = "astar",
-                inflate_m: float = 0.0, seed: int = 0, rrd: str | Path | None = None,
-                **config) -> tuple[object, object]:
-    """Plan on a map; returns (the grid planned on, PlanResult). ``config`` overrides the
-    planner's config fields (e.g. ``max_iterations=2000``)."""
-    from slamkit.maps.inflation import inflate
-    from slamkit.planning.protocols import PlanningProblem
-    from slamkit.planning.registry import make_planner
-
-    grid = load_grid(map_name_or_path)
-    if inflate_m > 0:
-        grid = inflate(grid, inflate_m)
-    problem = PlanningProblem(grid, np.asarray(start_xy_m, float), np.asarray(goal_xy_m, float))
-    p = make_planner(planner, rng=np.random.default_rng(seed), **config)
-    if rrd is None:
-        return grid, p.plan(problem)
-    from slamkit.viz.planning import record_plans
-
-    return grid, record_plans(rrd, problem, {p.name: p})[p.name]
 
 
 def _xy(text: str, what: str) -> tuple[float, float]:
@@ -86,8 +49,21 @@ def plan(
         cfg["max_iterations"] = max_iterations
     if time_limit_s is not None:
         cfg["time_limit_s"] = time_limit_s
-    grid, result = plan_on_map(map_, _xy(start, "--start"), _xy(goal, "--goal"), planner,
-                               inflate_m, seed, rrd, **cfg)
+    from functools import partial
+
+    from slamkit.data.registry import resolution_note
+    from slamkit.experiments.planning import plan_all, plan_on_map
+
+    note = resolution_note(map_)
+    if note:
+        typer.echo(f"note: {note}", err=True)
+    run = plan_all
+    if rrd is not None:
+        from slamkit.viz.planning import record_plans
+
+        run = partial(record_plans, rrd)
+    planned = plan_on_map(map_, _xy(start, "--start"), _xy(goal, "--goal"), planner, inflate_m, seed, run, **cfg)
+    grid, result = planned.grid, planned.result
     out = dict(result.to_dict())  # dumps_json writes an unsolved (infinite) cost as null
     out.update({"map": map_, "inflate_m": inflate_m, "path_points": int(len(result.path)),
                 "rrd": None if rrd is None else str(rrd)})

@@ -123,7 +123,7 @@ class DWAController:
             return non_finite_brake()
         t0 = time.perf_counter()
         c = self.config
-        xy = state.pose_xytheta[:2]
+        xy = state.world_xytheta_body[:2]
         goal = reference.goal_xy_m
         dist_goal = float(np.linalg.norm(goal - xy))
         if dist_goal <= c.goal_tolerance_m:
@@ -132,7 +132,7 @@ class DWAController:
 
         cand = self.candidates(state)
         steps = max(1, int(round(c.horizon_s / c.rollout_dt_s)))
-        traj = rollout_arcs(state.pose_xytheta, cand, c.rollout_dt_s, steps)
+        traj = rollout_arcs(state.world_xytheta_body, cand, c.rollout_dt_s, steps)
         clear = trajectory_clearance(traj, world, c.rollout_dt_s, c.robot_radius_m + c.safety_margin_m)
         dist = distance_to_collision(traj, clear, cand[:, 0], c.rollout_dt_s)
         admissible = cand[:, 0] <= np.sqrt(2.0 * dist * c.brake_decel_mps2)

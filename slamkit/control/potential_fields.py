@@ -166,8 +166,8 @@ class PotentialFieldController:
             return non_finite_brake()
         t0 = time.perf_counter()
         c = self.config
-        xy = state.pose_xytheta[:2]
-        theta = state.pose_xytheta[2]
+        xy = state.world_xytheta_body[:2]
+        theta = state.world_xytheta_body[2]
         goal = reference.goal_xy_m
         if np.linalg.norm(goal - xy) <= c.goal_tolerance_m:
             return ControlOutput(self._limit(state, 0.0, 0.0), ControlStatus.GOAL_REACHED,

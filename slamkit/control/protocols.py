@@ -43,27 +43,27 @@ def _ro(a: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class RobotState:
-    """``pose_xytheta`` (3,) of world_T_body; ``command`` (2,) the command applied during the last
+    """``world_xytheta_body`` (3,) of world_T_body; ``command`` (2,) the command applied during the last
     cycle (v, omega) or (v, steering) -- DWA builds its window and MPC its rate limits from it."""
 
-    pose_xytheta: np.ndarray
+    world_xytheta_body: np.ndarray
     command: np.ndarray = field(default_factory=lambda: np.zeros(2))
     t_s: float = 0.0
 
     def __post_init__(self) -> None:
-        pose = np.asarray(self.pose_xytheta, dtype=float).reshape(-1)
+        pose = np.asarray(self.world_xytheta_body, dtype=float).reshape(-1)
         cmd = np.asarray(self.command, dtype=float).reshape(-1)
         if pose.shape != (3,) or cmd.shape != (2,):
-            raise ControlError(f"RobotState needs pose_xytheta (3,) and command (2,), got "
+            raise ControlError(f"RobotState needs world_xytheta_body (3,) and command (2,), got "
                                f"{pose.shape} and {cmd.shape}")
         # a non-finite pose (a diverged estimator) is not refused here: every controller answers
         # it with a zero command (see ``non_finite_brake``), which is what a robot must do
-        object.__setattr__(self, "pose_xytheta", _ro(pose.copy()))
+        object.__setattr__(self, "world_xytheta_body", _ro(pose.copy()))
         object.__setattr__(self, "command", _ro(cmd.copy()))
 
     @property
     def finite(self) -> bool:
-        return bool(np.all(np.isfinite(self.pose_xytheta)) and np.all(np.isfinite(self.command)))
+        return bool(np.all(np.isfinite(self.world_xytheta_body)) and np.all(np.isfinite(self.command)))
 
 
 @dataclass(frozen=True)

@@ -16,12 +16,12 @@ from slamkit.control.protocols import LocalWorld
 from slamkit.models.diff_drive import motion
 
 
-def rollout_arcs(pose_xytheta: np.ndarray, commands: np.ndarray, dt_s: float, steps: int) -> np.ndarray:
+def rollout_arcs(world_xytheta_body: np.ndarray, commands: np.ndarray, dt_s: float, steps: int) -> np.ndarray:
     """(3,) start pose, (K, 2) constant (v, omega) commands -> (K, steps + 1, 3) poses at
     t = 0, dt, ..., steps * dt (heading wrapped to [-pi, pi))."""
     u = np.asarray(commands, dtype=float).reshape(-1, 2)
     t = dt_s * np.arange(steps + 1)
-    pose = np.asarray(pose_xytheta, dtype=float).reshape(1, 1, 3)
+    pose = np.asarray(world_xytheta_body, dtype=float).reshape(1, 1, 3)
     return motion(pose, u[:, None, :], t[None, :])
 
 

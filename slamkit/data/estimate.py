@@ -40,14 +40,14 @@ class Prior:
     covariance -- a start pose known exactly -- is a common SLAM convention; the GTSAM smoothers
     additionally need it positive definite and say so)."""
 
-    pose_xytheta: np.ndarray
+    world_xytheta_body: np.ndarray
     covariance: np.ndarray
 
     def __post_init__(self) -> None:
-        mean = np.asarray(self.pose_xytheta, dtype=float).reshape(-1)
+        mean = np.asarray(self.world_xytheta_body, dtype=float).reshape(-1)
         cov = np.asarray(self.covariance, dtype=float)
         if mean.shape != (3,) or cov.shape != (3, 3):
-            raise EstimationError(f"Prior needs pose_xytheta (3,) and covariance (3, 3), got {mean.shape} "
+            raise EstimationError(f"Prior needs world_xytheta_body (3,) and covariance (3, 3), got {mean.shape} "
                                   f"and {cov.shape}")
         if not (np.isfinite(mean).all() and np.isfinite(cov).all()):
             raise EstimationError("prior contains NaN or infinite values")

@@ -41,12 +41,15 @@ import urllib.request
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
-from typing import Any, Mapping
+from typing import TYPE_CHECKING, Any, Mapping
 
 from slamkit.data import registry_table as table
 from slamkit.data.pose_graph import PoseGraph
 from slamkit.data.trajectory import Trajectory
 from slamkit.errors import ChecksumError, DataError, DatasetNotFoundError
+
+if TYPE_CHECKING:
+    from slamkit.maps.occupancy_grid import OccupancyGrid
 
 POSE_GRAPH_KINDS = ("pose_graph_2d", "pose_graph_3d")
 WHEEL_PREFIX = "gtsam_data/"
@@ -395,6 +398,19 @@ def relations_of(name: str) -> Path | None:
     entry = get(name)
     rel = [f for f in entry.files if f.path.endswith(".relations")]
     return path_of(entry.name, rel[0].path) if rel else None
+
+
+def load_grid_map_source(name_or_path: str | Path) -> OccupancyGrid:
+    """An occupancy grid from a registry grid map (``arena``, ``den312d`` ...) or a MovingAI
+    ``.map`` file (see :func:`resolution_note` for a name that is both)."""
+    from slamkit.maps.movingai import load_map
+
+    target = resolve(name_or_path)
+    if isinstance(target, Path):
+        return load_map(target)
+    if target.format != "movingai":
+        raise DataError(f"dataset {target.name!r} is a {target.kind} ({target.format}), not a grid map")
+    return load_map(path_of(target.name))
 
 
 # --- fetching ----------------------------------------------------------------------------------

@@ -117,7 +117,7 @@ class Sequence:
     events: tuple[Event, ...]
     ground_truth: Trajectory | None = None
     world_p_landmarks: Mapping[int, np.ndarray] | None = None
-    initial_pose_xytheta: np.ndarray | None = None
+    initial_world_xytheta_body: np.ndarray | None = None
     metadata: Mapping[str, Any] = field(default_factory=dict)
 
     def __iter__(self) -> Iterator[Event]:

@@ -1,6 +1,8 @@
-"""What every planar filter shares: noise parameters read from a Sequence, the bookkeeping that
-turns a stream of ``step`` calls into an :class:`~slamkit.data.estimate.Estimate`, and small
-numeric helpers (circular weighted statistics, Gaussian log-densities, chi-square gates).
+"""What every planar filter shares: the bookkeeping that turns a stream of ``step`` calls into an
+:class:`~slamkit.data.estimate.Estimate`, and small numeric helpers (circular weighted
+statistics, Gaussian log-densities, chi-square gates). The noise the filters assume is
+:class:`slamkit.data.noise.NoiseParams` (one reader of a Sequence's noise metadata for filters
+and smoothers alike), re-exported here for the filter modules.
 
 The filters themselves live one per module (``kalman``, ``ekf``, ``ukf``, ``histogram_filter``,
 ``particle_filter``, ``mcl``, ``ekf_slam``, ``fastslam``).
@@ -9,79 +11,17 @@ The filters themselves live one per module (``kalman``, ``ekf``, ``ukf``, ``hist
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
 from typing import Any, Mapping
 
 import numpy as np
 from scipy.stats import chi2
 
 from slamkit.data.estimate import Estimate, Prior
+from slamkit.data.noise import NoiseParams  # noqa: F401  (the filters import it from here)
 from slamkit.data.sequence import Event, Gps, Odometry, RangeBearing, event_problem
 from slamkit.data.trajectory import Trajectory
-from slamkit.errors import ConfigError, EstimationError
+from slamkit.errors import EstimationError
 from slamkit.geometry.angles import wrap_angle
-
-
-# --------------------------------------------------------------------------------------------
-# noise
-# --------------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class NoiseParams:
-    """Standard deviations the filters assume (SI units).
-
-    Odometry noise is on the body-frame velocities (v, omega) held over ``dt_s``, so the pose
-    noise of one step is ``L diag(sigma_v^2, sigma_omega^2) L^T`` with ``L`` the motion Jacobian
-    with respect to the control (Thrun, Probabilistic Robotics, eq. 7.11 and Table 7.1).
-    """
-
-    sigma_v_mps: float = 0.1
-    sigma_omega_radps: float = 0.05
-    sigma_range_m: float = 0.1
-    sigma_bearing_rad: float = 0.02
-
-    def __post_init__(self) -> None:
-        for name in ("sigma_v_mps", "sigma_omega_radps", "sigma_range_m", "sigma_bearing_rad"):
-            value = getattr(self, name)
-            if not (np.isfinite(value) and value > 0):
-                raise ConfigError(f"NoiseParams.{name} must be positive and finite, got {value}")
-
-    @property
-    def control_cov(self) -> np.ndarray:
-        """(2, 2) covariance of (v, omega)."""
-        return np.diag([self.sigma_v_mps**2, self.sigma_omega_radps**2])
-
-    @property
-    def range_bearing_cov(self) -> np.ndarray:
-        """(2, 2) covariance of one (range, bearing) measurement."""
-        return np.diag([self.sigma_range_m**2, self.sigma_bearing_rad**2])
-
-    @classmethod
-    def from_metadata(cls, metadata: Mapping[str, Any], **overrides: float) -> "NoiseParams":
-        """Read a Sequence's ``metadata``.
-
-        Accepted keys: ``odometry_sigma`` = (sigma_v_mps, sigma_omega_radps) and
-        ``range_bearing_sigma`` = (sigma_range_m, sigma_bearing_rad), or the four field names
-        of this class directly. Missing keys keep the defaults; ``overrides`` win over both.
-        """
-        values: dict[str, float] = {}
-        odo = metadata.get("odometry_sigma")
-        if odo is not None:
-            odo = np.asarray(odo, dtype=float).reshape(-1)
-            if odo.size != 2:
-                raise ConfigError(f"metadata field odometry_sigma must have 2 values, got {odo.size}")
-            values["sigma_v_mps"], values["sigma_omega_radps"] = float(odo[0]), float(odo[1])
-        rb = metadata.get("range_bearing_sigma")
-        if rb is not None:
-            rb = np.asarray(rb, dtype=float).reshape(-1)
-            if rb.size != 2:
-                raise ConfigError(
-                    f"metadata field range_bearing_sigma must have 2 values, got {rb.size}")
-            values["sigma_range_m"], values["sigma_bearing_rad"] = float(rb[0]), float(rb[1])
-        for name in ("sigma_v_mps", "sigma_omega_radps", "sigma_range_m", "sigma_bearing_rad"):
-            if name in metadata:
-                values[name] = float(metadata[name])
-        values.update(overrides)
-        return cls(**values)
 
 
 def landmark_array(world_p_landmarks: Mapping[int, np.ndarray] | None) -> tuple[np.ndarray, np.ndarray]:
@@ -146,6 +86,15 @@ def symmetrize(P: np.ndarray) -> np.ndarray:
 # --------------------------------------------------------------------------------------------
 # bookkeeping shared by every filter
 # --------------------------------------------------------------------------------------------
+def nis_values(nu: np.ndarray, S: np.ndarray) -> np.ndarray:
+    """nu^T S^-1 nu for one innovation (d,) with S (d, d), or a stack (n, d) with (n, d, d)."""
+    nu = np.asarray(nu, dtype=float)
+    S = np.asarray(S, dtype=float)
+    if nu.ndim == 1:
+        nu, S = nu[None], S[None]
+    return np.einsum("ni,ni->n", nu, np.linalg.solve(S, nu[..., None])[..., 0])
+
+
 class FilterBase:
     """Implements the Estimator protocol's plumbing; subclasses implement the maths.
 
@@ -162,7 +111,7 @@ class FilterBase:
 
     # -- protocol ------------------------------------------------------------------------
     def reset(self, prior: Prior) -> None:
-        mean = np.asarray(prior.pose_xytheta, dtype=float).reshape(3)
+        mean = np.asarray(prior.world_xytheta_body, dtype=float).reshape(3)
         cov = np.asarray(prior.covariance, dtype=float).reshape(3, 3)  # checked by Prior itself
         self._stamps: list[float] = []
         self._poses: list[np.ndarray] = []
@@ -253,9 +202,9 @@ class FilterBase:
     def _record_nis(self, nu: np.ndarray, S: np.ndarray) -> None:
         """Record nu^T S^-1 nu for one (or a stack of) innovation(s) of dimension d."""
         nu = np.asarray(nu, dtype=float)
-        S = np.asarray(S, dtype=float)
-        if nu.ndim == 1:
-            nu, S = nu[None], S[None]
-        values = np.einsum("ni,ni->n", nu, np.linalg.solve(S, nu[..., None])[..., 0])
-        self._nis.extend(values.tolist())
-        self._nis_dof.extend([nu.shape[-1]] * len(values))
+        self._record_nis_values(nis_values(nu, S), dof=nu.shape[-1])
+
+    def _record_nis_values(self, values: np.ndarray, dof: int) -> None:
+        """Record NIS values already computed (e.g. by a fused kernel) of innovations of ``dof``."""
+        self._nis.extend(np.asarray(values, dtype=float).ravel().tolist())
+        self._nis_dof.extend([dof] * np.size(values))

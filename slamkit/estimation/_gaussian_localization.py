@@ -26,6 +26,6 @@ class GaussianLocalization(FilterBase):
         self._gate = chi2_gate(config.gate_probability, 2)
 
     def _reset(self, prior: Prior) -> None:
-        self.x = prior.pose_xytheta.copy()
+        self.x = prior.world_xytheta_body.copy()
         self.P = prior.covariance.copy()
         self._rejected = 0

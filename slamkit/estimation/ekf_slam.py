@@ -122,7 +122,7 @@ class EKFSLAM(FilterBase):
         cap = 3 + 2 * max(self.config.initial_capacity_landmarks, 1)
         self.x = np.zeros(cap)
         self.P = np.zeros((cap, cap))
-        self.x[:3] = prior.pose_xytheta
+        self.x[:3] = prior.world_xytheta_body
         self.P[:3, :3] = prior.covariance
         self.n = 3
         self.slot_ids: list[int] = []        # landmark id of each slot

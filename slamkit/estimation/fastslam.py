@@ -98,7 +98,7 @@ class FastSLAM(FilterBase):
     # -- storage -------------------------------------------------------------------------------
     def _reset(self, prior: Prior) -> None:
         P, cap = self.config.n_particles, max(self.config.initial_capacity_landmarks, 1)
-        self.poses = sample_gaussian_poses(prior.pose_xytheta, prior.covariance, P, self.rng)
+        self.poses = sample_gaussian_poses(prior.world_xytheta_body, prior.covariance, P, self.rng)
         self.log_w = np.full(P, -np.log(P))
         self.mu = np.zeros((P, cap, 2))
         self.sigma = np.tile(np.eye(2), (P, cap, 1, 1))
@@ -256,8 +256,3 @@ class FastSLAM(FilterBase):
     def _extras(self) -> dict:
         return {"n_resamples": self.n_resamples, "num_landmarks_max": int(self.count.max()),
                 "dropped_unlabelled_measurements": self._dropped}
-
-
-# Spellings used by slamkit.experiments.estimators' registry table.
-FastSlam = FastSLAM
-FastSlamConfig = FastSLAMConfig

@@ -112,7 +112,7 @@ class HistogramFilter(FilterBase):
             bel = np.ones(self.shape)
         else:
             cov = prior.covariance + np.diag([self._cell_var, self._cell_var, self._bin_var])
-            d = self.cell_poses - prior.pose_xytheta
+            d = self.cell_poses - prior.world_xytheta_body
             d[..., 2] = wrap_angle(d[..., 2])
             bel = np.exp(-0.5 * np.einsum("...i,ij,...j->...", d, np.linalg.inv(cov), d))
             if bel.sum() == 0:

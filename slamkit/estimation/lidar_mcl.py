@@ -136,7 +136,7 @@ class LidarMCL(FilterBase):
         if c.global_init:
             self.particles = self.uniform_poses(c.n_max)
         else:
-            self.particles = sample_gaussian_poses(prior.pose_xytheta, prior.covariance, c.n_max, self.rng)
+            self.particles = sample_gaussian_poses(prior.world_xytheta_body, prior.covariance, c.n_max, self.rng)
         self.log_w = np.full(len(self.particles), -np.log(len(self.particles)))
         self.particle_counts: list[int] = []
         self._posterior = None

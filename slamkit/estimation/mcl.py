@@ -155,7 +155,7 @@ class MonteCarloLocalization(ParticleFilterLocalization):
             n = c.n_max if c.kld else c.n_particles
             self.particles = self.uniform_poses(n)
         else:
-            self.particles = sample_gaussian_poses(prior.pose_xytheta, prior.covariance,
+            self.particles = sample_gaussian_poses(prior.world_xytheta_body, prior.covariance,
                                                    c.n_particles, self.rng)
         self.log_w = np.full(len(self.particles), -np.log(len(self.particles)))
         self.n_resamples = 0

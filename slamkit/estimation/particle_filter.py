@@ -17,11 +17,16 @@ resampling are all array operations over the particle axis.
 Speed: numpy is near its floor on this step (~15 N x m temporaries per update), so the hot path
 -- exact-arc motion with the rng's draws, the known-correspondence range-bearing likelihood and
 residuals, the predictive innovations and their NIS, the posterior mean/covariance and
-systematic resampling -- runs in fused C loops (``_pfkernel.c``, compiled when slamkit is installed, loaded through
-:mod:`slamkit._native`). The numpy expressions stay as the fallback (``SLAMKIT_NO_NATIVE=1``, no
-compiler) and the ML-association path uses them always. The two paths draw the same random
-numbers and agree to ~1e-15 (the kernel's atan2 is Cephes' rational approximation, a few ulp
-from numpy's; tests/estimation/test_pf_kernel.py).
+systematic resampling -- runs in fused C loops (``_pfkernel.c``, compiled when slamkit is
+installed, loaded through :mod:`slamkit._native`).
+
+Architecture note (issue 18): the five steps are two classes with one interface,
+:class:`NumpyKernels` (the numpy expressions, the reference) and :class:`NativeKernels` (the C
+loops), and :data:`KERNELS` is chosen once when the module is imported (``SLAMKIT_NO_NATIVE=1``
+or no compiler: numpy), so the algorithm reads straight through instead of forking on every
+call. The ML-association path is numpy always. The two draw the same random numbers and agree to
+~1e-15 (the kernel's atan2 is Cephes' rational approximation, a few ulp from numpy's;
+tests/estimation/test_pf_kernel.py runs both by swapping :data:`KERNELS`).
 """
 
 from __future__ import annotations
@@ -41,6 +46,7 @@ from slamkit.estimation._common import (
     FilterBase,
     NoiseParams,
     landmark_array,
+    nis_values,
     observation_rows,
     weighted_pose_mean_cov,
 )
@@ -48,13 +54,6 @@ from slamkit.geometry.angles import wrap_angle
 from slamkit.models import diff_drive, range_bearing
 
 PFKERNEL_MODULE = "slamkit.estimation._pfkernel"
-
-
-def _kernel() -> ModuleType | None:
-    """The fused C kernels (``_pfkernel.c``, built at install), or None: then the numpy
-    expressions below run instead (``SLAMKIT_NO_NATIVE=1``, no compiler). Both paths compute
-    the same arithmetic; they agree to rounding (~1e-15 relative), see tests/estimation."""
-    return load_extension(PFKERNEL_MODULE)
 
 
 def _f64(a: np.ndarray) -> np.ndarray:
@@ -123,13 +122,7 @@ def systematic_resample(weights: np.ndarray, rng: np.random.Generator | None = N
         offset = rng.random() / n
     if not 0.0 <= offset < 1.0 / n:
         raise ConfigError(f"systematic_resample offset must lie in [0, 1/n) = [0, {1.0 / n}), got {offset}")
-    kernel = _kernel()
-    if kernel is not None and n == len(weights) and n > 0:
-        # the same cumulative sum and merge as _cumulative/_pick, in one pass over sorted positions
-        idx = np.empty(n, dtype=np.int64)
-        kernel.systematic(_f64(weights), float(offset), idx)
-        return idx
-    return _pick(_cumulative(weights), offset + np.arange(n) / n)
+    return KERNELS.systematic(weights, float(offset), n)
 
 
 def residual_resample(weights: np.ndarray, rng: np.random.Generator, n: int | None = None) -> np.ndarray:
@@ -219,18 +212,9 @@ def sample_motion(particles: np.ndarray, u: np.ndarray, dt_s: float, control_cov
                   rng: np.random.Generator) -> np.ndarray:
     """Propagate (N, 3) particles through the exact-arc model with per-particle noisy (v, omega)
     (Probabilistic Robotics, Table 5.3, with the Gaussian velocity noise of the sequence)."""
-    n = len(particles)
-    kernel = _kernel()
-    if kernel is not None and np.shape(u) == (2,) and np.ndim(dt_s) == 0 and np.shape(particles) == (n, 3):
-        # same draws from the same rng, then the exact arc fused per particle
-        draws = rng.standard_normal((n, 2))
-        c00, _, _, c11 = np.asarray(control_cov, dtype=float).ravel().tolist()
-        out = np.empty((n, 3))
-        kernel.motion(_f64(particles), draws, out, float(u[0]), float(u[1]), math.sqrt(c00), math.sqrt(c11),
-                      float(dt_s))
-        return out
-    noisy_u = u + rng.standard_normal((n, 2)) * np.sqrt(np.diag(control_cov))
-    return np.asarray(diff_drive.motion(particles, noisy_u, dt_s), dtype=float)
+    draws = rng.standard_normal((len(particles), 2))
+    return KERNELS.motion(particles, np.asarray(u, dtype=float), dt_s, draws,
+                          np.sqrt(np.diag(np.asarray(control_cov, dtype=float))))
 
 
 def sample_gaussian_poses(mean: np.ndarray, cov: np.ndarray, n: int, rng: np.random.Generator) -> np.ndarray:
@@ -251,6 +235,13 @@ def _wrap_for_square(a: np.ndarray) -> np.ndarray:
     return a - _TWO_PI * np.floor((a + np.pi) / _TWO_PI)
 
 
+def _gaussian_log_constant(R: np.ndarray, m: int) -> float:
+    """m log(2 pi) + m/2 log det R: the normaliser of m independent 2-D Gaussians of covariance R
+    (determinant written out: np.linalg.det costs ~5 us per call)."""
+    r00, r01, r10, r11 = R.ravel().tolist()
+    return m * (math.log(2.0 * math.pi) + 0.5 * math.log(r00 * r11 - r01 * r10))
+
+
 def _maha_2d(nu: np.ndarray, R: np.ndarray) -> np.ndarray:
     """nu^T R^-1 nu over the last axis for one 2 x 2 R, written out (einsum with three operands
     is several times slower at this size)."""
@@ -264,25 +255,7 @@ def range_bearing_log_likelihood(particles: np.ndarray, landmarks: np.ndarray, z
                                  R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Log-likelihood (N,) of m measurements z (m, 2) of known landmarks (m, 2) for every particle,
     and the residuals z - h(x_p, m) (N, m, 2), bearing wrapped."""
-    m = len(landmarks)
-    r00, r01, r10, r11 = np.asarray(R, dtype=float).ravel().tolist()
-    det = r00 * r11 - r01 * r10  # written out: np.linalg.det costs ~5 us per call
-    const = m * (math.log(2.0 * math.pi) + 0.5 * math.log(det))
-    kernel = _kernel()
-    if kernel is not None and m > 0 and np.shape(particles)[1:] == (3,) and np.shape(z) == (m, 2) \
-            and np.shape(landmarks) == (m, 2):
-        # per particle: predicted range/bearing, wrapped residual and Mahalanobis sum in one pass
-        # (numpy needs ~15 temporaries of N x m for the same)
-        n = len(particles)
-        loglik, nu = np.empty(n), np.empty((n, m, 2))
-        kernel.rb_loglik(_f64(particles), _f64(landmarks), _f64(z), r11 / det, -r01 / det, r00 / det,
-                         const, loglik, nu)
-        return loglik, nu
-    z_hat = np.asarray(range_bearing.observe(particles[:, None, :], landmarks[None]), dtype=float)
-    nu = z[None] - z_hat
-    nu[..., 1] = _wrap_for_square(nu[..., 1])
-    maha = _maha_2d(nu, R).sum(axis=1)
-    return -0.5 * maha - const, nu
+    return KERNELS.rb_loglik(particles, landmarks, z, np.asarray(R, dtype=float))
 
 
 def range_bearing_log_likelihood_ml(particles: np.ndarray, landmarks: np.ndarray, z: np.ndarray,
@@ -305,46 +278,125 @@ def predictive_innovations(residuals: np.ndarray, weights: np.ndarray,
     of each measurement, from the per-particle residuals z - h(x_p) (N, m, 2): nu is their
     weighted mean and S their weighted covariance plus R. Working with wrapped residuals (small
     for a tracking filter) instead of predicted bearings avoids a circular mean."""
-    n, m = residuals.shape[:2]
-    fused = _fused_innovations(residuals, weights, R)
-    if fused is not None:
-        return fused[0], fused[1]
-    flat = residuals.reshape(n, 2 * m)
-    nu = weights @ flat
-    d = flat - nu
-    # all 2m x 2m weighted second moments in one BLAS product; the diagonal 2 x 2 blocks are
-    # the per-measurement covariances
-    M = (d * weights[:, None]).T @ d
-    k = np.arange(m)
-    S = M.reshape(m, 2, m, 2)[k, :, k, :]
-    return nu.reshape(m, 2), S + R
-
-
-def _fused_innovations(residuals: np.ndarray, weights: np.ndarray,
-                       R: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-    """(nu, S, NIS (m,)) of :func:`predictive_innovations` in one C pass, or None without the
-    kernel. The NIS uses the written-out 2 x 2 inverse (np.linalg.solve on m tiny systems costs
-    ~10 us per update, a twentieth of a 1000-particle step)."""
-    kernel = _kernel()
-    n, m = residuals.shape[:2]
-    if kernel is None or n == 0 or m == 0 or residuals.shape[2:] != (2,) or np.shape(weights) != (n,):
-        return None
-    r00, r01, r10, r11 = np.asarray(R, dtype=float).ravel().tolist()
-    nu, S, nis = np.empty((m, 2)), np.empty((m, 2, 2)), np.empty(m)
-    kernel.innovations(_f64(residuals), _f64(weights), m, r00, r01, r10, r11, nu, S, nis)
-    return nu, S, nis
+    nu, S, _ = KERNELS.innovations(residuals, weights, np.asarray(R, dtype=float))
+    return nu, S
 
 
 def pose_mean_cov(poses: np.ndarray, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """:func:`slamkit.estimation._common.weighted_pose_mean_cov` (circular heading mean, wrapped
     heading residuals), in one C pass over the particles when the kernel is available."""
-    kernel = _kernel()
-    n = len(poses)
-    if kernel is None or n == 0 or np.shape(poses) != (n, 3) or np.shape(weights) != (n,):
+    return KERNELS.pose_mean_cov(poses, weights)
+
+
+# --------------------------------------------------------------------------------------------
+# the five hot steps: numpy reference and fused C kernels, one of them chosen at import
+# --------------------------------------------------------------------------------------------
+class NumpyKernels:
+    """The numpy expressions of the hot steps: the reference the C kernels are tested against
+    and what runs without them (``SLAMKIT_NO_NATIVE=1`` at import, or no compiler at install)."""
+
+    name = "numpy"
+
+    def systematic(self, weights: np.ndarray, offset: float, n: int) -> np.ndarray:
+        return _pick(_cumulative(weights), offset + np.arange(n) / n)
+
+    def motion(self, particles: np.ndarray, u: np.ndarray, dt_s, draws: np.ndarray,
+               sigma_u: np.ndarray) -> np.ndarray:
+        return np.asarray(diff_drive.motion(particles, u + draws * sigma_u, dt_s), dtype=float)
+
+    def rb_loglik(self, particles: np.ndarray, landmarks: np.ndarray, z: np.ndarray,
+                  R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        z_hat = np.asarray(range_bearing.observe(particles[:, None, :], landmarks[None]), dtype=float)
+        nu = z[None] - z_hat
+        nu[..., 1] = _wrap_for_square(nu[..., 1])
+        maha = _maha_2d(nu, R).sum(axis=1)
+        return -0.5 * maha - _gaussian_log_constant(R, len(landmarks)), nu
+
+    def innovations(self, residuals: np.ndarray, weights: np.ndarray,
+                    R: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        n, m = residuals.shape[:2]
+        flat = residuals.reshape(n, 2 * m)
+        nu = weights @ flat
+        d = flat - nu
+        # all 2m x 2m weighted second moments in one BLAS product; the diagonal 2 x 2 blocks are
+        # the per-measurement covariances
+        M = (d * weights[:, None]).T @ d
+        k = np.arange(m)
+        nu, S = nu.reshape(m, 2), M.reshape(m, 2, m, 2)[k, :, k, :] + R
+        return nu, S, nis_values(nu, S)
+
+    def pose_mean_cov(self, poses: np.ndarray, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return weighted_pose_mean_cov(poses, weights)
-    out = np.empty(12)
-    kernel.pose_mean_cov(_f64(poses), _f64(weights), out)
-    return out[:3].copy(), out[3:].reshape(3, 3)
+
+
+class NativeKernels(NumpyKernels):
+    """The same steps fused in C (``_pfkernel.c``): one pass over the particles instead of ~15
+    N x m numpy temporaries. Shapes the kernels do not take (an empty set, per-particle controls)
+    go to the numpy expressions."""
+
+    name = "native"
+
+    def __init__(self, module: ModuleType):
+        self.module = module
+
+    def systematic(self, weights, offset, n):
+        if n != len(weights) or n == 0:
+            return super().systematic(weights, offset, n)
+        # the same cumulative sum and merge as _cumulative/_pick, in one pass over sorted positions
+        idx = np.empty(n, dtype=np.int64)
+        self.module.systematic(_f64(weights), offset, idx)
+        return idx
+
+    def motion(self, particles, u, dt_s, draws, sigma_u):
+        n = len(particles)
+        if np.shape(u) != (2,) or np.ndim(dt_s) != 0 or np.shape(particles) != (n, 3):
+            return super().motion(particles, u, dt_s, draws, sigma_u)
+        out = np.empty((n, 3))
+        self.module.motion(_f64(particles), draws, out, float(u[0]), float(u[1]), float(sigma_u[0]),
+                           float(sigma_u[1]), float(dt_s))
+        return out
+
+    def rb_loglik(self, particles, landmarks, z, R):
+        m = len(landmarks)
+        if m == 0 or np.shape(particles)[1:] != (3,) or np.shape(z) != (m, 2) or np.shape(landmarks) != (m, 2):
+            return super().rb_loglik(particles, landmarks, z, R)
+        r00, r01, r10, r11 = R.ravel().tolist()
+        det = r00 * r11 - r01 * r10
+        n = len(particles)
+        loglik, nu = np.empty(n), np.empty((n, m, 2))
+        self.module.rb_loglik(_f64(particles), _f64(landmarks), _f64(z), r11 / det, -r01 / det, r00 / det,
+                              _gaussian_log_constant(R, m), loglik, nu)
+        return loglik, nu
+
+    def innovations(self, residuals, weights, R):
+        n, m = residuals.shape[:2]
+        if n == 0 or m == 0 or residuals.shape[2:] != (2,) or np.shape(weights) != (n,):
+            return super().innovations(residuals, weights, R)
+        r00, r01, r10, r11 = R.ravel().tolist()
+        nu, S, nis = np.empty((m, 2)), np.empty((m, 2, 2)), np.empty(m)
+        # NIS from the written-out 2 x 2 inverse (np.linalg.solve on m tiny systems costs ~10 us
+        # per update, a twentieth of a 1000-particle step)
+        self.module.innovations(_f64(residuals), _f64(weights), m, r00, r01, r10, r11, nu, S, nis)
+        return nu, S, nis
+
+    def pose_mean_cov(self, poses, weights):
+        n = len(poses)
+        if n == 0 or np.shape(poses) != (n, 3) or np.shape(weights) != (n,):
+            return super().pose_mean_cov(poses, weights)
+        out = np.empty(12)
+        self.module.pose_mean_cov(_f64(poses), _f64(weights), out)
+        return out[:3].copy(), out[3:].reshape(3, 3)
+
+
+def select_kernels() -> NumpyKernels:
+    """The C kernels when this installation has them (and ``SLAMKIT_NO_NATIVE`` is unset), else
+    the numpy expressions; both draw the same random numbers and agree to ~1e-15."""
+    module = load_extension(PFKERNEL_MODULE)
+    return NumpyKernels() if module is None else NativeKernels(module)
+
+
+#: the implementation every function above calls, chosen once when the module is imported
+KERNELS: NumpyKernels = select_kernels()
 
 
 _POSE_ANGLES = np.array([False, False, True])
@@ -399,7 +451,7 @@ class ParticleFilterLocalization(FilterBase):
     # -- filter steps ------------------------------------------------------------------------
     def _reset(self, prior: Prior) -> None:
         n = self.config.n_particles
-        self.particles = sample_gaussian_poses(prior.pose_xytheta, prior.covariance, n, self.rng)
+        self.particles = sample_gaussian_poses(prior.world_xytheta_body, prior.covariance, n, self.rng)
         self.log_w = np.full(n, -np.log(n))
         self.n_resamples = 0
 
@@ -423,12 +475,7 @@ class ParticleFilterLocalization(FilterBase):
                                                          zs if len(rows) == len(id_list) else zs[rows], R)
             loglik = ll
             weights = np.exp(self.log_w)
-            fused = _fused_innovations(residuals, weights, R)
-            if fused is None:
-                self._record_nis(*predictive_innovations(residuals, weights, R))
-            else:  # what _record_nis stores, with the NIS the kernel already computed
-                self._nis.extend(fused[2].tolist())
-                self._nis_dof.extend([2] * len(fused[2]))
+            self._record_nis_values(KERNELS.innovations(residuals, weights, R)[2], dof=2)
         if n_unknown:
             ml = range_bearing_log_likelihood_ml(self.particles, self.landmarks, zs[ids < 0], R)
             loglik = ml if loglik is None else loglik + ml

@@ -6,7 +6,9 @@ Sequence: the noise it assumes comes from ``sequence.metadata`` (``odometry_sigm
 localization filters get the sequence's landmark map, and the remaining ``params`` fill the
 filter's config dataclass by field name. The cross-package table that also lists the GTSAM
 smoothers is ``slamkit.experiments.estimators``; this one stays inside the estimation layer so
-the filters' own tests and benchmark can iterate over every filter.
+the filters' own tests and benchmark can iterate over every filter. Both are a
+:class:`slamkit.naming.Registry`: one naming rule, and an unknown name is one ConfigError with
+the closest suggestion.
 """
 
 from __future__ import annotations
@@ -18,9 +20,9 @@ from typing import Any, Mapping
 import numpy as np
 
 from slamkit.data.estimate import Estimator
+from slamkit.data.noise import SENSOR_SIGMAS, NoiseParams
 from slamkit.data.sequence import Sequence
 from slamkit.errors import ConfigError
-from slamkit.estimation._common import NoiseParams
 from slamkit.estimation.ekf import EKFLocalization, EKFLocalizationConfig
 from slamkit.estimation.ekf_slam import EKFSLAM, EKFSLAMConfig
 from slamkit.estimation.fastslam import FastSLAM, FastSLAMConfig
@@ -28,6 +30,7 @@ from slamkit.estimation.histogram_filter import HistogramFilter, HistogramFilter
 from slamkit.estimation.mcl import MCLConfig, MonteCarloLocalization
 from slamkit.estimation.particle_filter import ParticleFilterConfig, ParticleFilterLocalization
 from slamkit.estimation.ukf import UKFLocalization, UKFLocalizationConfig
+from slamkit.naming import Registry
 
 
 @dataclass(frozen=True)
@@ -42,7 +45,7 @@ class FilterSpec:
     description: str
 
 
-REGISTRY: dict[str, FilterSpec] = {s.name: s for s in [
+REGISTRY: Registry[FilterSpec] = Registry("filter", [(s.name, s) for s in [
     FilterSpec("ekf", EKFLocalization, EKFLocalizationConfig, True, False,
                "EKF localization on a known landmark map"),
     FilterSpec("ukf", UKFLocalization, UKFLocalizationConfig, True, False,
@@ -55,22 +58,19 @@ REGISTRY: dict[str, FilterSpec] = {s.name: s for s in [
                "grid (histogram) Bayes filter localization"),
     FilterSpec("ekf_slam", EKFSLAM, EKFSLAMConfig, False, False, "EKF-SLAM, O(n^2) updates"),
     FilterSpec("fastslam", FastSLAM, FastSLAMConfig, False, True, "FastSLAM 1.0"),
-]}
+]])
 
 NAMES: tuple[str, ...] = tuple(REGISTRY)
-_NOISE_FIELDS = tuple(f.name for f in dataclasses.fields(NoiseParams))
 
 
 def make_estimator(name: str, sequence: Sequence, params: Mapping[str, Any] | None = None,
                    rng: np.random.Generator | None = None) -> Estimator:
     """Build filter ``name`` for ``sequence`` (see module doc)."""
-    try:
-        spec = REGISTRY[name]
-    except KeyError:
-        raise ConfigError(f"unknown filter {name!r}; known: {', '.join(REGISTRY)}") from None
+    name = REGISTRY.canonical(name)
+    spec = REGISTRY[name]
     params = dict(params or {})
     noise = NoiseParams.from_metadata(sequence.metadata,
-                                      **{k: float(params.pop(k)) for k in _NOISE_FIELDS if k in params})
+                                      **{k: float(params.pop(k)) for k in SENSOR_SIGMAS if k in params})
     fields = {f.name for f in dataclasses.fields(spec.config_cls)}
     unknown = sorted(set(params) - fields)
     if unknown:

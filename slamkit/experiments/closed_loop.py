@@ -34,13 +34,14 @@ from typing import Any, Callable, Iterable, Mapping, Protocol
 
 import numpy as np
 
-from slamkit.control.dwa import DWAConfig, DWAController
-from slamkit.control.mpc import MPCConfig, MPCController
-from slamkit.control.potential_fields import PotentialFieldConfig, PotentialFieldController
 from slamkit.control.protocols import (ControlOutput, ControlStatus, Controller, DistanceGrid,
                                        LocalWorld, Reference, RobotState)
+from slamkit.control.registry import CONTROLLERS, make_controller
 from slamkit.errors import ConfigError
-from slamkit.experiments.results import RunRecord, markdown_table, summarise, summary_markdown
+from slamkit.experiments.config_models import LocalPlanningPipeline
+from slamkit.experiments.observers import PipelineObserver
+from slamkit.experiments.pipeline import Pipeline, PipelineOutput, StepProgress
+from slamkit.experiments.results import ResultsFolder, RunRecord, markdown_table, summarise, summary_markdown
 from slamkit.maps.distance_field import distance_field_m
 from slamkit.maps.generators import OfficeConfig, WarehouseConfig, office, random_free_poses, warehouse
 from slamkit.maps.inflation import costmap
@@ -52,7 +53,6 @@ from slamkit.planning.protocols import PlanningProblem
 from slamkit.sim.moving_obstacles import MovingObstacles, crossing_obstacles
 
 SCENARIO_KINDS = ("office", "warehouse", "open")
-CONTROLLERS = ("potential_fields", "dwa", "mpc", "mpc_osqp", "mpc_fatrop")
 
 
 # --------------------------------------------------------------------------- scenarios
@@ -158,28 +158,6 @@ def make_scenario(seed: int, kind: str = "office", n_obstacles: int = 3,
     raise ConfigError(f"could not draw a start/goal pair with a path in {kind} map (seed {seed})")
 
 
-# --------------------------------------------------------------------------- controllers
-
-
-def make_controller(name: str, params: Mapping[str, Any] | None = None, seed: int = 0) -> Controller:
-    """Registry names: potential_fields, dwa, mpc (IPOPT), mpc_osqp (the QP fast path), mpc_fatrop."""
-    params = dict(params or {})
-    try:
-        if name == "potential_fields":
-            return PotentialFieldController(PotentialFieldConfig(**params), rng=np.random.default_rng(seed))
-        if name == "dwa":
-            return DWAController(DWAConfig(**params))
-        if name in ("mpc", "mpc_osqp", "mpc_fatrop"):
-            params.setdefault("solver", {"mpc": "ipopt", "mpc_osqp": "osqp", "mpc_fatrop": "fatrop"}[name])
-            for key in ("u_min", "u_max", "du_max_per_s", "r_u", "r_du"):
-                if key in params:
-                    params[key] = tuple(params[key])
-            return MPCController(MPCConfig(**params))
-    except TypeError as exc:
-        raise ConfigError(f"controller {name!r}: {exc}") from exc
-    raise ConfigError(f"unknown controller {name!r}; choose from {CONTROLLERS}")
-
-
 # --------------------------------------------------------------------------- the loop
 
 
@@ -200,7 +178,7 @@ class ControlStep:
 
     step: int
     t_s: float
-    pose_xytheta: np.ndarray
+    world_xytheta_body: np.ndarray
     output: ControlOutput
     obstacle_xy_m: np.ndarray
     obstacle_radius_m: np.ndarray
@@ -229,13 +207,13 @@ class Episode:
     metrics: Mapping[str, float] = field(default_factory=dict)
 
 
-def perceive(scenario: Scenario, pose_xytheta: np.ndarray, t_s: float,
+def perceive(scenario: Scenario, world_xytheta_body: np.ndarray, t_s: float,
              config: ClosedLoopConfig) -> LocalWorld:
     obs = scenario.obstacles
     if len(obs) == 0:
         return LocalWorld(distance=scenario.distance, t_s=t_s)
     xy = obs.position_at(t_s)
-    seen = np.linalg.norm(xy - pose_xytheta[:2], axis=1) - obs.radius_m <= config.sensor_range_m
+    seen = np.linalg.norm(xy - world_xytheta_body[:2], axis=1) - obs.radius_m <= config.sensor_range_m
     return LocalWorld(xy[seen], obs.radius_m[seen], obs.velocity_at(t_s)[seen], scenario.distance, t_s)
 
 
@@ -371,9 +349,10 @@ def compare(config: Mapping[str, Any], observer=None,
     ``observer`` that wants steps sees the episodes of the first ``record_scenarios`` scenarios
     (default 1, to keep recordings small)."""
     controllers = list(config.get("controllers", ["dwa", "mpc"]))
-    for c in controllers:
-        if c not in CONTROLLERS:
-            raise ConfigError(f"controllers: unknown controller {c!r}; choose from {CONTROLLERS}")
+    try:  # every name checked before the first episode runs
+        names = [CONTROLLERS.canonical(c) for c in controllers]
+    except ConfigError as exc:
+        raise ConfigError(f"controllers: {exc}") from None
     params = dict(config.get("controller_params", {}) or {})
     try:
         loop = ClosedLoopConfig(**dict(config.get("closed_loop", {}) or {}))
@@ -383,8 +362,8 @@ def compare(config: Mapping[str, Any], observer=None,
     watch = observer is not None and observer.wants_steps
     episodes = []
     scenarios = scenario_list(config)
-    for name in controllers:
-        ctl = make_controller(name, params.get(name))
+    for typed, name in zip(controllers, names):
+        ctl = make_controller(name, params.get(typed, params.get(name)))
         for i, sc in enumerate(scenarios):
             obs = [_PipelineStepAdapter(observer, name, sc)] if watch and i < n_record else []
             episodes.append(run_episode(sc, ctl, loop, obs))
@@ -454,12 +433,11 @@ def plot(plots: Path, episodes: list[Episode], scenarios: Mapping[str, Scenario]
     plt.close(fig)
 
 
-def run(config: Mapping[str, Any], folder, progress, observer=None):
-    """Pipeline ``local_planning`` (registered in ``slamkit.experiments.pipeline.PIPELINES``):
-    controllers x seeded scenarios -> results.json runs/summary, report.md and plots; the
-    observer (``slamkit.viz.control.LocalPlanningObserver`` from the CLI) records the steps."""
-    from slamkit.experiments.pipeline import PipelineOutput
-
+def run(config: Mapping[str, Any], folder: ResultsFolder, progress: StepProgress,
+        observer: PipelineObserver | None = None) -> PipelineOutput[list[Episode]]:
+    """Pipeline ``local_planning`` (``PIPELINE`` below): controllers x seeded scenarios ->
+    results.json runs/summary, report.md and plots; the observer (the recorder the viz layer
+    registers, ``slamkit.viz.control.LocalPlanningObserver``) records the steps."""
     n = len(_seeds(dict(config.get("scenarios", {})).get("seeds", 5))) * len(
         list(config.get("controllers", ["dwa", "mpc"])))
     advance = progress.task("closed-loop episodes", n)
@@ -479,3 +457,8 @@ def run_pipeline(config: Mapping[str, Any], out_dir: str | Path, observer_factor
     cfg = dict(config)
     cfg.setdefault("pipeline", "local_planning")
     return _run(cfg, out_dir, progress=False, observer_factory=observer_factory).results
+
+
+PIPELINE: Pipeline[list[Episode]] = Pipeline(
+    "local_planning", run, LocalPlanningPipeline, list[Episode],
+    "controllers x seeded closed-loop scenarios")

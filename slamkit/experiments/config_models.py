@@ -1,10 +1,11 @@
 """The typed shape of every pipeline config (pydantic models), checked before anything runs.
 
-One model per pipeline kind; nested algorithm options are validated against the models that
-:func:`slamkit.config.model_of` derives from the algorithms' own config dataclasses, so a field
-exists, has a type and a bound in one place only. ``seeds`` has one meaning in every pipeline:
-a count (``seeds: 6`` -> 0..5), a list of seeds, or ``{start, count}``; :func:`seed_list`
-turns it into the list.
+One model per pipeline kind, named by the pipeline that uses it (``Pipeline.config_model`` in
+:mod:`slamkit.experiments.pipeline`); each model's ``check_options`` validates the algorithm
+options it nests against the models that :func:`slamkit.config.model_of` derives from the
+algorithms' own config dataclasses, so a field exists, has a type and a bound in one place only.
+``seeds`` has one meaning in every pipeline: a count (``seeds: 6`` -> 0..5), a list of seeds, or
+``{start, count}``; :func:`seed_list` turns it into the list.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from slamkit.config import STRICT, YamlDocument, model_of, validate
 from slamkit.errors import ConfigError
+from slamkit.naming import suggestion
 from slamkit.paths import path_component
 
 Count = Annotated[int, Field(ge=1, le=100_000)]
@@ -52,11 +54,16 @@ def seed_list(spec: Any) -> list[int]:
     return [int(s) for s in spec]
 
 
-class _Pipeline(BaseModel):
+class PipelineConfig(BaseModel):
+    """The fields every pipeline config has; a pipeline's model adds its own."""
+
     model_config = STRICT
     pipeline: str
     name: str | None = None
     record: bool = True
+
+    def check_options(self, config: dict[str, Any], doc: YamlDocument | None, source: str) -> None:
+        """Validate the algorithm options this config nests (``config`` is the raw mapping)."""
 
     @field_validator("name")
     @classmethod
@@ -69,7 +76,7 @@ class _Pipeline(BaseModel):
         return v
 
 
-class _OpenPipeline(_Pipeline):
+class _OpenPipeline(PipelineConfig):
     model_config = ConfigDict(extra="allow", allow_inf_nan=False)
 
 
@@ -81,13 +88,16 @@ def _optimize_options() -> type:
     return model_of(OptimizeConfig)
 
 
-class PoseGraphPipeline(_Pipeline):
+class PoseGraphPipeline(PipelineConfig):
     pipeline: Literal["pose_graph"]
     datasets: Annotated[list[str], Field(min_length=1)]
     solvers: Annotated[list[Literal["lm", "gn", "dogleg", "isam2"]], Field(min_length=1)] = ["lm"]
     inits: Annotated[list[Literal["file", "odometry", "lago", "chordal"]], Field(min_length=1)] = ["file"]
     robust: Literal["none", "huber", "cauchy"] = "none"
     options: dict[str, Any] = {}
+
+    def check_options(self, config: dict[str, Any], doc: YamlDocument | None, source: str) -> None:
+        _nested(_optimize_options(), self.options, doc, source, ("options",))
 
 
 # --- filter_vs_smoother --------------------------------------------------------------------------
@@ -100,12 +110,16 @@ class ScenarioEntry(BaseModel):
     params: dict[str, Any] = {}
 
 
-class FilterVsSmootherPipeline(_Pipeline):
+class FilterVsSmootherPipeline(PipelineConfig):
     pipeline: Literal["filter_vs_smoother"]
     seeds: Seeds = 1
     workers: Annotated[int, Field(ge=1, le=256)] | None = None
     scenarios: Annotated[list[Union[str, ScenarioEntry]], Field(min_length=1)]
     estimators: Union[dict[str, Union[dict[str, Any], None]], Annotated[list[Union[str, dict[str, Any]]], Field(min_length=1)]]
+
+    def check_options(self, config: dict[str, Any], doc: YamlDocument | None, source: str) -> None:
+        _check_estimators(config.get("estimators"), doc, source)
+        _check_scenarios(self, doc, source)
 
 
 # --- local_planning ------------------------------------------------------------------------------
@@ -119,14 +133,31 @@ class LocalPlanningScenarios(BaseModel):
     obstacle_min_side_m: Annotated[float, Field(ge=0, le=100)] = 0.5
 
 
-class LocalPlanningPipeline(_Pipeline):
+class LocalPlanningPipeline(PipelineConfig):
     pipeline: Literal["local_planning"]
-    controllers: Annotated[list[Literal["potential_fields", "dwa", "mpc", "mpc_osqp", "mpc_fatrop"]],
-                           Field(min_length=1)] = ["dwa", "mpc"]
+    #: names in ``slamkit.control.registry.CONTROLLERS`` (checked in ``check_options``)
+    controllers: Annotated[list[str], Field(min_length=1)] = ["dwa", "mpc"]
     scenarios: LocalPlanningScenarios = LocalPlanningScenarios()
     closed_loop: dict[str, Any] = {}
     controller_params: dict[str, dict[str, Any]] = {}
     record_scenarios: Annotated[int, Field(ge=0, le=1000)] = 1
+
+    def check_options(self, config: dict[str, Any], doc: YamlDocument | None, source: str) -> None:
+        from slamkit.control.registry import CONTROLLERS
+        from slamkit.experiments.closed_loop import ClosedLoopConfig
+
+        _nested(model_of(ClosedLoopConfig), self.closed_loop, doc, source, ("closed_loop",))
+        for i, name in enumerate(self.controllers):
+            if name not in CONTROLLERS:
+                where = doc.where(("controllers", i)) if doc is not None else source
+                raise ConfigError(f"{where}: controllers.{i}: unknown controller {name!r}"
+                                  + suggestion(name, CONTROLLERS) + f"; known: {', '.join(CONTROLLERS)}")
+        for name, params in self.controller_params.items():
+            if name not in CONTROLLERS:
+                validate(pydantic.create_model("ControllerParams", __config__=STRICT,
+                                               **{k: (dict, None) for k in CONTROLLERS}),
+                         {name: params}, doc, source, ("controller_params",))
+            _nested(model_of(CONTROLLERS.get(name).config), params, doc, source, ("controller_params", name))
 
 
 # --- lidar_slam ----------------------------------------------------------------------------------
@@ -139,7 +170,7 @@ class LogEntryModel(BaseModel):
     duration_s: Annotated[float, Field(gt=0, le=1e6)] | None = None
 
 
-class LidarSlamPipeline(_Pipeline):
+class LidarSlamPipeline(PipelineConfig):
     pipeline: Literal["lidar_slam"]
     seeds: Seeds = [0]
     #: simulated grid worlds and/or recorded laser logs (a registry name or {name, path, relations})
@@ -153,89 +184,64 @@ class LidarSlamPipeline(_Pipeline):
     false_loop_seed: int = 0
     mcl: Union[bool, dict[str, Any], None] = None
 
+    def check_options(self, config: dict[str, Any], doc: YamlDocument | None, source: str) -> None:
+        from slamkit.experiments.lidar_slam import MclCheckConfig
+        from slamkit.sim.grid_world import GridScenario
+        from slamkit.systems.lidar_slam import LidarSlamConfig
 
-PIPELINE_MODELS: dict[str, type[_Pipeline]] = {
-    "pose_graph": PoseGraphPipeline,
-    "filter_vs_smoother": FilterVsSmootherPipeline,
-    "local_planning": LocalPlanningPipeline,
-    "lidar_slam": LidarSlamPipeline,
-}
+        if not self.worlds and not self.logs:
+            where = doc.where(()) if doc is not None else source
+            raise ConfigError(f"{where}: lidar_slam needs 'worlds' (grid scenarios) or 'logs' (laser logs)")
+        _nested(model_of(LidarSlamConfig), self.slam, doc, source, ("slam",))
+        if isinstance(self.mcl, dict):
+            _nested(model_of(MclCheckConfig), self.mcl, doc, source, ("mcl",))
+        for k, world in enumerate(self.worlds):
+            _nested(model_of(GridScenario), {key: v for key, v in world.items() if key != "kind"},
+                    doc, source, ("worlds", k))
 
 
 def _nested(model: type, data: Any, doc: YamlDocument | None, source: str, prefix: tuple) -> None:
     validate(model, data if data is not None else {}, doc, source, prefix)
 
 
-def check_pipeline(config: dict[str, Any], doc: YamlDocument | None = None, source: str = "<config>") -> BaseModel:
-    """Validate a pipeline config (top level and the algorithm options it nests); returns the
-    model. Raises ConfigError naming file, line and field."""
+def check_pipeline(config: dict[str, Any], doc: YamlDocument | None = None, source: str = "<config>"
+                   ) -> PipelineConfig:
+    """Validate a pipeline config with the model its pipeline declares (top level, then the
+    algorithm options it nests); returns the model. ``config['pipeline']`` is set to the
+    registered spelling (an old one is accepted with a deprecation warning). Raises ConfigError
+    naming file, line and field."""
     if not isinstance(config, dict):
         raise ConfigError(f"{source}: a pipeline config is a mapping with a 'pipeline' key, got "
                           f"{type(config).__name__}")
-    from slamkit.experiments.pipeline import PIPELINES
+    from slamkit.experiments.pipeline import PIPELINES, pipeline_of
 
-    kind = config.get("pipeline")
-    if kind not in PIPELINES:
-        from slamkit.config import _suggest
-
+    try:
+        config["pipeline"] = PIPELINES.canonical(config.get("pipeline"))
+    except ConfigError as exc:
         where = doc.where(("pipeline",)) if doc is not None else source
-        hint = _suggest(str(kind), list(PIPELINES)).replace("valid keys", "known pipelines")
-        raise ConfigError(f"{where}: pipeline: unknown pipeline {kind!r}" + hint)
+        raise ConfigError(f"{where}: pipeline: {exc}") from None
     # a pipeline registered without a model (a user's own kind) gets the common fields checked
-    model = validate(PIPELINE_MODELS.get(kind, _OpenPipeline), config, doc, source)
-    if isinstance(model, PoseGraphPipeline):
-        _nested(_optimize_options(), model.options, doc, source, ("options",))
-    elif isinstance(model, FilterVsSmootherPipeline):
-        _check_estimators(config.get("estimators"), doc, source)
-        _check_scenarios(model, doc, source)
-    elif isinstance(model, LocalPlanningPipeline):
-        from slamkit.control.dwa import DWAConfig
-        from slamkit.control.mpc import MPCConfig
-        from slamkit.control.potential_fields import PotentialFieldConfig
-        from slamkit.experiments.closed_loop import ClosedLoopConfig
-
-        _nested(model_of(ClosedLoopConfig), model.closed_loop, doc, source, ("closed_loop",))
-        cfg = {"potential_fields": PotentialFieldConfig, "dwa": DWAConfig, "mpc": MPCConfig,
-               "mpc_osqp": MPCConfig, "mpc_fatrop": MPCConfig}
-        for name, params in model.controller_params.items():
-            if name not in cfg:
-                validate(pydantic.create_model("ControllerParams", __config__=STRICT,
-                                               **{k: (dict, None) for k in cfg}),
-                         {name: params}, doc, source, ("controller_params",))
-            _nested(model_of(cfg[name]), params, doc, source, ("controller_params", name))
-    elif isinstance(model, LidarSlamPipeline):
-        from slamkit.experiments.lidar_slam import MclCheckConfig
-        from slamkit.sim.grid_world import GridScenario
-        from slamkit.systems.lidar_slam import LidarSlamConfig
-
-        if not model.worlds and not model.logs:
-            where = doc.where(()) if doc is not None else source
-            raise ConfigError(f"{where}: lidar_slam needs 'worlds' (grid scenarios) or 'logs' (laser logs)")
-        _nested(model_of(LidarSlamConfig), model.slam, doc, source, ("slam",))
-        if isinstance(model.mcl, dict):
-            _nested(model_of(MclCheckConfig), model.mcl, doc, source, ("mcl",))
-        for k, world in enumerate(model.worlds):
-            _nested(model_of(GridScenario), {key: v for key, v in world.items() if key != "kind"},
-                    doc, source, ("worlds", k))
+    model = validate(pipeline_of(config["pipeline"]).config_model or _OpenPipeline, config, doc, source)
+    model.check_options(config, doc, source)
     return model
 
 
 def _check_estimators(raw: Any, doc: YamlDocument | None, source: str) -> None:
-    from slamkit.config import _suggest
-    from slamkit.experiments.estimators import NOISE_FIELDS, REGISTRY, config_class
+    from slamkit.data.noise import SENSOR_SIGMAS
+    from slamkit.experiments.estimators import REGISTRY, config_class
 
     items = raw.items() if isinstance(raw, dict) else [
         (e, {}) if isinstance(e, str) else next(iter(e.items())) for e in raw if isinstance(e, (str, dict)) and e]
     for label, params in items:
         params = dict(params or {})
-        kind = str(params.pop("type", label))
-        if kind not in REGISTRY:
+        try:
+            kind = REGISTRY.canonical(str(params.pop("type", label)))
+        except ConfigError as exc:  # the registry's one message, with its suggestion
             where = doc.where(("estimators", label)) if doc is not None else source
-            raise ConfigError(f"{where}: estimators.{label}: unknown estimator {kind!r}"
-                              + _suggest(kind, list(REGISTRY)))
+            raise ConfigError(f"{where}: estimators.{label}: {exc}") from None
         cls = config_class(kind)
         fields = model_of(cls).model_fields if cls is not None else {}
-        noise = {k: (Annotated[float, Field(gt=0, le=1e6)] | None, None) for k in NOISE_FIELDS}
+        noise = {k: (Annotated[float, Field(gt=0, le=1e6)] | None, None) for k in SENSOR_SIGMAS}
         model = pydantic.create_model(f"{kind}Params", __config__=STRICT,
                                       **{k: (f.annotation, None) for k, f in fields.items()}, **noise)
         validate(model, params, doc, source, ("estimators", label))

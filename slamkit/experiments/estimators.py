@@ -5,13 +5,18 @@ One table spans the filters of ``slamkit.estimation`` (their rows and constructi
 ``slamkit.estimation.registry``) and the smoothers of ``slamkit.backend`` (ARCHITECTURE.md
 section 6 names: ``ekf``, ``ukf``, ``pf``, ``mcl``, ``histogram``, ``ekf_slam``, ``fastslam``,
 ``batch``, ``isam2``, ``fixed_lag``). Smoother modules are imported only when one is built.
+Both tables are a :class:`slamkit.naming.Registry`: snake_case names, old spellings accepted
+with a deprecation warning, an unknown name one ConfigError with the closest suggestion.
 
-Every factory reads the noise the filter should assume from ``Sequence.metadata``
-(``odometry_sigma``, ``range_bearing_sigma``; see ``slamkit.sim.landmark_world``) unless the
-config overrides it (``sigma_v_mps``, ``sigma_omega_radps``, ``sigma_range_m``,
-``sigma_bearing_rad``); other parameters go to the estimator's config dataclass by field name.
-Localisation filters (``ekf``, ``ukf``, ``pf``, ``mcl``) are given the sequence's true landmark
-map; SLAM filters and smoothers are not.
+Every factory reads the noise the estimator should assume from ``Sequence.metadata`` with
+:class:`slamkit.data.noise.NoiseParams` (``odometry_sigma``, ``range_bearing_sigma``; see
+``slamkit.sim.landmark_world``) unless the config overrides it (``sigma_v_mps``,
+``sigma_omega_radps``, ``sigma_range_m``, ``sigma_bearing_rad``); other parameters go to the
+estimator's config dataclass by field name (one per smoother: ``BatchLandmarkSLAMConfig``,
+``Isam2LandmarkSLAMConfig``, ``FixedLagLandmarkSLAMConfig``). Localisation filters (``ekf``,
+``ukf``, ``pf``, ``mcl``) are given the sequence's true landmark map; SLAM filters and smoothers
+are not. Every online estimator starts from :func:`prior_of` (``slamkit.data.noise``, imported
+here for the runner).
 """
 
 from __future__ import annotations
@@ -23,14 +28,15 @@ from typing import Any, Callable, Literal, Mapping
 
 import numpy as np
 
-from slamkit.data.estimate import BatchEstimator, Estimator, Prior
+from slamkit.data.estimate import BatchEstimator, Estimator
+from slamkit.data.noise import SENSOR_SIGMAS, NoiseParams
+from slamkit.data.noise import prior_of  # noqa: F401  (the runner's and the benchmarks' prior)
 from slamkit.data.sequence import Sequence
 from slamkit.errors import ConfigError
+from slamkit.naming import Registry
 
 #: what a factory returns for one sequence
 Factory = Callable[[Sequence], "Estimator | BatchEstimator"]
-
-NOISE_FIELDS = ("sigma_v_mps", "sigma_omega_radps", "sigma_range_m", "sigma_bearing_rad")
 
 
 @dataclass(frozen=True)
@@ -52,11 +58,11 @@ class EstimatorSpec:
 #: the GTSAM smoothers (slamkit.backend); the filters' rows come from slamkit.estimation.registry
 SMOOTHERS: tuple[EstimatorSpec, ...] = (
     EstimatorSpec("batch", "batch", "slamkit.backend.landmark_slam:BatchLandmarkSLAM", False,
-                  "LandmarkSLAMConfig", False, "batch Levenberg-Marquardt over the whole sequence"),
+                  "BatchLandmarkSLAMConfig", False, "batch Levenberg-Marquardt over the whole sequence"),
     EstimatorSpec("isam2", "smoother", "slamkit.backend.landmark_slam:Isam2LandmarkSLAM", False,
-                  "LandmarkSLAMConfig", False, "iSAM2 incremental smoothing"),
+                  "Isam2LandmarkSLAMConfig", False, "iSAM2 incremental smoothing"),
     EstimatorSpec("fixed_lag", "smoother", "slamkit.backend.landmark_slam:FixedLagLandmarkSLAM",
-                  False, "LandmarkSLAMConfig", False, "fixed-lag smoother (lag in seconds)"),
+                  False, "FixedLagLandmarkSLAMConfig", False, "fixed-lag smoother (lag in seconds)"),
 )
 
 
@@ -69,7 +75,8 @@ def _filter_rows() -> dict[str, EstimatorSpec]:
             for name, f in filters.REGISTRY.items()}
 
 
-REGISTRY: dict[str, EstimatorSpec] = {**_filter_rows(), **{s.name: s for s in SMOOTHERS}}
+REGISTRY: Registry[EstimatorSpec] = Registry("estimator", {**_filter_rows(),
+                                                           **{s.name: s for s in SMOOTHERS}})
 
 
 def names() -> list[str]:
@@ -77,10 +84,8 @@ def names() -> list[str]:
 
 
 def spec(name: str) -> EstimatorSpec:
-    try:
-        return REGISTRY[name]
-    except KeyError:
-        raise ConfigError(f"unknown estimator {name!r}; known: {', '.join(REGISTRY)}") from None
+    """The row of ``name`` (an old spelling warns; an unknown name is a ConfigError)."""
+    return REGISTRY[name]
 
 
 def _resolve(target: str) -> Any:
@@ -107,11 +112,6 @@ def is_available(name: str) -> bool:
 
 def available() -> list[str]:
     return [n for n in REGISTRY if is_available(n)]
-
-
-def _smoother_noise(module: Any, sequence: Sequence, overrides: Mapping[str, Any]) -> Any:
-    noise = module.SmootherNoise.from_metadata(sequence.metadata)
-    return dataclasses.replace(noise, **{k: float(v) for k, v in overrides.items()}) if overrides else noise
 
 
 def _config(cls: type, params: Mapping[str, Any], where: str) -> Any:
@@ -141,13 +141,14 @@ def factory(name: str, params: Mapping[str, Any] | None = None, seed: int = 0) -
     ``seed`` seeds the estimator's own ``np.random.Generator`` (particle methods), so a run is
     reproducible and independent of the sequence's noise."""
     s = spec(name)
+    name = s.name
     params = dict(params or {})
     try:
         cls = _resolve(s.target)
     except (ImportError, AttributeError) as exc:
         raise ConfigError(f"estimator {name!r} is not available in this installation ({exc})") from None
     module = importlib.import_module(s.target.split(":")[0])
-    noise_params = {k: params.pop(k) for k in NOISE_FIELDS if k in params}
+    noise_params = {k: params.pop(k) for k in SENSOR_SIGMAS if k in params}
     config_cls = getattr(module, s.config, None) if s.config else None
 
     def build(sequence: Sequence):
@@ -157,25 +158,11 @@ def factory(name: str, params: Mapping[str, Any] | None = None, seed: int = 0) -
             rng = np.random.default_rng(seed) if s.random else None
             return make_estimator(name, sequence, {**noise_params, **params}, rng=rng)
         # smoothers carry their noise inside their config (slamkit.backend.landmark_slam)
-        config = _config(config_cls, {"noise": _smoother_noise(module, sequence, noise_params),
-                                      **params}, f"estimator {name!r}")
+        noise = NoiseParams.from_metadata(sequence.metadata,
+                                          **{k: float(v) for k, v in noise_params.items()})
+        config = _config(config_cls, {"noise": noise, **params}, f"estimator {name!r}")
         if hasattr(cls, "from_sequence"):
             return cls.from_sequence(sequence, config=config)
         return cls(config=config)
 
     return EstimatorFactory(name, s.kind, build)
-
-
-def prior_of(sequence: Sequence, sigma_floor: float = 1e-6) -> Prior:
-    """The prior every estimator starts from: the sequence's initial pose (the true one for
-    simulated worlds and datasets with ground truth; the origin otherwise) and
-    ``metadata['initial_pose_sigma']`` (x, y, theta) as its standard deviations."""
-    if sequence.initial_pose_xytheta is not None:
-        pose = np.asarray(sequence.initial_pose_xytheta, dtype=float).reshape(3)
-    elif sequence.ground_truth is not None:
-        pose = sequence.ground_truth.xytheta()[0]
-    else:
-        pose = np.zeros(3)
-    sigma = np.asarray(sequence.metadata.get("initial_pose_sigma", (1e-3, 1e-3, 1e-3)), dtype=float)
-    sigma = np.maximum(sigma.reshape(3), sigma_floor)
-    return Prior(pose, np.diag(sigma**2))

@@ -184,9 +184,9 @@ def run_slam(sequence: Sequence, truth: OccupancyGrid | None = None,
     errors against ``relations`` (a :class:`~slamkit.metrics.relations.Relations`)."""
     config = config_for(sequence, config)
     hooks = _KeyframeSnapshots(observer, sequence.name) if observer is not None and observer.wants_steps else None
-    system = LidarSlam(config, sequence.initial_pose_xytheta, hooks, name=sequence.name)
-    odom = (np.zeros(3) if sequence.initial_pose_xytheta is None
-            else np.asarray(sequence.initial_pose_xytheta, float).reshape(3))
+    system = LidarSlam(config, sequence.initial_world_xytheta_body, hooks, name=sequence.name)
+    odom = (np.zeros(3) if sequence.initial_world_xytheta_body is None
+            else np.asarray(sequence.initial_world_xytheta_body, float).reshape(3))
     odom_at_scan, scan_step = [], []
     clock = time.perf_counter
     t_start = clock()
@@ -535,7 +535,7 @@ def trim_to_free_space(sequence: Sequence, grid: OccupancyGrid | None) -> Sequen
     meta = dict(sequence.metadata)
     meta["trimmed_s"] = float(gt.stamps_s[-1] - end_s)
     return Sequence(sequence.name, tuple(e for e in sequence.events if e.stamp_s < end_s),
-                    gt.subset(keep), sequence.world_p_landmarks, sequence.initial_pose_xytheta, meta)
+                    gt.subset(keep), sequence.world_p_landmarks, sequence.initial_world_xytheta_body, meta)
 
 
 def _write_trajectory(folder, stamps_s: np.ndarray, poses: np.ndarray, stem: str) -> None:
@@ -684,3 +684,16 @@ def _plot_log(plt, plots, res: LidarSlamResult) -> None:
     fig.tight_layout()
     fig.savefig(file_in(plots, f"time_per_scan_{res.label}", ".png", "log name"), dpi=100)
     plt.close(fig)
+
+
+def _pipeline():
+    from slamkit.experiments.config_models import LidarSlamPipeline
+    from slamkit.experiments.pipeline import Pipeline
+
+    return Pipeline("lidar_slam", run, LidarSlamPipeline, list[LidarSlamResult],
+                    "lidar SLAM on simulated grid worlds x seeds and on recorded laser logs, x robust "
+                    "kernels x motion priors")
+
+
+#: the ``lidar_slam`` pipeline kind (slamkit.experiments.pipeline)
+PIPELINE = _pipeline()

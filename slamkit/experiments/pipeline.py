@@ -1,46 +1,50 @@
 """``slamkit run PIPELINE.yaml``: load a pipeline config, dispatch to its kind, write the results
 folder (config.yaml, results.json, report.md, plots/, trajectories/, recording.rrd).
 
-A pipeline kind is a function ``run(config, folder, progress, observer) -> PipelineOutput``
-registered in ``PIPELINES`` by import path, so importing this module stays cheap. Recording is
-not done here: ``observer_factory(kind, recording_path)`` (the viz layer supplies one) returns a
-``PipelineObserver`` that sees the run's steps and its output.
+Architecture note (issue 18): a pipeline kind is a :class:`Pipeline`, declared by its own module
+(``PIPELINE = Pipeline(...)`` in ``slamkit.experiments.pose_graph`` ...): its registry name, its
+config model (a pydantic model of :mod:`slamkit.experiments.config_models`, whose
+``check_options`` validates what the pipeline nests), the type of the payload its
+:class:`PipelineOutput` carries to observers, and its ``run`` function. :data:`PIPELINES` is the
+one table of pipeline kinds (a :class:`slamkit.naming.Registry` of lazy ``module:PIPELINE``
+targets, so importing this module stays cheap); :func:`register_pipeline` adds a user's own.
+
+Recording is not done here (experiments never import viz): the viz layer registers a recorder
+factory against a pipeline with :func:`register_recorder` (``slamkit.viz.pipelines`` does it for
+the built-in kinds), and ``run_pipeline``'s ``observer_factory(kind, recording_path)`` (the viz
+layer's ``observer_for``) builds it. The recorder is a ``PipelineObserver`` that sees the run's
+steps and its output.
 """
 
 from __future__ import annotations
 
-import importlib
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Mapping
+from typing import Any, Callable, Generic, Mapping, Protocol, TypeVar
 
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from slamkit.config import load_yaml
 from slamkit.errors import ConfigError
-from slamkit.experiments.config_models import check_pipeline
-from slamkit.paths import path_component
+from slamkit.experiments.config_models import PipelineConfig, check_pipeline
 from slamkit.experiments.observers import NullObserver, PipelineObserver
 from slamkit.experiments.results import ResultsFolder, RunRecord
+from slamkit.naming import Registry, load_target
+from slamkit.paths import path_component
 
-PIPELINES: dict[str, str] = {
-    "pose_graph": "slamkit.experiments.pose_graph:run",
-    "filter_vs_smoother": "slamkit.experiments.filter_vs_smoother:run",
-    "local_planning": "slamkit.experiments.closed_loop:run",
-    "lidar_slam": "slamkit.experiments.lidar_slam:run",
-}
+PayloadT = TypeVar("PayloadT")
 
 
 @dataclass(frozen=True)
-class PipelineOutput:
+class PipelineOutput(Generic[PayloadT]):
     runs: list[RunRecord]
     report_md: str
     summary: list[dict[str, Any]] | None = None
     extra: Mapping[str, Any] = field(default_factory=dict)
-    #: in-memory results for observers (not written to results.json)
-    payload: Any = None
+    #: in-memory results for observers (not written to results.json): the pipeline's payload type
+    payload: PayloadT | None = None
 
 
 @dataclass(frozen=True)
@@ -48,6 +52,86 @@ class PipelineResult:
     out_dir: Path
     results: dict[str, Any]
     report_md: str
+
+
+class StepProgress(Protocol):
+    """What a pipeline reports progress to: ``task(label, total)`` returns ``advance(n=1)``."""
+
+    def task(self, label: str, total: int) -> Callable[..., None]: ...
+
+
+class RunFunction(Protocol[PayloadT]):
+    def __call__(self, config: Mapping[str, Any], folder: ResultsFolder, progress: StepProgress,
+                 observer: PipelineObserver) -> PipelineOutput[PayloadT]: ...
+
+
+@dataclass(frozen=True)
+class Pipeline(Generic[PayloadT]):
+    """One pipeline kind, declared by the module that implements it.
+
+    ``config_model`` validates the config before anything runs (None: only the fields every
+    pipeline has are checked, extra keys allowed -- a user's quick pipeline); ``payload_type`` is
+    what ``run`` returns in ``PipelineOutput.payload`` for observers (None: nothing)."""
+
+    name: str
+    run: RunFunction[PayloadT]
+    config_model: type[PipelineConfig] | None = None
+    payload_type: type[PayloadT] | None = None
+    description: str = ""
+
+
+#: what the viz layer registers against a pipeline: ``factory(recording_path, spawn=False)``
+RecorderFactory = Callable[..., PipelineObserver]
+
+
+class _Entry:
+    """A registered pipeline: its lazy ``module:attribute`` target (or the object itself) and
+    the recorder factory registered against it (also lazy)."""
+
+    def __init__(self, target: "str | Pipeline"):
+        self.target = target
+        self._pipeline = target if isinstance(target, Pipeline) else None
+        self.recorder: str | RecorderFactory | None = None
+
+    def pipeline(self, name: str) -> Pipeline:
+        if self._pipeline is None:
+            loaded = load_target(str(self.target))
+            if not isinstance(loaded, Pipeline) or loaded.name != name:
+                raise TypeError(f"{self.target} must be a Pipeline named {name!r}, got {loaded!r}")
+            self._pipeline = loaded
+        return self._pipeline
+
+
+#: every pipeline kind by registry name
+PIPELINES: Registry[_Entry] = Registry("pipeline", {
+    "pose_graph": _Entry("slamkit.experiments.pose_graph:PIPELINE"),
+    "filter_vs_smoother": _Entry("slamkit.experiments.filter_vs_smoother:PIPELINE"),
+    "local_planning": _Entry("slamkit.experiments.closed_loop:PIPELINE"),
+    "lidar_slam": _Entry("slamkit.experiments.lidar_slam:PIPELINE"),
+})
+
+
+def pipeline_of(kind: str) -> Pipeline:
+    """The :class:`Pipeline` registered as ``kind`` (imported on first use)."""
+    name = PIPELINES.canonical(kind)
+    return PIPELINES[name].pipeline(name)
+
+
+def register_pipeline(pipeline: Pipeline) -> None:
+    """Make ``pipeline`` runnable by name (``pipeline: <name>`` in a config)."""
+    PIPELINES.register(pipeline.name, _Entry(pipeline))
+
+
+def register_recorder(kind: str, factory: str | RecorderFactory) -> None:
+    """Register the recorder of pipeline ``kind``: ``factory(recording_path, spawn=False)``
+    returns its ``PipelineObserver`` (a ``module:attribute`` string is imported when used)."""
+    PIPELINES[kind].recorder = factory
+
+
+def recorder_of(kind: str) -> RecorderFactory | None:
+    """The recorder factory registered against ``kind`` (None when there is none)."""
+    factory = PIPELINES[kind].recorder
+    return load_target(factory) if isinstance(factory, str) else factory
 
 
 class ProgressReporter:
@@ -93,13 +177,6 @@ def validate_pipeline_config(path: str | Path) -> dict[str, Any]:
     return load_config(path)
 
 
-def resolve_pipeline(kind: str) -> Callable[..., PipelineOutput]:
-    if kind not in PIPELINES:
-        raise ConfigError(f"unknown pipeline {kind!r}; known: {', '.join(sorted(PIPELINES))}")
-    module_name, fn_name = PIPELINES[kind].split(":")
-    return getattr(importlib.import_module(module_name), fn_name)
-
-
 ObserverFactory = Callable[[str, Path], PipelineObserver]
 
 
@@ -116,7 +193,7 @@ def run_pipeline(config: str | Path | Mapping[str, Any], out_dir: str | Path | N
     if "pipeline" not in cfg:
         raise ConfigError("a pipeline config needs a 'pipeline' key")
     check_pipeline(cfg)
-    fn = resolve_pipeline(cfg["pipeline"])
+    pipeline = pipeline_of(cfg["pipeline"])
     if out_dir is None:
         out_dir = Path("runs") / path_component(cfg.get("name", cfg["pipeline"]), "the config's name")
     with ResultsFolder(out_dir, pipeline=str(cfg["pipeline"])) as folder, ProgressReporter(enabled=progress) as reporter:
@@ -124,7 +201,7 @@ def run_pipeline(config: str | Path | Mapping[str, Any], out_dir: str | Path | N
         record = observer_factory is not None and bool(cfg.get("record", True))
         observer = observer_factory(cfg["pipeline"], folder.recording_path) if record else NullObserver()
         try:
-            output = fn(cfg, folder, reporter, observer)
+            output = pipeline.run(cfg, folder, reporter, observer)
             if not output.runs:
                 # e.g. inits: [chordal] on 2D graphs only: nothing to report is an error, not a result
                 raise ConfigError(f"pipeline {cfg['pipeline']!r} ran nothing: every combination it lists was "

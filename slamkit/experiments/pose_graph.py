@@ -25,6 +25,9 @@ from slamkit.data.pose_graph import PoseGraph
 from slamkit.data.trajectory import Trajectory
 from slamkit.paths import file_in
 from slamkit.errors import ConfigError
+from slamkit.experiments.config_models import PoseGraphPipeline
+from slamkit.experiments.observers import PipelineObserver
+from slamkit.experiments.pipeline import Pipeline, PipelineOutput, StepProgress
 from slamkit.experiments.results import ResultsFolder, RunRecord, markdown_table
 from slamkit.metrics.alignment import associate
 from slamkit.metrics.ate import ate
@@ -144,11 +147,10 @@ def _combinations(config: Mapping[str, Any]) -> list[tuple[str, str, str]]:
     return list(itertools.product(datasets, solvers, inits))
 
 
-def run(config: Mapping[str, Any], folder: ResultsFolder, progress, observer) -> "PipelineOutput":
+def run(config: Mapping[str, Any], folder: ResultsFolder, progress: StepProgress,
+        observer: PipelineObserver) -> PipelineOutput[list[OptimizeReport]]:
     """Pipeline ``pose_graph``: every dataset x solver x initialisation (initialisations that do
     not apply to a dataset's dimension -- LAGO is 2D, chordal is 3D -- are skipped and noted)."""
-    from slamkit.experiments.pipeline import PipelineOutput
-
     combos = _combinations(config)
     options = dict(config.get("options", {}))
     robust = config.get("robust", "none")
@@ -232,3 +234,8 @@ def _plot(plots: Path, reports: list[OptimizeReport]) -> None:
         fig.tight_layout()
         fig.savefig(file_in(plots, f"trajectory_{r.dataset}", ".png", "dataset name"), dpi=110)
         plt.close(fig)
+
+
+PIPELINE: Pipeline[list[OptimizeReport]] = Pipeline(
+    "pose_graph", run, PoseGraphPipeline, list[OptimizeReport],
+    "pose-graph datasets x solvers x initialisations")

@@ -9,23 +9,29 @@ without such an observer the loop does nothing but step and time, so measured la
 the estimators' own.
 
 ``score`` compares an estimate with a reference trajectory (ground truth, or the batch solution
-for datasets without it):
+for datasets without it). Planar and 3D estimates are scored alike; the pose dimension d comes
+from the estimate (:func:`pose_dof`: 3 for a planar trajectory, 6 otherwise):
 
-* ``ate_rmse_m``, ``ate_rot_rmse_rad``: absolute trajectory error after an SE(2) Umeyama
-  alignment (Sturm et al. IROS 2012; Zhang & Scaramuzza IROS 2018);
+* ``ate_rmse_m``, ``ate_rot_rmse_rad``: absolute trajectory error after an SE(2) (planar) or
+  SE(3) Umeyama alignment (Sturm et al. IROS 2012; Zhang & Scaramuzza IROS 2018);
 * ``rpe_rmse_m``: relative pose error over 1 m of travelled path;
-* ``nees_mean``, ``nees_in_band_fraction``: pose NEES e^T P^-1 e (3 dof) with the *unaligned*
-  error -- the prior fixes the frame, and the covariance describes exactly that error -- and the
-  fraction of steps inside the single-sample chi-square(3) 95% band (about 0.95 when consistent;
-  Bar-Shalom, Li & Kirubarajan 2001, sec. 5.4). Filters are scored with the filtered covariance
-  of every step, smoothers with their final marginals;
+* ``nees_mean``, ``nees_in_band_fraction``: pose NEES e^T P^-1 e (d dof) with the *unaligned*
+  world-frame error of :func:`world_pose_error` -- the prior fixes the frame, and the covariance
+  describes exactly that error -- and the fraction of steps inside the single-sample
+  chi-square(d) 95% band (about 0.95 when consistent; Bar-Shalom, Li & Kirubarajan 2001,
+  sec. 5.4). Filters are scored with the filtered covariance of every step, smoothers with their
+  final marginals;
 * ``nees_degenerate_fraction``: the fraction of steps whose covariance is not positive definite;
   they have no NEES and are left out of ``nees_mean`` (see ``metrics.consistency.nees_or_nan``);
 * ``nis_mean``: mean normalised innovation squared per measurement (filters that record it);
-* ``landmark_rmse_m``: RMS landmark position error after an SE(2) Umeyama alignment of the
-  estimated landmarks onto the true ones (SLAM estimators; localisation filters are handed the
-  true map and have none);
+* ``landmark_rmse_m``: RMS landmark position error after a Umeyama alignment (SE(2), or SE(3)
+  for 3D estimates) of the estimated landmarks onto the true ones (SLAM estimators;
+  localisation filters are handed the true map and have none);
 * ``step_latency_median_ms``, ``step_latency_p99_ms`` (online estimators), ``total_time_s``.
+
+Architecture note (issue 18): the runner serves every pipeline that feeds estimators; the
+calling pipeline names itself in ``run_estimators(kind=...)``, and nothing here assumes a planar
+pose.
 """
 
 from __future__ import annotations
@@ -40,15 +46,14 @@ from slamkit.data.estimate import BatchEstimator, Estimate, Estimator, ParticleB
 from slamkit.data.sequence import RangeBearing, Sequence
 from slamkit.data.trajectory import Trajectory
 from slamkit.errors import DataError, SlamkitError
-from slamkit.experiments.observers import PipelineObserver, StepSnapshot
+from slamkit.experiments.observers import BeliefSnapshot, PipelineObserver, StepSnapshot
+from slamkit.geometry import so3
 from slamkit.geometry.angles import wrap_angle
 from slamkit.metrics.alignment import associate, umeyama
 from slamkit.metrics.ate import ate
 from slamkit.metrics.consistency import chi2_band, nees_or_nan
 from slamkit.metrics.rpe import rpe
 
-#: pose NEES degrees of freedom (x, y, theta)
-POSE_DOF = 3
 #: RPE segment length (m of travelled path)
 RPE_DELTA_M = 1.0
 #: at most this many particles go into a snapshot (drawing 10^4 points per step helps nobody)
@@ -84,37 +89,40 @@ def _kind_of(factory: Callable, estimator: Any) -> str:
     return "batch" if isinstance(estimator, BatchEstimator) and not isinstance(estimator, Estimator) else "filter"
 
 
-def _live_state(estimator: Any, event: Any) -> dict[str, Any]:
-    """What an observer may draw after an event: pose, covariance, landmarks, particles and the
+def belief_snapshot(name: str, estimator: Any, event: Any) -> BeliefSnapshot:
+    """What an observer may draw after ``event``: pose, covariance, landmarks, particles and the
     observation just processed (for association lines)."""
     est = estimator.estimate()
-    state: dict[str, Any] = {"pose_xytheta": est.trajectory.xytheta()[-1]}
+    traj = est.trajectory
+    covariance = None
     if est.pose_covariances is not None and len(est.pose_covariances):
-        state["covariance"] = np.asarray(est.pose_covariances[-1])
+        covariance = np.asarray(est.pose_covariances[-1])
+    fields: dict[str, Any] = {}
     if est.world_p_landmarks:
         ids = np.array(sorted(est.world_p_landmarks), dtype=np.int64)
-        state["landmark_ids"] = ids
-        state["world_p_landmarks"] = np.array([np.asarray(est.world_p_landmarks[i])[:2] for i in ids])
+        dim = 2 if traj.planar else 3
+        fields["landmark_ids"] = ids
+        fields["world_p_landmarks"] = np.array([np.asarray(est.world_p_landmarks[i]).reshape(-1)[:dim]
+                                                for i in ids])
     particles = estimator.particles if isinstance(estimator, ParticleBelief) else None
     if isinstance(particles, np.ndarray) and particles.ndim == 2 and particles.shape[1] >= 3:
         step = max(1, len(particles) // SNAPSHOT_MAX_PARTICLES)
-        state["particles"] = particles[::step, :3].copy()
-    if isinstance(event, RangeBearing):
-        state["observed_ids"] = np.asarray(event.landmark_ids)
-        state["range_m"] = np.asarray(event.range_m)
-        state["bearing_rad"] = np.asarray(event.bearing_rad)
-    return state
+        fields["particles"] = particles[::step, :3].copy()
+    return BeliefSnapshot(name, traj.subset(slice(len(traj) - 1, None)), covariance,
+                          observation=event if isinstance(event, RangeBearing) else None, **fields)
 
 
 def run_estimators(sequence: Sequence, estimators: Mapping[str, Callable[[Sequence], Any]],
                    prior: Prior | None = None, observer: PipelineObserver | None = None,
-                   kind: str = "filter_vs_smoother", run_label: str | None = None
+                   kind: str = "estimators", run_label: str | None = None
                    ) -> dict[str, EstimatorRun]:
     """Feed ``sequence`` to every estimator built by ``estimators`` (name -> factory, see
     ``slamkit.experiments.estimators.factory``); returns name -> :class:`EstimatorRun`.
 
-    ``prior`` defaults to ``estimators.prior_of(sequence)``. ``observer.on_step`` is called with
-    snapshots only when ``observer.wants_steps`` is true, every ``observer.step_every`` events."""
+    ``prior`` defaults to ``estimators.prior_of(sequence)``. ``observer.on_step`` is called only
+    when ``observer.wants_steps`` is true, every ``observer.step_every`` events (and after the
+    last), with ``StepSnapshot(kind, "<run_label>/<name>", k, stamp, BeliefSnapshot)``; ``kind``
+    is the calling pipeline's name (``"estimators"`` when called directly)."""
     from slamkit.experiments.estimators import prior_of
 
     prior = prior_of(sequence) if prior is None else prior
@@ -150,8 +158,7 @@ def run_estimators(sequence: Sequence, estimators: Mapping[str, Callable[[Sequen
                         if k % every == 0 or k == len(events) - 1:
                             observer.on_step(StepSnapshot(kind, f"{label}/{name}", k,
                                                           float(event.stamp_s),
-                                                          {"estimator": name,
-                                                           **_live_state(estimator, event)}))
+                                                          belief_snapshot(name, estimator, event)))
                 estimate = estimator.estimate()
                 total = time.perf_counter() - t_start
         except (SlamkitError, np.linalg.LinAlgError) as exc:
@@ -169,13 +176,24 @@ def run_estimators(sequence: Sequence, estimators: Mapping[str, Callable[[Sequen
 @dataclass(frozen=True)
 class ErrorSeries:
     """Per-pose errors of one estimate against its reference, in the world frame and unaligned:
-    ``error_xytheta`` (N, 3) = estimate - reference (heading wrapped), ``sigma_xytheta`` (N, 3)
-    the estimator's standard deviations, ``nees`` (N,) the pose NEES (NaN where undefined)."""
+    ``error`` (N, d) from :func:`world_pose_error` (x, y, theta for planar poses; x, y, z,
+    rx, ry, rz for 3D ones), ``sigma`` (N, d) the estimator's standard deviations, ``nees`` (N,)
+    the pose NEES (NaN where undefined)."""
 
     stamps_s: np.ndarray
-    error_xytheta: np.ndarray
-    sigma_xytheta: np.ndarray | None = None
+    error: np.ndarray
+    sigma: np.ndarray | None = None
     nees: np.ndarray | None = None
+
+    @property
+    def dof(self) -> int:
+        """The pose dimension d (3 planar, 6 in 3D): the NEES's chi-square degrees of freedom."""
+        return int(self.error.shape[1])
+
+    @property
+    def position_error_m(self) -> np.ndarray:
+        """(N,) norm of the position part of the error."""
+        return np.linalg.norm(self.error[:, :2 if self.dof == 3 else 3], axis=1)
 
 
 @dataclass(frozen=True)
@@ -185,30 +203,54 @@ class Scored:
     notes: tuple[str, ...] = field(default=())
 
 
-def world_pose_covariances(estimate: Estimate) -> np.ndarray | None:
-    """The estimate's (N, 3, 3) pose covariances, or None when it has none of that shape.
+def pose_dof(trajectory: Trajectory) -> int:
+    """The pose dimension of a trajectory: 3 (x, y, theta) when planar, else 6."""
+    return 3 if trajectory.planar else 6
 
-    Every estimator reports them in the world (x, y, theta) convention the filters use; the
-    GTSAM smoothers rotate their body-frame marginals themselves, with
+
+def world_pose_error(reference: Trajectory, estimate: Trajectory) -> np.ndarray:
+    """The unaligned world-frame error of paired poses, the convention every estimator's
+    covariance is reported in: (N, 3) estimate - reference in (x, y, theta), heading wrapped,
+    for planar estimates; (N, 6) for 3D ones, translation first as in :mod:`slamkit.geometry.se3`:
+    (x, y, z) = estimate - reference and (rx, ry, rz) = log(R_est R_ref^T), the rotation error
+    as a world-frame (left) perturbation."""
+    if estimate.planar:
+        err = estimate.xytheta() - reference.xytheta()
+        err[:, 2] = wrap_angle(err[:, 2])
+        return err
+    R_ref = so3.from_quat_wxyz(reference.world_q_body_wxyz)
+    R_est = so3.from_quat_wxyz(estimate.world_q_body_wxyz)
+    rot = so3.log(R_est @ np.swapaxes(R_ref, -1, -2))
+    return np.column_stack([estimate.world_t_body - reference.world_t_body, rot])
+
+
+def world_pose_covariances(estimate: Estimate) -> np.ndarray | None:
+    """The estimate's (N, d, d) pose covariances (d = :func:`pose_dof`), or None when it has
+    none of that shape.
+
+    Every estimator reports them in the world convention of :func:`world_pose_error`; the GTSAM
+    smoothers rotate their body-frame marginals themselves, with
     :func:`slamkit.geometry.se2.covariance_body_to_world` (the one place that conversion lives)."""
     P = estimate.pose_covariances
     if P is None:
         return None
     P = np.asarray(P, dtype=float)
-    if P.shape[-2:] != (3, 3):
+    d = pose_dof(estimate.trajectory)
+    if P.shape[-2:] != (d, d):
         return None
     return P
 
 
-def landmark_rmse_m(estimated: Mapping[int, np.ndarray], truth: Mapping[int, np.ndarray]
-                    ) -> float:
-    """RMS error over the landmarks both maps contain after the SE(2) Umeyama fit of the
-    estimated positions onto the true ones (NaN with fewer than 2 common landmarks)."""
+def landmark_rmse_m(estimated: Mapping[int, np.ndarray], truth: Mapping[int, np.ndarray],
+                    dim: int = 2) -> float:
+    """RMS error over the landmarks both maps contain after the Umeyama fit (SE(2) for
+    ``dim`` 2, SE(3) for 3) of the estimated positions onto the true ones (NaN with fewer than
+    ``dim`` common landmarks)."""
     common = sorted(set(int(k) for k in estimated) & set(int(k) for k in truth))
-    if len(common) < 2:
+    if len(common) < dim:
         return float("nan")
-    est = np.array([np.asarray(estimated[k], dtype=float).reshape(-1)[:2] for k in common])
-    ref = np.array([np.asarray(truth[k], dtype=float).reshape(-1)[:2] for k in common])
+    est = np.array([np.asarray(estimated[k], dtype=float).reshape(-1)[:dim] for k in common])
+    ref = np.array([np.asarray(truth[k], dtype=float).reshape(-1)[:dim] for k in common])
     try:
         R, t, _ = umeyama(est, ref)
     except DataError:
@@ -227,6 +269,7 @@ def score(run: EstimatorRun, reference: Trajectory | None,
     if run.estimate is None:
         return Scored(metrics, notes=(f"{run.name} failed: {run.failed}",))
     est = run.estimate
+    planar = est.trajectory.planar
     notes: list[str] = []
     if est.nis is not None and len(est.nis):
         nis = np.asarray(est.nis, dtype=float)
@@ -236,14 +279,15 @@ def score(run: EstimatorRun, reference: Trajectory | None,
         if not ok.all():
             metrics["nis_degenerate_fraction"] = float(1.0 - ok.mean())
     if world_p_landmarks and est.world_p_landmarks:
-        metrics["landmark_rmse_m"] = landmark_rmse_m(est.world_p_landmarks, world_p_landmarks)
+        metrics["landmark_rmse_m"] = landmark_rmse_m(est.world_p_landmarks, world_p_landmarks,
+                                                     2 if planar else 3)
     if reference is None:
         return Scored(metrics, notes=tuple(notes))
     try:
         pairs = associate(reference, est.trajectory, max_diff_s=max_diff_s)
     except DataError as exc:
         return Scored(metrics, notes=(f"{run.name}: {exc}",))
-    result = ate(pairs.ref, pairs.est, "se2")
+    result = ate(pairs.ref, pairs.est, "se2" if planar else "se3")
     metrics["ate_rmse_m"] = result.translation_m.rmse
     metrics["ate_rot_rmse_rad"] = result.rotation_rad.rmse
     try:
@@ -251,9 +295,7 @@ def score(run: EstimatorRun, reference: Trajectory | None,
                                     pairs_from_reference=True).translation_m.rmse
     except DataError:
         notes.append(f"{run.name}: path shorter than {RPE_DELTA_M} m, no RPE")
-    ref_xyt, est_xyt = pairs.ref.xytheta(), pairs.est.xytheta()
-    err = est_xyt - ref_xyt
-    err[:, 2] = wrap_angle(err[:, 2])
+    err = world_pose_error(pairs.ref, pairs.est)
     sigma = nees = None
     P = world_pose_covariances(est)
     if P is not None and len(P) == len(est.trajectory):
@@ -265,7 +307,7 @@ def score(run: EstimatorRun, reference: Trajectory | None,
             finite = np.isfinite(nees)
             metrics["nees_degenerate_fraction"] = float(1.0 - finite.mean()) if len(nees) else 0.0
             if finite.any():
-                band = chi2_band(POSE_DOF, 1, 0.95)
+                band = chi2_band(err.shape[1], 1, 0.95)
                 v = nees[finite]
                 metrics["nees_mean"] = float(np.mean(v))
                 metrics["nees_in_band_fraction"] = float(np.mean((v >= band.lower) & (v <= band.upper)))
@@ -276,11 +318,15 @@ def score(run: EstimatorRun, reference: Trajectory | None,
 def monte_carlo_nees(series: list[ErrorSeries], p: float = 0.95
                      ) -> tuple[np.ndarray, np.ndarray, tuple[float, float]]:
     """Average NEES over M runs at every common step (Bar-Shalom et al. sec. 5.4.2): returns
-    (stamps, ANEES (K,), band) with the two-sided ``p`` band of chi2(3 M) / M."""
+    (stamps, ANEES (K,), band) with the two-sided ``p`` band of chi2(d M) / M (d: the pose
+    dimension of the series, which must agree)."""
     usable = [s for s in series if s.nees is not None]
     if not usable:
         raise DataError("no run has a NEES series")
+    dofs = {s.dof for s in usable}
+    if len(dofs) != 1:
+        raise DataError(f"NEES series of different pose dimensions {sorted(dofs)} cannot be averaged")
     n = min(len(s.nees) for s in usable)
     stack = np.stack([s.nees[:n] for s in usable])
-    band = chi2_band(POSE_DOF, len(usable), p)
+    band = chi2_band(dofs.pop(), len(usable), p)
     return usable[0].stamps_s[:n], np.nanmean(stack, axis=0), (band.lower, band.upper)

@@ -316,6 +316,6 @@ def simulate_grid_sequence(config: GridScenario, rng: np.random.Generator,
     events.sort(key=lambda e: (e[0], e[1]))
     gt = Trajectory.from_se2(drive.stamps_s, drive.world_xytheta_body)
     seq = Sequence(name=config.name, events=tuple(e for _, _, e in events), ground_truth=gt,
-                   world_p_landmarks=None, initial_pose_xytheta=drive.world_xytheta_body[0].copy(),
+                   world_p_landmarks=None, initial_world_xytheta_body=drive.world_xytheta_body[0].copy(),
                    metadata=metadata)
     return seq, grid

@@ -13,7 +13,7 @@ What the estimators are promised (``Sequence.metadata``, all SI):
   range and bearing (R = diag of their squares), observed within ``range_bearing_max_range_m``
   and ``range_bearing_fov_rad`` (centred on the body x axis), each landmark dropped with
   probability ``range_bearing_dropout``. Ids are -1 when ``known_correspondences`` is false.
-* ``initial_pose_sigma``: the prior on ``initial_pose_xytheta`` (the true start pose).
+* ``initial_pose_sigma``: the prior on ``initial_world_xytheta_body`` (the true start pose).
 * Optional ``Gps`` fixes (``gps_sigma_m`` per axis, ``gps_rate_hz``) when the scenario has ``gps``.
 * Event order: at a stamp where both occur, the ``Odometry`` that ends there comes before the
   ``RangeBearing`` taken there (predict, then update). Ground truth holds the true pose at every
@@ -226,7 +226,7 @@ def simulate_landmark_sequence(config: LandmarkScenario, rng: np.random.Generato
         events=tuple(events),
         ground_truth=Trajectory.from_se2(drive.stamps_s, drive.world_xytheta_body),
         world_p_landmarks={int(i): lms[i].copy() for i in ids},
-        initial_pose_xytheta=drive.world_xytheta_body[0].copy(),
+        initial_world_xytheta_body=drive.world_xytheta_body[0].copy(),
         metadata=metadata,
     )
 

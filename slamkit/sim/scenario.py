@@ -12,6 +12,8 @@ file and the key path.
 from __future__ import annotations
 
 import dataclasses
+import hashlib
+from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping
@@ -146,3 +148,40 @@ def simulate(scenario: Scenario, seed: int) -> SimulationResult:
         raise
     seq = dataclasses.replace(seq, metadata={**seq.metadata, "seed": int(seed)})
     return SimulationResult(seq, grid, scenario, int(seed))
+
+
+@dataclass(frozen=True)
+class SimulatedFile:
+    """A simulation written to a sequence file: the run, where it went and its sha256."""
+
+    scenario_path: Path
+    simulation: SimulationResult
+    path: Path
+    sha256: str
+
+    def summary(self) -> dict[str, Any]:
+        """What ``slamkit simulate`` prints: events by type, duration, distance, landmarks."""
+        seq = self.simulation.sequence
+        gt = seq.ground_truth
+        return {
+            "scenario": str(self.scenario_path),
+            "name": seq.name,
+            "seed": self.simulation.seed,
+            "out": str(self.path),
+            "sha256": self.sha256,
+            "num_events": len(seq),
+            "events": dict(sorted(Counter(type(e).__name__ for e in seq).items())),
+            "duration_s": float(gt.stamps_s[-1] - gt.stamps_s[0]) if gt is not None else 0.0,
+            "path_length_m": gt.path_length_m() if gt is not None else 0.0,
+            "num_landmarks": len(seq.world_p_landmarks or {}),
+        }
+
+
+def simulate_to_file(scenario_path: str | Path, seed: int, out: str | Path) -> SimulatedFile:
+    """Load the scenario file, simulate it with ``seed`` and save the sequence to ``out`` (the
+    slamkit sequence format; the same seed always writes the same bytes)."""
+    from slamkit.data.formats.sequence import save_sequence
+
+    result = simulate(load_scenario(scenario_path), seed)
+    path = save_sequence(out, result.sequence)
+    return SimulatedFile(Path(scenario_path), result, path, hashlib.sha256(path.read_bytes()).hexdigest())

@@ -29,6 +29,7 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
+from slamkit.experiments.closed_loop import Episode
 from slamkit.viz.recording import Recording, open_recording
 
 MAX_CANDIDATES = 60
@@ -83,7 +84,7 @@ class ClosedLoopRecorder:
     def on_step(self, snap) -> None:
         s, p = self.stream, self.prefix
         s.set_time("sim_time", duration=float(snap.t_s))
-        x = np.asarray(snap.pose_xytheta)
+        x = np.asarray(snap.world_xytheta_body)
         self._trail.append(x[:2].copy())
         out = snap.output
         heading = 0.4 * np.array([np.cos(x[2]), np.sin(x[2])])
@@ -118,10 +119,11 @@ class ClosedLoopRecorder:
 
 
 class LocalPlanningObserver:
-    """The ``local_planning`` pipeline's recorder (``slamkit.viz.pipelines.RECORDERS``): receives
+    """The ``local_planning`` pipeline's recorder (registered in ``slamkit.viz.pipelines``): receives
     ``slamkit.experiments.observers.StepSnapshot``s whose state carries the scenario, the
     controller and the closed-loop step, and draws them with :class:`ClosedLoopRecorder`."""
 
+    payload_type = list[Episode]
     wants_steps = True
     step_every = 1  # every closed-loop cycle
 

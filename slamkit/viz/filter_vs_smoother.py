@@ -16,14 +16,21 @@ once, time on the ``time`` timeline in seconds):
     plots/nees/<name>                     pose NEES, or its Monte-Carlo average (send_columns)
     plots/nees/band_lower, band_upper     its 95% chi-square band
 
-``FilterVsSmootherObserver`` is the pipeline's recorder (``slamkit.viz.pipelines``): it keeps the
-snapshots the runner sends for the first seed of every scenario and writes the recording when
-the pipeline's output arrives.
+``FilterVsSmootherObserver`` is the pipeline's recorder (registered in ``slamkit.viz.pipelines``)
+and streams: it opens the recording (file and/or ``--spawn`` viewer) when the run starts and logs
+every :class:`~slamkit.experiments.observers.BeliefSnapshot` as it arrives, every
+``step_every``-th event (the ``time``-timeline entities above: pose, ellipse, particles, held
+landmarks, associations), growing the blueprint as scenarios appear. What arrives live is what
+the parent process runs: the first seed of every scenario (the pipeline runs the other seeds in
+a process pool, and they come back only as finished results). Everything that needs the finished
+run -- ground truth, true landmarks, final trajectories with their ellipses, the error and NEES
+plots with the Monte-Carlo averages -- is logged when the pipeline's output arrives, and the
+file is then complete. Live association lines therefore end where the measurement puts the
+landmark (the true map comes with the output) unless the estimator holds that landmark.
 """
 
 from __future__ import annotations
 
-from collections import defaultdict
 from pathlib import Path
 from typing import Any, Iterable, Mapping
 
@@ -31,8 +38,12 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
+from slamkit.experiments.filter_vs_smoother import FilterVsSmootherPayload
+from slamkit.experiments.observers import BeliefSnapshot, StepSnapshot
+from slamkit.experiments.pipeline import PipelineOutput
 from slamkit.viz.recording import open_recording
 
+APPLICATION_ID = "slamkit_filter_vs_smoother"
 TIMELINE = "time"
 COLOR_GROUND_TRUTH = (40, 200, 80)
 COLOR_LANDMARK = (230, 60, 60)
@@ -104,13 +115,15 @@ class _Prefixed:
 
 
 def log_comparison(stream, sequence, runs: Mapping[str, Any], series: Mapping[str, Any] | None = None,
-                   anees: Mapping[str, Any] | None = None, snapshots: Iterable[Any] = ()) -> None:
+                   anees: Mapping[str, Any] | None = None, snapshots: Iterable[StepSnapshot] = (),
+                   colors: Mapping[str, tuple[int, int, int]] | None = None) -> None:
     """Log one scenario: ground truth, landmarks, every run's estimate (``EstimatorRun``), its
     error and NEES series (``ErrorSeries`` by name), Monte-Carlo NEES curves
-    (name -> (stamps, anees, band, M)) and live snapshots (``StepSnapshot``)."""
+    (name -> ``NeesCurve``) and snapshots of the runner (``StepSnapshot[BeliefSnapshot]``).
+    ``colors`` (estimator -> RGB) defaults to the palette in the order of ``runs``."""
     series = series or {}
     anees = anees or {}
-    colors = {name: color_of(k) for k, name in enumerate(runs)}
+    colors = dict(colors) if colors is not None else {name: color_of(k) for k, name in enumerate(runs)}
     lms = sequence.world_p_landmarks
     true_lm: dict[int, np.ndarray] = {}
     if lms:
@@ -144,7 +157,7 @@ def log_comparison(stream, sequence, runs: Mapping[str, Any], series: Mapping[st
     for name, s in series.items():
         index = [rr.TimeColumn(TIMELINE, duration=np.asarray(s.stamps_s))]
         stream.send_columns(f"plots/error/{name}", indexes=index,
-                            columns=rr.Scalars.columns(scalars=np.linalg.norm(s.error_xytheta[:, :2], axis=1)))
+                            columns=rr.Scalars.columns(scalars=s.position_error_m))
         if s.nees is not None and name not in anees:
             ok = np.isfinite(s.nees)
             if ok.any():
@@ -162,7 +175,7 @@ def log_comparison(stream, sequence, runs: Mapping[str, Any], series: Mapping[st
         from slamkit.metrics.consistency import chi2_band
 
         s0 = next(s for s in series.values() if s.nees is not None)
-        b = chi2_band(3, 1, 0.95)
+        b = chi2_band(s0.dof, 1, 0.95)
         band = (np.asarray(s0.stamps_s), (b.lower, b.upper))
     if band is not None:
         stamps, (lo, hi) = band
@@ -172,35 +185,35 @@ def log_comparison(stream, sequence, runs: Mapping[str, Any], series: Mapping[st
         stream.send_columns("plots/nees/band_upper", indexes=index,
                             columns=rr.Scalars.columns(scalars=np.full(len(stamps), hi)))
     for snap in snapshots:
-        log_snapshot(stream, snap, colors.get(snap.state.get("estimator"), PALETTE[0]), true_lm)
+        log_snapshot(stream, snap, colors.get(snap.state.estimator, PALETTE[0]), true_lm)
 
 
-def log_snapshot(stream, snapshot, color: tuple[int, int, int], true_landmarks: Mapping[int, np.ndarray]
-                 ) -> None:
-    """The live state of one estimator after one event (see ``runner._live_state``)."""
-    s = snapshot.state
-    name = s.get("estimator", snapshot.run.rsplit("/", 1)[-1])
-    base = f"world/estimate/{name}"
+def log_snapshot(stream, snapshot: StepSnapshot[BeliefSnapshot], color: tuple[int, int, int],
+                 true_landmarks: Mapping[int, np.ndarray]) -> None:
+    """The belief of one estimator after one event (see ``runner.belief_snapshot``) at its
+    stamp. An observed landmark id goes to the landmark the estimator holds, else to the true one
+    in ``true_landmarks``, else (unknown id -1, or no map) along the measured ray."""
+    belief = snapshot.state
+    base = f"world/estimate/{belief.estimator}"
     stream.set_time(TIMELINE, duration=float(snapshot.stamp_s))
-    pose = np.asarray(s["pose_xytheta"], dtype=float)
+    pose = belief.pose.xytheta()[0]
     stream.log(f"{base}/pose", rr.Points3D(_xyz(pose[:2]), radii=[0.15], colors=[color]))
-    if "covariance" in s:
+    if belief.covariance is not None:
         stream.log(f"{base}/ellipse", rr.LineStrips3D(
-            ellipse_outlines(pose[None, :2], np.asarray(s["covariance"])[None, :2, :2]),
+            ellipse_outlines(pose[None, :2], np.asarray(belief.covariance)[None, :2, :2]),
             radii=[0.015], colors=[color]))
-    if "particles" in s:
-        stream.log(f"{base}/particles", rr.Points3D(_xyz(np.asarray(s["particles"])[:, :2]),
+    if belief.particles is not None:
+        stream.log(f"{base}/particles", rr.Points3D(_xyz(np.asarray(belief.particles)[:, :2]),
                                                     radii=[0.03], colors=[color]))
     held: dict[int, np.ndarray] = {}
-    if "landmark_ids" in s:
-        held = {int(i): p for i, p in zip(s["landmark_ids"], s["world_p_landmarks"])}
-        stream.log(f"{base}/landmarks", rr.Points3D(_xyz(np.asarray(s["world_p_landmarks"])),
+    if len(belief.landmark_ids):
+        held = {int(i): p[:2] for i, p in zip(belief.landmark_ids, belief.world_p_landmarks)}
+        stream.log(f"{base}/landmarks", rr.Points3D(_xyz(np.asarray(belief.world_p_landmarks)[:, :2]),
                                                     radii=[0.1], colors=[color]))
-    if "observed_ids" in s:
-        ids = np.asarray(s["observed_ids"], dtype=np.int64)
-        r, b = np.asarray(s["range_m"], float), np.asarray(s["bearing_rad"], float)
-        # a known id goes to the landmark the estimator holds (else the true one); an unknown id
-        # (-1) is drawn as the measured ray from the estimated pose
+    obs = belief.observation
+    if obs is not None:
+        ids = np.asarray(obs.landmark_ids, dtype=np.int64)
+        r, b = np.asarray(obs.range_m, float), np.asarray(obs.bearing_rad, float)
         ends = pose[:2] + np.column_stack([r * np.cos(pose[2] + b), r * np.sin(pose[2] + b)])
         for k, i in enumerate(ids):
             if int(i) in held:
@@ -222,28 +235,50 @@ def record_comparison(path: str | Path | None, sequence, runs: Mapping[str, Any]
 
 
 class FilterVsSmootherObserver:
-    """Records the ``filter_vs_smoother`` pipeline: ``<scenario>/world/...`` and
-    ``<scenario>/plots/...`` for the first seed of every scenario, Monte-Carlo NEES curves."""
+    """Records the ``filter_vs_smoother`` pipeline as it runs: ``<scenario>/world/...`` and
+    ``<scenario>/plots/...`` (see the module docstring for what streams and what waits for the
+    output). The recording opens here, so ``--spawn`` without a viewer fails before the run."""
 
+    payload_type = FilterVsSmootherPayload
     wants_steps = True
     step_every = 10
 
     def __init__(self, path, spawn: bool = False):
-        self.path, self.spawn = path, spawn
-        self._snapshots: dict[str, list] = defaultdict(list)
+        self.recording = open_recording(APPLICATION_ID, path, spawn)
+        self._prefixes: list[str] = []
+        self._colors: dict[str, tuple[int, int, int]] = {}
+        self._done = False
 
-    def on_step(self, snapshot) -> None:
-        self._snapshots[snapshot.run.split("/", 1)[0]].append(snapshot)
+    def _color(self, estimator: str) -> tuple[int, int, int]:
+        """One colour per estimator for the whole recording, in the order they appear."""
+        return self._colors.setdefault(estimator, color_of(len(self._colors)))
 
-    def on_output(self, output) -> None:
-        payload = output.payload  # a PipelineOutput carrying FilterVsSmootherPayload
-        if payload is None or not payload.scenarios:
+    def _show(self, scenario: str) -> None:
+        if scenario not in self._prefixes:
+            self._prefixes.append(scenario)
+            self.recording.stream.send_blueprint(blueprint(self._prefixes))
+
+    def on_step(self, snapshot: StepSnapshot[BeliefSnapshot]) -> None:
+        scenario = snapshot.run.split("/", 1)[0]
+        self._show(scenario)
+        log_snapshot(_Prefixed(self.recording.stream, scenario), snapshot,
+                     self._color(snapshot.state.estimator), {})
+
+    def on_output(self, output: PipelineOutput[FilterVsSmootherPayload]) -> None:
+        payload = output.payload
+        if payload is None:
             return
-        prefixes = [o.name for o in payload.scenarios]
-        with open_recording("slamkit_filter_vs_smoother", self.path, self.spawn, blueprint(prefixes)) as rec:
-            for o in payload.scenarios:
-                log_comparison(_Prefixed(rec.stream, o.name), o.sequence, o.runs, o.series, o.anees,
-                               self._snapshots.get(o.name, ()))
+        for name in payload.estimators:
+            self._color(name)
+        for o in payload.scenarios:
+            self._show(o.name)
+            log_comparison(_Prefixed(self.recording.stream, o.name), o.sequence, o.runs, o.series, o.anees,
+                           colors=self._colors)
+        self.recording.close()
+        self._done = True
 
     def close(self) -> None:
-        self._snapshots.clear()
+        if not self._done:
+            # no output (the run failed): no half recording is left behind
+            self.recording.abort()
+            self._done = True

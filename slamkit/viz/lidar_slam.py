@@ -31,6 +31,7 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
+from slamkit.experiments.lidar_slam import LidarSlamResult
 from slamkit.maps.log_odds import LogOddsMap
 from slamkit.viz.recording import open_recording
 
@@ -138,6 +139,7 @@ def record_lidar_slam(results, path: str | Path | None = None, spawn: bool = Fal
 class LidarSlamObserver:
     """Records the ``lidar_slam`` pipeline from its output (``payload``: LidarSlamResult list)."""
 
+    payload_type = list[LidarSlamResult]
     wants_steps = False
     step_every = 1
 

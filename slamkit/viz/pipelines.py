@@ -1,25 +1,27 @@
-"""Pipeline kind -> the observer that records it (handed to ``run_pipeline`` by the CLI)."""
+"""The recorders of the pipeline kinds, registered against their pipelines, and the observer
+factory the CLI hands to ``run_pipeline``.
+
+Importing this module registers, in the one pipeline table
+(:data:`slamkit.experiments.pipeline.PIPELINES`), the recorder of every built-in pipeline (each
+``RecorderClass(path, spawn=False)``; the viz module is imported only when that pipeline
+records). A user's own pipeline registers its recorder the same way, with
+:func:`~slamkit.experiments.pipeline.register_recorder`.
+"""
 
 from __future__ import annotations
 
-import importlib
 from pathlib import Path
 
 from slamkit.experiments.observers import NullObserver, PipelineObserver
+from slamkit.experiments.pipeline import recorder_of, register_recorder
 
-#: pipeline kind -> "module:class" of its recorder; each takes (path, spawn=False)
-RECORDERS: dict[str, str] = {
-    "pose_graph": "slamkit.viz.pose_graph:PoseGraphPipelineObserver",
-    "filter_vs_smoother": "slamkit.viz.filter_vs_smoother:FilterVsSmootherObserver",
-    "local_planning": "slamkit.viz.control:LocalPlanningObserver",
-    "lidar_slam": "slamkit.viz.lidar_slam:LidarSlamObserver",
-}
+register_recorder("pose_graph", "slamkit.viz.pose_graph:PoseGraphPipelineObserver")
+register_recorder("filter_vs_smoother", "slamkit.viz.filter_vs_smoother:FilterVsSmootherObserver")
+register_recorder("local_planning", "slamkit.viz.control:LocalPlanningObserver")
+register_recorder("lidar_slam", "slamkit.viz.lidar_slam:LidarSlamObserver")
 
 
 def observer_for(kind: str, path: Path, spawn: bool = False) -> PipelineObserver:
     """The recording observer of a pipeline kind (a NullObserver for kinds without one)."""
-    target = RECORDERS.get(kind)
-    if target is None:
-        return NullObserver()
-    module_name, cls_name = target.split(":")
-    return getattr(importlib.import_module(module_name), cls_name)(path, spawn=spawn)
+    factory = recorder_of(kind)
+    return NullObserver() if factory is None else factory(path, spawn=spawn)

@@ -15,6 +15,8 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from slamkit.data.pose_graph import PoseGraph
+from slamkit.experiments.pipeline import PipelineOutput
+from slamkit.experiments.pose_graph import OptimizeReport
 from slamkit.data.trajectory import Trajectory
 
 COLOR_INITIAL = (150, 150, 150)
@@ -106,6 +108,7 @@ class PoseGraphPipelineObserver:
     """Records the ``pose_graph`` pipeline: the first run of every dataset under
     ``<dataset>/world/...`` and ``<dataset>/plots/error``."""
 
+    payload_type = list[OptimizeReport]
     wants_steps = False  # everything it draws is in the pipeline's output
     step_every = 1
 
@@ -115,7 +118,7 @@ class PoseGraphPipelineObserver:
     def on_step(self, snapshot) -> None:
         pass
 
-    def on_output(self, output) -> None:
+    def on_output(self, output: PipelineOutput[list[OptimizeReport]]) -> None:
         from slamkit.viz.recording import open_recording
 
         reports, seen = [], set()

@@ -101,6 +101,13 @@ class Recording:
             self._tmp_path = None
         return self.path
 
+    def abort(self) -> None:
+        """Stop recording and remove the unfinished file (a failed run leaves no recording)."""
+        self.stream.disconnect()
+        if self._tmp_path is not None and self._tmp_path.exists():
+            self._tmp_path.unlink()
+        self._tmp_path = None
+
     def __enter__(self) -> "Recording":
         return self
 
@@ -108,9 +115,7 @@ class Recording:
         if exc_type is None:
             self.close()
         else:
-            self.stream.disconnect()
-            if self._tmp_path is not None and self._tmp_path.exists():
-                self._tmp_path.unlink()
+            self.abort()
 
 
 def open_recording(application_id: str, path: str | Path | None = None, spawn: bool = False,

@@ -7,10 +7,12 @@ import math
 import numpy as np
 import pytest
 
-from slamkit.backend.landmark_slam import (BatchLandmarkSLAM, FixedLagLandmarkSLAM,
-                                           Isam2LandmarkSLAM, LandmarkSLAMConfig, SmootherNoise,
-                                           odometry_factor_terms, prior_from_sequence)
+from slamkit.backend.landmark_slam import (BatchLandmarkSLAM, BatchLandmarkSLAMConfig,
+                                           FixedLagLandmarkSLAM, FixedLagLandmarkSLAMConfig,
+                                           Isam2LandmarkSLAM, Isam2LandmarkSLAMConfig,
+                                           odometry_factor_terms)
 from slamkit.data.estimate import BatchEstimator, Estimator, Prior
+from slamkit.data.noise import NoiseParams, prior_of
 from slamkit.data.sequence import Gps, Odometry, RangeBearing, Sequence
 from slamkit.data.trajectory import Trajectory
 from slamkit.errors import ConfigError, EstimationError
@@ -57,7 +59,7 @@ def circle_sequence(seed: int, noisy: bool = True, steps: int = 300, dt: float =
         name=f"circle_{seed}", events=tuple(events),
         ground_truth=Trajectory.from_se2(np.array(stamps), np.array(truth)),
         world_p_landmarks={i: landmarks[i] for i in range(num_landmarks)},
-        initial_pose_xytheta=np.zeros(3),
+        initial_world_xytheta_body=np.zeros(3),
         metadata={"odometry_sigma": list(sigma_u), "range_bearing_sigma": list(sigma_rb),
                   "initial_pose_sigma": [1e-3, 1e-3, 1e-3]})
 
@@ -65,17 +67,21 @@ def circle_sequence(seed: int, noisy: bool = True, steps: int = 300, dt: float =
 def run(estimator, sequence: Sequence):
     if isinstance(estimator, BatchLandmarkSLAM):
         return estimator.solve(sequence)
-    noise = SmootherNoise.from_metadata(sequence.metadata)
-    estimator.reset(prior_from_sequence(sequence, noise))
+    estimator.reset(prior_of(sequence))
     for event in sequence:
         estimator.step(event)
     return estimator.estimate()
 
 
-def make(kind: str, sequence: Sequence, **kwargs):
-    config = LandmarkSLAMConfig(noise=SmootherNoise.from_metadata(sequence.metadata), **kwargs)
-    return {"batch": BatchLandmarkSLAM, "isam2": Isam2LandmarkSLAM,
-            "fixed_lag": FixedLagLandmarkSLAM}[kind](config)
+SMOOTHERS = {"batch": BatchLandmarkSLAM, "isam2": Isam2LandmarkSLAM, "fixed_lag": FixedLagLandmarkSLAM}
+
+
+def make(kind: str, sequence: Sequence, lag_s: float | None = None, **kwargs):
+    """Smoother ``kind`` with the sequence's noise; ``lag_s`` goes to the fixed-lag one only."""
+    cls = SMOOTHERS[kind]
+    if lag_s is not None and kind == "fixed_lag":
+        kwargs["lag_s"] = lag_s
+    return cls(cls.config_class(noise=NoiseParams.from_metadata(sequence.metadata), **kwargs))
 
 
 def errors(estimate, sequence):
@@ -96,7 +102,7 @@ def test_odometry_factor_worked_example():
     """v = 1 m/s, omega = 0, dt = 0.1 s: Z = (0.1, 0, 0); L = df/du = [[0.1, 0], [0, 0.005],
     [0, 0.1]] so with sigma_v = 0.1, sigma_omega = 0.05: Q = [[1e-4, 0, 0], [0, 6.25e-8,
     1.25e-6], [0, 1.25e-6, 2.5e-5]], plus the floor diag(1e-8, 1e-8, 1e-10)."""
-    z, cov = odometry_factor_terms(Odometry(1.0, 0.1, 1.0, 0.0), SmootherNoise(0.1, 0.05),
+    z, cov = odometry_factor_terms(Odometry(1.0, 0.1, 1.0, 0.0), NoiseParams(0.1, 0.05),
                                    (1e-4, 1e-4, 1e-5))
     np.testing.assert_allclose([z.x(), z.y(), z.theta()], [0.1, 0, 0], atol=1e-15)
     expected = np.array([[1e-4, 0, 0], [0, 6.25e-8, 1.25e-6], [0, 1.25e-6, 2.5e-5]])
@@ -216,7 +222,7 @@ def test_protocols_and_bookkeeping():
         assert isinstance(est, Estimator) and est.name == kind
         with pytest.raises(EstimationError):
             est.step(seq.events[0])
-        est.reset(prior_from_sequence(seq, SmootherNoise.from_metadata(seq.metadata)))
+        est.reset(prior_of(seq))
         for event in seq:
             est.step(event)
         est.step(Gps(2.0, np.zeros(2), 1.0))
@@ -227,13 +233,33 @@ def test_protocols_and_bookkeeping():
 
 
 def test_bad_config_and_metadata():
+    with pytest.raises(ConfigError, match="lag_s must be positive, got 0.0"):
+        FixedLagLandmarkSLAMConfig(lag_s=0.0)
+    with pytest.raises(ConfigError, match="fixed_lag_kind must be 'incremental' or 'batch'"):
+        FixedLagLandmarkSLAMConfig(fixed_lag_kind="sliding")
+    with pytest.raises(ConfigError, match="max_iterations must be >= 1, got 0"):
+        BatchLandmarkSLAMConfig(max_iterations=0)
+    with pytest.raises(ConfigError, match="relinearize_skip must be >= 1, got 0"):
+        FixedLagLandmarkSLAMConfig(relinearize_skip=0)  # iSAM2's settings, inherited
+    with pytest.raises(ConfigError, match="odometry_floor_sigma must be 3 positive sigmas"):
+        Isam2LandmarkSLAMConfig(odometry_floor_sigma=(1e-3, 0.0, 1e-4))
     with pytest.raises(ConfigError):
-        LandmarkSLAMConfig(lag_s=0.0)
-    with pytest.raises(ConfigError):
-        LandmarkSLAMConfig(fixed_lag_kind="sliding")
-    with pytest.raises(ConfigError):
-        SmootherNoise.from_metadata({"odometry_sigma": [0.1]})
-    assert SmootherNoise.from_metadata({"range_bearing_sigma": [0.2, 0.01]}).sigma_range_m == 0.2
+        NoiseParams.from_metadata({"odometry_sigma": [0.1]})
+    assert NoiseParams.from_metadata({"range_bearing_sigma": [0.2, 0.01]}).sigma_range_m == 0.2
+
+
+def test_each_smoother_takes_its_own_config():
+    # one config per smoother: a setting of another smoother is not a field of it
+    with pytest.raises(TypeError, match="lag_s"):
+        Isam2LandmarkSLAMConfig(lag_s=2.0)
+    with pytest.raises(TypeError, match="relinearize_threshold"):
+        BatchLandmarkSLAMConfig(relinearize_threshold=0.1)
+    with pytest.raises(ConfigError, match="isam2 is configured by Isam2LandmarkSLAMConfig, "
+                                          "not BatchLandmarkSLAMConfig"):
+        Isam2LandmarkSLAM(BatchLandmarkSLAMConfig())
+    for kind, cls in SMOOTHERS.items():
+        assert isinstance(cls().config, cls.config_class), kind
+    assert FixedLagLandmarkSLAM().config.relinearize_threshold == 0.01
 
 
 @pytest.mark.parametrize("kind", ["batch", "isam2", "fixed_lag"])

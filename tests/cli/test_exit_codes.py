@@ -144,3 +144,16 @@ def test_information_gtsam_cannot_use_is_bad_input_naming_the_edge(tmp_path) -> 
     assert data["final_error"] == 0.0 and data["sesync_objective"] == 0.0
     assert data["warnings"] == ["1 of 1 edges have an information matrix that is not positive definite; "
                                 "GTSAM factorises them as given (as readG2o does)"]
+
+
+def test_an_old_planner_spelling_runs_with_one_warning_line() -> None:
+    # issue 18: one naming rule; 'rrt-star' (the spelling before it) still plans, and says so
+    r = runner.invoke(app, ["plan", "arena", "--start", "1.5,13.5", "--goal", "40.5,40.5",
+                                                 "--planner", "RRT-Star", "--max-iterations", "300", "--json"])
+    assert r.exit_code in (0, 3), r.stderr
+    assert r.stderr.splitlines()[0] == "warning: planner name 'RRT-Star' is deprecated; write 'rrt_star'"
+    assert json.loads(r.stdout)["planner"] == "rrt_star"
+    unknown = runner.invoke(app, ["plan", "arena", "--start", "1,1", "--goal", "2,2",
+                                                       "--planner", "rrt_start"])
+    assert unknown.exit_code == 2
+    assert "error: unknown planner 'rrt_start' (did you mean 'rrt_star'?)" in unknown.stderr

@@ -6,26 +6,18 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from slamkit.control.dwa import DWAConfig, DWAController
-from slamkit.control.mpc import MPCConfig, MPCController
-from slamkit.control.potential_fields import PotentialFieldConfig, PotentialFieldController
 from slamkit.control.protocols import ControlStatus, LocalWorld, Reference, RobotState
+from slamkit.control.registry import CONTROLLERS, make_controller
 from slamkit.errors import ControlError
 
-CONTROLLERS = {
-    "dwa": lambda: DWAController(DWAConfig()),
-    "mpc": lambda: MPCController(MPCConfig()),
-    "mpc_osqp": lambda: MPCController(MPCConfig(solver="osqp")),
-    "potential_fields": lambda: PotentialFieldController(PotentialFieldConfig(), rng=np.random.default_rng(0)),
-}
 REFERENCE = Reference(np.array([[0.0, 0.0], [5.0, 0.0]]), speed_mps=0.5)
 
 
-@pytest.mark.parametrize("name", list(CONTROLLERS))
+@pytest.mark.parametrize("name", CONTROLLERS.names())
 @pytest.mark.parametrize("pose, command", [((np.nan, 0.0, 0.0), (0.3, 0.0)), ((0.0, 0.0, np.inf), (0.3, 0.0)),
                                            ((0.0, 0.0, 0.0), (np.nan, 0.1))])
 def test_a_non_finite_state_brakes_with_a_zero_command(name, pose, command) -> None:
-    out = CONTROLLERS[name]().compute(RobotState(np.array(pose), np.array(command)), REFERENCE, LocalWorld())
+    out = make_controller(name).compute(RobotState(np.array(pose), np.array(command)), REFERENCE, LocalWorld())
     assert out.status is ControlStatus.FALLBACK_BRAKE
     np.testing.assert_array_equal(out.command, [0.0, 0.0])
     assert out.info["reason"] == "non-finite robot state"
@@ -42,5 +34,5 @@ def test_non_finite_obstacles_are_refused(xy, r, v, text) -> None:
 
 
 def test_a_finite_state_still_drives() -> None:
-    out = CONTROLLERS["mpc"]().compute(RobotState(np.zeros(3), np.zeros(2)), REFERENCE, LocalWorld())
+    out = make_controller("mpc").compute(RobotState(np.zeros(3), np.zeros(2)), REFERENCE, LocalWorld())
     assert out.status is ControlStatus.OK and np.all(np.isfinite(out.command)) and out.command[0] > 0

@@ -70,7 +70,7 @@ def test_citytrees10000(shared_datasets) -> None:
     reg = registry.ground_truth("citytrees10000")
     np.testing.assert_allclose(seq.ground_truth.xytheta()[:, :2], reg.xytheta()[:, :2], atol=1e-6)
     # integrating the (noisy) odometry events reproduces the noisy chain of the file exactly
-    end = _integrate(seq.initial_pose_xytheta, odo[:300])
+    end = _integrate(seq.initial_world_xytheta_body, odo[:300])
     from slamkit.data.formats.isam import read_isam
 
     noisy = read_isam(registry.path_of("citytrees10000", "cityTrees10000.txt"))
@@ -116,7 +116,7 @@ def test_mrclam5a_robot_a(shared_datasets) -> None:
     assert sum(len(e.landmark_ids) for e in seq.of_type(RangeBearing)) == 371
     assert set(int(i) for e in seq.of_type(RangeBearing) for i in e.landmark_ids) <= set(range(6, 21))
     # the first VERTEX_SE2 of A (Vicon) is the start; stamps count from its Unix time
-    np.testing.assert_allclose(seq.initial_pose_xytheta, [1.271436699, 3.049075753, -1.1553912])
+    np.testing.assert_allclose(seq.initial_world_xytheta_body, [1.271436699, 3.049075753, -1.1553912])
     assert gt.stamps_s[0] == 0.0 and seq.metadata["time_offset_s"] == pytest.approx(1248362857.7)
     # all five robots: 1,080 poses in total
     total = sum(len(load_landmark_sequence("mrclam5a", robot=r).ground_truth) for r in "ABCDE")

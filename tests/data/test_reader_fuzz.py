@@ -87,7 +87,7 @@ def _slamseq_seed(tmp: Path) -> bytes:
     gt = Trajectory.from_se2(np.array([0.0, 0.1, 0.5]), np.array([[0, 0, 0], [0.1, 0, 0.1], [0.4, 0.1, 0.2]]))
     seq = Sequence("fuzz", tuple(events), ground_truth=gt, world_p_landmarks={1: np.array([1.0, 2.0]),
                                                                           2: np.array([-4.0, 0.5])},
-                   initial_pose_xytheta=np.zeros(3), metadata={"sigma": [0.1, 0.2]})
+                   initial_world_xytheta_body=np.zeros(3), metadata={"sigma": [0.1, 0.2]})
     return save_sequence(tmp / "seed.slamseq", seq).read_bytes()
 
 
@@ -104,7 +104,7 @@ def _check_events(events) -> str | None:
 
 def _read_slamseq(path: Path):
     with open_sequence(path) as reader:  # lazy: touch every column, the ground truth and landmarks
-        return (list(reader), reader.ground_truth, reader.world_p_landmarks, reader.initial_pose_xytheta,
+        return (list(reader), reader.ground_truth, reader.world_p_landmarks, reader.initial_world_xytheta_body,
                 dict(reader.metadata))
 
 

@@ -32,7 +32,7 @@ def _mixed_sequence() -> Sequence:
     gt = Trajectory.from_se2(np.array([0.0, 0.1, 0.5]), np.array([[0, 0, 0], [0.1, 0, 0.1], [0.4, 0.1, 0.2]]))
     return Sequence("mixed", events, ground_truth=gt,
                     world_p_landmarks={3: np.array([1.0, 2.0]), 7: np.array([-4.0, 0.5])},
-                    initial_pose_xytheta=np.array([0.0, 0.0, 0.0]),
+                    initial_world_xytheta_body=np.array([0.0, 0.0, 0.0]),
                     metadata={"odometry_sigma": np.array([0.05, 0.01]), "known": True, "nested": {"k": (1, 2)}})
 
 
@@ -56,7 +56,7 @@ def test_round_trip_every_event_kind(tmp_path):
     assert set(back.world_p_landmarks) == {3, 7}
     np.testing.assert_array_equal(back.world_p_landmarks[7], [-4.0, 0.5])
     assert back.metadata == {"odometry_sigma": [0.05, 0.01], "known": True, "nested": {"k": [1, 2]}}
-    np.testing.assert_array_equal(back.initial_pose_xytheta, [0, 0, 0])
+    np.testing.assert_array_equal(back.initial_world_xytheta_body, [0, 0, 0])
     # readable as plain npz too
     with np.load(path) as npz:
         np.testing.assert_array_equal(npz["range_bearing/offsets"], [0, 2, 2])

@@ -59,11 +59,11 @@ def simulate(rng: np.random.Generator, landmarks: dict[int, np.ndarray], n_steps
     meta = {"odometry_sigma": (noise.sigma_v_mps, noise.sigma_omega_radps),
             "range_bearing_sigma": (noise.sigma_range_m, noise.sigma_bearing_rad)}
     return Sequence.from_events("test_ring", events, ground_truth=gt, world_p_landmarks=landmarks,
-                                initial_pose_xytheta=np.array(poses[0]), metadata=meta)
+                                initial_world_xytheta_body=np.array(poses[0]), metadata=meta)
 
 
 def exact_prior(seq: Sequence, sigma_xy_m: float = 0.05, sigma_theta_rad: float = 0.02) -> Prior:
-    return Prior(np.asarray(seq.initial_pose_xytheta, float),
+    return Prior(np.asarray(seq.initial_world_xytheta_body, float),
                  np.diag([sigma_xy_m**2, sigma_xy_m**2, sigma_theta_rad**2]))
 
 

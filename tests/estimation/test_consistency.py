@@ -20,7 +20,7 @@ N_SEEDS = 20
 
 def _prior(seq) -> Prior:
     sigma = np.asarray(seq.metadata["initial_pose_sigma"], float)
-    return Prior(np.asarray(seq.initial_pose_xytheta, float), np.diag(sigma**2))
+    return Prior(np.asarray(seq.initial_world_xytheta_body, float), np.diag(sigma**2))
 
 
 def average_nees(name: str, preset, duration_s: float, seeds=range(N_SEEDS)) -> np.ndarray:

@@ -12,6 +12,7 @@ from slamkit.data.estimate import Estimate, Estimator, Prior
 from slamkit.data.sequence import Odometry
 from slamkit.errors import ConfigError, EstimationError
 from slamkit.estimation.registry import NAMES, REGISTRY, make_estimator
+from slamkit.naming import SlamkitDeprecationWarning
 from slamkit.sim.landmark_world import mildly_nonlinear, simulate_landmark_sequence
 
 # Position RMSE bounds (m) on this sequence, unaligned (every filter starts from the true pose).
@@ -32,7 +33,7 @@ def sequence():
 
 def _prior(seq) -> Prior:
     sigma = np.asarray(seq.metadata["initial_pose_sigma"], float)
-    return Prior(np.asarray(seq.initial_pose_xytheta, float), np.diag(sigma**2))
+    return Prior(np.asarray(seq.initial_world_xytheta_body, float), np.diag(sigma**2))
 
 
 def _run(name, seq, seed=1) -> tuple[Estimator, Estimate]:
@@ -113,3 +114,12 @@ def test_reset_restarts_and_seeds_reproduce(sequence, name):
 def test_unknown_parameter_is_a_config_error(sequence):
     with pytest.raises(ConfigError, match="n_particle"):
         make_estimator("pf", sequence, {"n_particle": 10})
+
+
+def test_filter_names_follow_the_one_naming_rule(sequence):
+    # slamkit.naming.Registry: an unknown name gets the closest suggestion, an old spelling
+    # (hyphens, capitals) builds the filter with a deprecation warning
+    with pytest.raises(ConfigError, match=r"unknown filter 'ekf_slm' \(did you mean 'ekf_slam'\?\); known: ekf, ukf, "):
+        make_estimator("ekf_slm", sequence)
+    with pytest.warns(SlamkitDeprecationWarning, match="filter name 'EKF-SLAM' is deprecated; write 'ekf_slam'"):
+        assert make_estimator("EKF-SLAM", sequence).name == "ekf_slam"

@@ -162,8 +162,8 @@ def test_gps_fixes_pull_a_wrong_prior_to_the_truth(world, make):
     fixes = [Gps(float(t), gt.world_t_body[k, :2] + rng.normal(0, 0.5, 2), 0.5)
              for k, t in enumerate(gt.stamps_s) if k % 10 == 0 and k > 0]
     seq = Sequence.from_events("gps", list(seq.events) + fixes, ground_truth=gt,
-                               initial_pose_xytheta=seq.initial_pose_xytheta)
-    prior = Prior(seq.initial_pose_xytheta + np.array([3.0, 0.0, 0.0]), np.diag([9.0, 9.0, 0.01]))
+                               initial_world_xytheta_body=seq.initial_world_xytheta_body)
+    prior = Prior(seq.initial_world_xytheta_body + np.array([3.0, 0.0, 0.0]), np.diag([9.0, 9.0, 0.01]))
     est = run(make(world), seq, prior)
     assert position_errors(est, seq)[-1] < 0.6
     assert len(est.nis) >= len(fixes) - 1 and set(est.nis_dof.tolist()) == {2}

@@ -5,8 +5,8 @@ filter run seeded the same way on both paths."""
 
 from __future__ import annotations
 
+import importlib
 import math
-import os
 
 import numpy as np
 import pytest
@@ -20,18 +20,19 @@ from slamkit.models import range_bearing
 
 
 
-def _kernel_available() -> bool:
-    """Whether the kernel compiles here, even when the run has SLAMKIT_NO_NATIVE=1 set (each test
-    below picks its path itself)."""
-    saved = os.environ.pop("SLAMKIT_NO_NATIVE", None)
+def _built_kernel():
+    """The compiled module, even when the run has SLAMKIT_NO_NATIVE=1 set (each test below picks
+    its implementation itself)."""
     try:
-        return pf._kernel() is not None
-    finally:
-        if saved is not None:
-            os.environ["SLAMKIT_NO_NATIVE"] = saved
+        return importlib.import_module(pf.PFKERNEL_MODULE)
+    except ImportError:
+        return None
 
 
-KERNEL_AVAILABLE = _kernel_available()
+KERNEL_MODULE = _built_kernel()
+KERNEL_AVAILABLE = KERNEL_MODULE is not None
+IMPLEMENTATIONS = {"native": pf.NativeKernels(KERNEL_MODULE) if KERNEL_AVAILABLE else None,
+                   "numpy": pf.NumpyKernels()}
 PATHS = [
     pytest.param("native", marks=pytest.mark.skipif(
         not KERNEL_AVAILABLE, reason=f"no compiled kernel: {_native.unavailable_reason(pf.PFKERNEL_MODULE)}")),
@@ -41,12 +42,8 @@ needs_native = pytest.mark.skipif(not KERNEL_AVAILABLE, reason="no compiled kern
 
 
 def _use(monkeypatch, path: str) -> None:
-    if path == "native":
-        monkeypatch.delenv("SLAMKIT_NO_NATIVE", raising=False)
-        assert pf._kernel() is not None
-    else:
-        monkeypatch.setenv("SLAMKIT_NO_NATIVE", "1")
-        assert pf._kernel() is None
+    """Every particle-filter function calls pf.KERNELS, chosen at import: swap it."""
+    monkeypatch.setattr(pf, "KERNELS", IMPLEMENTATIONS[path])
 
 
 def _both(monkeypatch, fn):
@@ -55,7 +52,7 @@ def _both(monkeypatch, fn):
     a = fn()
     _use(monkeypatch, "numpy")
     b = fn()
-    monkeypatch.delenv("SLAMKIT_NO_NATIVE", raising=False)
+    monkeypatch.undo()
     return a, b
 
 

@@ -46,7 +46,7 @@ def _strong_nees(regularize_: bool) -> tuple[float, float]:
             replace(base, duration_s=20.0, odometry_sigma_v_mps=0.1, odometry_sigma_omega_radps=0.6, sensor=sensor),
             np.random.default_rng(seed))
         sigma = np.asarray(seq.metadata["initial_pose_sigma"], float)
-        prior = Prior(np.asarray(seq.initial_pose_xytheta, float), np.diag(sigma**2))
+        prior = Prior(np.asarray(seq.initial_world_xytheta_body, float), np.diag(sigma**2))
         pf = make_estimator("pf", seq, {"n_particles": 500, "regularize": regularize_}, np.random.default_rng(seed))
         est = run(pf, seq, prior)
         rows.append(nees_or_nan(pose_errors(est, seq), np.asarray(est.pose_covariances)))

@@ -10,9 +10,9 @@ import pytest
 
 from slamkit.control.protocols import ControlOutput, LocalWorld
 from slamkit.errors import ConfigError
+from slamkit.control.registry import make_controller
 from slamkit.experiments.closed_loop import (ClosedLoopConfig, Episode, Scenario, episode_metrics,
-                                             make_controller, make_scenario, perceive, run_episode,
-                                             run_pipeline)
+                                             make_scenario, perceive, run_episode, run_pipeline)
 from slamkit.sim.moving_obstacles import MovingObstacles
 
 

@@ -34,8 +34,10 @@ def _toy(config, folder, progress, observer):
 
 
 @pytest.fixture
-def toy(monkeypatch):
-    monkeypatch.setitem(pipeline_mod.PIPELINES, "toy", f"{__name__}:_toy")
+def toy():
+    pipeline_mod.register_pipeline(pipeline_mod.Pipeline("toy", _toy))
+    yield
+    pipeline_mod.PIPELINES.unregister("toy")
 
 
 def _value(out: Path) -> float:

@@ -45,8 +45,14 @@ def _fake_pipeline(config, folder, progress, observer):
     return PipelineOutput(runs, "# toy\n")
 
 
-def test_run_pipeline_writes_the_documented_shape(tmp_path, monkeypatch) -> None:
-    monkeypatch.setitem(pipeline_mod.PIPELINES, "toy", f"{__name__}:_fake_pipeline")
+@pytest.fixture
+def toy():
+    pipeline_mod.register_pipeline(pipeline_mod.Pipeline("toy", _fake_pipeline))
+    yield
+    pipeline_mod.PIPELINES.unregister("toy")
+
+
+def test_run_pipeline_writes_the_documented_shape(tmp_path, toy) -> None:
     cfg = tmp_path / "toy.yaml"
     cfg.write_text(yaml.safe_dump({"pipeline": "toy", "seeds": 2}))
     result = run_pipeline(cfg, tmp_path / "out", progress=False)
@@ -60,8 +66,7 @@ def test_run_pipeline_writes_the_documented_shape(tmp_path, monkeypatch) -> None
     assert yaml.safe_load((out / "config.yaml").read_text())["seeds"] == 2
 
 
-def test_failed_run_leaves_no_folder_and_keeps_previous(tmp_path, monkeypatch) -> None:
-    monkeypatch.setitem(pipeline_mod.PIPELINES, "toy", f"{__name__}:_fake_pipeline")
+def test_failed_run_leaves_no_folder_and_keeps_previous(tmp_path, toy) -> None:
     out = tmp_path / "out"
     run_pipeline({"pipeline": "toy"}, out, progress=False)
     before = (out / "results.json").read_text()

@@ -8,7 +8,7 @@ import pytest
 from slamkit.data.estimate import Estimate, Prior
 from slamkit.data.sequence import Odometry, RangeBearing, Sequence
 from slamkit.data.trajectory import Trajectory
-from slamkit.errors import ConfigError, EstimationError
+from slamkit.errors import ConfigError, DataError, EstimationError
 from slamkit.experiments import estimators as registry
 from slamkit.experiments.runner import (
     ErrorSeries,
@@ -19,6 +19,7 @@ from slamkit.experiments.runner import (
     score,
     world_pose_covariances,
 )
+from slamkit.naming import SlamkitDeprecationWarning
 
 
 def _straight_sequence(n: int = 21) -> Sequence:
@@ -119,9 +120,12 @@ def test_snapshots_only_every_kth_step_and_only_when_wanted() -> None:
     assert [s.index for s in obs.snaps] == list(range(0, 41, 5))
     s = obs.snaps[-1]
     assert s.run == "straight/seed0/offset" and s.stamp_s == pytest.approx(2.0)
-    np.testing.assert_allclose(s.state["pose_xytheta"], [2.1, 0.0, 0.0])
-    assert s.state["observed_ids"].tolist() == [0]
-    assert set(s.state["landmark_ids"].tolist()) == {0, 1}
+    assert s.kind == "estimators" and s.state.estimator == "offset"
+    np.testing.assert_allclose(s.state.pose.xytheta(), [[2.1, 0.0, 0.0]])
+    np.testing.assert_allclose(s.state.covariance, np.diag([0.01, 1.0, 1.0]))
+    assert s.state.observation.landmark_ids.tolist() == [0]
+    assert set(s.state.landmark_ids.tolist()) == {0, 1}
+    np.testing.assert_allclose(s.state.world_p_landmarks, [[5.1, 0.0], [0.1, 3.0]])
     quiet = Snapshots()
     quiet.wants_steps = False
     run_estimators(seq, {"offset": OffsetFilter}, observer=quiet)
@@ -144,10 +148,83 @@ def test_score_of_a_constant_offset() -> None:
     # the landmark map is shifted by (0.1, 0) as a whole: zero after alignment
     assert m["landmark_rmse_m"] == pytest.approx(0.0, abs=1e-9)
     assert set(m) >= {"step_latency_median_ms", "step_latency_p99_ms", "total_time_s"}
-    np.testing.assert_allclose(scored.series.error_xytheta[:, 0], 0.1)
-    np.testing.assert_allclose(scored.series.sigma_xytheta[0], [0.1, 1.0, 1.0])
+    np.testing.assert_allclose(scored.series.error[:, 0], 0.1)
+    np.testing.assert_allclose(scored.series.sigma[0], [0.1, 1.0, 1.0])
     # against a non-truth reference NEES is not computed
     assert "nees_mean" not in score(run, seq.ground_truth, reference_is_truth=False).metrics
+
+
+def _helix_sequence(n: int = 21) -> Sequence:
+    """A 3D ground truth: a helix of radius 2 m at 1 m/s around z, climbing 0.5 m/s, for
+    (n - 1) * 0.1 s."""
+    from slamkit.geometry import so3
+
+    stamps = np.arange(n) * 0.1
+    t = np.column_stack([2.0 * np.sin(0.5 * stamps), 2.0 * (1.0 - np.cos(0.5 * stamps)), 0.5 * stamps])
+    R = so3.exp(np.column_stack([np.zeros(n), np.zeros(n), 0.5 * stamps]))
+    events = tuple(Odometry(float(s), 0.1, 1.0, 0.0) for s in stamps[1:])
+    return Sequence("helix", events, Trajectory(stamps, t, so3.to_quat_wxyz(R)),
+                    initial_world_xytheta_body=np.zeros(3))
+
+
+class Offset3DFilter:
+    """Reports every true pose moved by (0.1, 0, 0.2) m and turned by 0.05 rad about the world y
+    axis (a left perturbation), with covariance diag(0.01, 1, 0.04, 1, 0.0025, 1) in the
+    runner's world (x, y, z, rx, ry, rz) convention: NEES = 1 + 1 + 1 = 3 at every pose."""
+
+    name = "offset3d"
+
+    def __init__(self, sequence: Sequence):
+        self.truth = sequence.ground_truth
+
+    def reset(self, prior: Prior) -> None:
+        self.k = 0
+
+    def step(self, event) -> None:
+        self.k += 1
+
+    def estimate(self) -> Estimate:
+        from slamkit.geometry import so3
+
+        truth = self.truth.subset(np.arange(self.k + 1))
+        R = so3.exp(np.array([0.0, 0.05, 0.0])) @ so3.from_quat_wxyz(truth.world_q_body_wxyz)
+        traj = Trajectory(truth.stamps_s, truth.world_t_body + [0.1, 0.0, 0.2], so3.to_quat_wxyz(R))
+        P = np.tile(np.diag([0.01, 1.0, 0.04, 1.0, 0.0025, 1.0]), (len(traj), 1, 1))
+        return Estimate(traj, P)
+
+
+def test_a_3d_estimate_is_scored_with_six_dof() -> None:
+    seq = _helix_sequence()
+    obs = Snapshots()
+    run = run_estimators(seq, {"offset3d": Offset3DFilter}, observer=obs, kind="inertial")["offset3d"]
+    scored = score(run, seq.ground_truth)
+    m = scored.metrics
+    # NEES 3 at every pose, inside the single-sample chi2(6) 95% band [1.237, 14.449]
+    assert m["nees_mean"] == pytest.approx(3.0)
+    assert m["nees_in_band_fraction"] == 1.0
+    # the SE(3) alignment removes the constant translation, not the per-pose turn
+    assert m["ate_rmse_m"] == pytest.approx(0.0, abs=1e-9)
+    assert m["ate_rot_rmse_rad"] == pytest.approx(0.05, abs=1e-9)
+    assert scored.series.dof == 6
+    np.testing.assert_allclose(scored.series.error, np.tile([0.1, 0.0, 0.2, 0.0, 0.05, 0.0], (21, 1)), atol=1e-12)
+    np.testing.assert_allclose(scored.series.sigma[0], [0.1, 1.0, 0.2, 1.0, 0.05, 1.0])
+    np.testing.assert_allclose(scored.series.position_error_m, np.hypot(0.1, 0.2))
+    # snapshots carry the 3D pose and its 6x6 covariance, tagged with the calling pipeline
+    last = obs.snaps[-1]
+    assert last.kind == "inertial" and not last.state.pose.planar
+    np.testing.assert_allclose(last.state.pose.world_t_body, [[2 * np.sin(1.0) + 0.1, 2 * (1 - np.cos(1.0)), 1.2]])
+    assert last.state.covariance.shape == (6, 6)
+    # 20 runs of 6 dof: the two-sided 95% band of chi2(120) / 20 is [4.579, 7.611]
+    stamps, anees, band = monte_carlo_nees([scored.series] * 20)
+    np.testing.assert_allclose(anees, 3.0)
+    assert band == pytest.approx((4.5786, 7.6106), abs=1e-3)
+
+
+def test_nees_series_of_different_dimensions_are_not_averaged() -> None:
+    planar = ErrorSeries(np.arange(2.0), np.zeros((2, 3)), None, np.ones(2))
+    spatial = ErrorSeries(np.arange(2.0), np.zeros((2, 6)), None, np.ones(2))
+    with pytest.raises(DataError, match=r"different pose dimensions \[3, 6\]"):
+        monte_carlo_nees([planar, spatial])
 
 
 def test_landmark_rmse_after_alignment_worked_example() -> None:
@@ -189,6 +266,10 @@ def test_registry_names_and_errors() -> None:
     assert set(registry.names()) >= {"ekf_slam", "fastslam", "batch", "isam2", "fixed_lag"}
     with pytest.raises(ConfigError, match="unknown estimator 'kf9'"):
         registry.factory("kf9")
+    with pytest.raises(ConfigError, match=r"unknown estimator 'isam' \(did you mean 'isam2'\?\); known: ekf, "):
+        registry.factory("isam")
+    with pytest.warns(SlamkitDeprecationWarning, match="estimator name 'fixed-lag' is deprecated; write 'fixed_lag'"):
+        assert registry.factory("fixed-lag").name == "fixed_lag"
     seq = _straight_sequence()
     with pytest.raises(ConfigError, match="unknown parameter"):
         registry.factory("pf", {"n_particle": 10})(seq)

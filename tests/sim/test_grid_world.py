@@ -55,7 +55,7 @@ def test_encoder_ticks_integrate_to_the_true_pose(office_run):
     ticks = np.array([[e.ticks_right, e.ticks_left] for e in enc])
     d, dth = odometry_from_ticks(ticks[:, 0], ticks[:, 1], md["encoder_ticks_per_rev"],
                                  md["wheel_radius_m"], md["half_axle_m"])
-    pose = seq.initial_pose_xytheta.copy()
+    pose = seq.initial_world_xytheta_body.copy()
     for di, ti in zip(d, dth):
         pose = integrate_odometry(pose, di, ti)
     end = seq.ground_truth.xytheta()[-1]

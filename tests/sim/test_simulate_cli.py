@@ -54,6 +54,20 @@ def test_same_seed_same_bytes_and_recording(tmp_path, verify_rrd):
             "/plots/odometry/v_mps"} <= entities
 
 
+def test_simulate_to_file_is_the_library_behind_the_command(tmp_path):
+    from slamkit.sim.scenario import simulate_to_file
+
+    yaml_path = tmp_path / "short.yaml"
+    yaml_path.write_text("kind: landmark\npreset: mild\nduration_s: 15.0\n")
+    written = simulate_to_file(yaml_path, 4, tmp_path / "a.slamseq")
+    summary = written.summary()
+    printed = _run(str(yaml_path), "--seed", "4", "--out", str(tmp_path / "b.slamseq"))
+    assert printed == {**summary, "out": str(tmp_path / "b.slamseq"), "rrd": None}
+    assert written.sha256 == printed["sha256"] and written.path == tmp_path / "a.slamseq"
+    assert summary["events"] == {"Odometry": 150, "RangeBearing": 151} and summary["num_landmarks"] == 40
+    assert summary["duration_s"] == pytest.approx(15.0) and written.simulation.seed == 4
+
+
 def test_grid_scenario_recording_has_map_scan_and_gps(tmp_path, verify_rrd):
     yaml_path = tmp_path / "grid.yaml"
     yaml_path.write_text(

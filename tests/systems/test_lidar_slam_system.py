@@ -54,7 +54,7 @@ class Recorder:
 def test_streaming_contract(world):
     seq, _ = world
     rec = Recorder()
-    slam = LidarSlam(LidarSlamConfig(), seq.initial_pose_xytheta, rec)
+    slam = LidarSlam(LidarSlamConfig(), seq.initial_world_xytheta_body, rec)
     scans = seq.of_type(Scan)
     for ev in seq:
         slam.step(ev)
@@ -71,7 +71,7 @@ def test_streaming_contract(world):
     assert final.counters["loop_closures_online"] + final.counters["loop_closures_final"] == len(final.loops)
     assert same_poses(final.world_xytheta_body[k], final.keyframe_poses)
     # the first scan is where the sequence says the robot starts
-    assert same_poses(final.world_xytheta_body[:1], np.reshape(seq.initial_pose_xytheta, (1, 3)), 1e-3)
+    assert same_poses(final.world_xytheta_body[:1], np.reshape(seq.initial_world_xytheta_body, (1, 3)), 1e-3)
     with pytest.raises(DataError, match="after finish"):
         slam.step(scans[-1])
     grid = slam.map()
@@ -85,7 +85,7 @@ def test_lidar_only_in_a_simulated_world(world):
     seq, _ = world
     ate = {}
     for prior in ("odometry", "constant_velocity"):
-        est = LidarSlam(LidarSlamConfig(motion_prior=prior), seq.initial_pose_xytheta).run(seq).finish()
+        est = LidarSlam(LidarSlamConfig(motion_prior=prior), seq.initial_world_xytheta_body).run(seq).finish()
         ate[prior] = ate_keyframes_m(seq.ground_truth, est.keyframe_stamps_s, est.keyframe_poses)
     assert ate["odometry"] < 0.01
     assert ate["constant_velocity"] < 1.5 * ate["odometry"]

@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from slamkit.experiments.closed_loop import ClosedLoopConfig, make_controller, make_scenario, run_episode
+from slamkit.control.registry import make_controller
+from slamkit.experiments.closed_loop import ClosedLoopConfig, make_scenario, run_episode
 from slamkit.viz.control import ClosedLoopRecorder, _score_colors
 
 

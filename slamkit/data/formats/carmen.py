@@ -106,7 +106,7 @@ class CarmenLog:
         body_lidar = (tuple(float(v) for v in np.round(np.median(robot_T_laser, axis=0), 6))
                       if len(robot_T_laser) and np.isfinite(robot_T_laser).all() else None)
         return Sequence.from_events(name or Path(self.path).name.split(".")[0], events,
-                                    initial_pose_xytheta=initial,
+                                    initial_world_xytheta_body=initial,
                                     metadata={"source": self.path, "laser_max_range_m": laser.max_range_m,
                                               "stamps": "ipc_timestamp", "body_xytheta_lidar": body_lidar,
                                               "scans_out_of_order": int(np.sum(np.diff(laser.stamps_s) < 0)),

@@ -89,7 +89,7 @@ def sequence_from_relative(name: str, stamps_s: np.ndarray, rel: np.ndarray, obs
                            world_p_landmarks: Mapping[int, np.ndarray] | None = None,
                            odometry_sigma_xytheta: np.ndarray | None = None,
                            landmark_sigma_m: float | None = None,
-                           initial_pose_xytheta: np.ndarray | None = None,
+                           initial_world_xytheta_body: np.ndarray | None = None,
                            metadata: Mapping | None = None) -> Sequence:
     """Poses 0..N-1 at ``stamps_s`` linked by ``rel`` (N-1, 3); landmark observations from pose
     index ``obs_pose`` (K,) of ``obs_landmark`` at ``body_p_landmark`` (K, 2)."""
@@ -125,10 +125,10 @@ def sequence_from_relative(name: str, stamps_s: np.ndarray, rel: np.ndarray, obs
     gt = None
     if ground_truth_xytheta is not None:
         gt = Trajectory.from_se2(stamps, ground_truth_xytheta)
-        if initial_pose_xytheta is None:
-            initial_pose_xytheta = np.asarray(ground_truth_xytheta[0], dtype=float)
+        if initial_world_xytheta_body is None:
+            initial_world_xytheta_body = np.asarray(ground_truth_xytheta[0], dtype=float)
     return Sequence.from_events(name, events, ground_truth=gt, world_p_landmarks=world_p_landmarks,
-                                initial_pose_xytheta=initial_pose_xytheta, metadata=meta)
+                                initial_world_xytheta_body=initial_world_xytheta_body, metadata=meta)
 
 
 def _require_finite_events(events: list[Event], path) -> None:
@@ -206,7 +206,7 @@ def read_isam_landmark_sequence(path: str | Path, name: str | None = None, max_p
     start = np.zeros(3)
     return sequence_from_relative(
         name or path.stem, stamps, rel, index[keep], lms.landmark_id[keep], lms.body_p_landmark[keep],
-        gt_poses, world_lm, sig_odo, sig_lm, initial_pose_xytheta=start,
+        gt_poses, world_lm, sig_odo, sig_lm, initial_world_xytheta_body=start,
         metadata={"source": str(path), "format": "isam", "num_poses": n,
                   "known_correspondences": True})
 
@@ -350,7 +350,7 @@ def read_mrclam_sequence(odometry_path: str | Path, measurement_path: str | Path
             events.append(RangeBearing(float(meas_t[idx[0]]), subjects[idx], meas[idx, 2], meas[idx, 3]))
     world_lm = {int(s): np.array([x, y]) for s, x, y, _, _ in lm}
     return Sequence.from_events(name, events, ground_truth=None, world_p_landmarks=world_lm,
-                                initial_pose_xytheta=None, metadata={
+                                initial_world_xytheta_body=None, metadata={
                                     "source": str(odometry_path), "format": "mrclam", "time_offset_s": t0,
                                     "odometry_sigma": list(odometry_sigma),
                                     "range_bearing_sigma": list(range_bearing_sigma),

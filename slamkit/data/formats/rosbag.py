@@ -311,8 +311,8 @@ def write_bag(path: str | Path, sequence: Sequence, topics: BagTopics = BagTopic
         out.append((ns, topics.scan, MSG_SCAN, msg))
     odo = by_kind.get(Odometry, []) if topics.odom else []
     if odo:
-        pose = (np.zeros(3) if sequence.initial_pose_xytheta is None
-                else np.asarray(sequence.initial_pose_xytheta, dtype=float).reshape(3))
+        pose = (np.zeros(3) if sequence.initial_world_xytheta_body is None
+                else np.asarray(sequence.initial_world_xytheta_body, dtype=float).reshape(3))
         cov36 = np.zeros(36)
 
         def odom_msg(stamp_s, p, v, w):

@@ -209,9 +209,9 @@ def save_sequence(path: str | Path, sequence, compress: bool = False) -> Path:
         dim = len(np.asarray(lms[ids[0]]).reshape(-1)) if len(ids) else 2
         pts = np.array([np.asarray(lms[int(i)], float).reshape(dim) for i in ids]).reshape(-1, dim)
         members += [("landmarks/ids.npy", _npy_bytes(ids)), ("landmarks/world_p.npy", _npy_bytes(pts))]
-    if sequence.initial_pose_xytheta is not None:
+    if sequence.initial_world_xytheta_body is not None:
         members.append(("initial_pose_xytheta.npy",
-                        _npy_bytes(np.asarray(sequence.initial_pose_xytheta, float).reshape(3))))
+                        _npy_bytes(np.asarray(sequence.initial_world_xytheta_body, float).reshape(3))))
     method = zipfile.ZIP_DEFLATED if compress else zipfile.ZIP_STORED
     path = check_output_file(path, is_sequence_file, "sequence file")
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -235,7 +235,7 @@ def save_sequence(path: str | Path, sequence, compress: bool = False) -> Path:
 
 class SequenceReader:
     """A sequence file opened lazily. Duck-types ``Sequence`` (``name``, ``metadata``,
-    ``ground_truth``, ``world_p_landmarks``, ``initial_pose_xytheta``, ``len``, iteration,
+    ``ground_truth``, ``world_p_landmarks``, ``initial_world_xytheta_body``, ``len``, iteration,
     ``of_type``) and adds :meth:`columns` for vectorised consumers."""
 
     def __init__(self, path: str | Path):
@@ -386,7 +386,7 @@ class SequenceReader:
         return self._landmarks
 
     @property
-    def initial_pose_xytheta(self) -> np.ndarray | None:
+    def initial_world_xytheta_body(self) -> np.ndarray | None:
         if "initial_pose_xytheta.npy" not in self._names:
             return None
         return self._shaped("initial_pose_xytheta.npy", (3,))
@@ -449,7 +449,7 @@ class SequenceReader:
     def to_sequence(self) -> Sequence:
         return Sequence(name=self.name, events=tuple(self), ground_truth=self.ground_truth,
                         world_p_landmarks=self.world_p_landmarks,
-                        initial_pose_xytheta=self.initial_pose_xytheta, metadata=self.metadata)
+                        initial_world_xytheta_body=self.initial_world_xytheta_body, metadata=self.metadata)
 
     def close(self) -> None:
         self._zip.close()

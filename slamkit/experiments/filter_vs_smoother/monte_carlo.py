@@ -1,0 +1,145 @@
+"""The ``filter_vs_smoother`` Monte-Carlo runs: one task per scenario x seed, each building its
+sequence, running every estimator through :func:`slamkit.experiments.runner.run_estimators`,
+scoring them and writing their trajectories.
+
+Where the work happens: the first seed of every scenario runs in this process, with the
+pipeline's observer (it is the run the recording shows, so it keeps its sequence and estimates);
+the other seeds run in a pool of ``workers`` local processes (``workers: 1`` runs everything
+here) and come back as finished :class:`TaskResult`s, which no observer sees step by step.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from slamkit.data.sequence import Sequence
+from slamkit.errors import ConfigError
+from slamkit.experiments.estimators import factory
+from slamkit.experiments.filter_vs_smoother.config import (NAME, EstimatorChoice, ScenarioSpec,
+                                                            parse_estimators, parse_scenarios,
+                                                            parse_seeds, parse_workers)
+from slamkit.experiments.observers import PipelineObserver
+from slamkit.experiments.results import RunRecord
+from slamkit.experiments.runner import EstimatorRun, ErrorSeries, run_estimators, score
+from slamkit.paths import file_in
+
+
+def build_sequence(scenario: ScenarioSpec, seed: int) -> Sequence:
+    """The sequence of one scenario and seed (datasets ignore the seed)."""
+    if scenario.simulated:
+        from slamkit.sim.landmark_world import PRESETS, simulate_landmark_sequence
+
+        params = dict(scenario.params)
+        if "sensor" in params and isinstance(params["sensor"], Mapping):
+            base = PRESETS[scenario.preset]().sensor
+            params["sensor"] = dataclasses.replace(base, **params["sensor"])
+        for key in ("path_size_m", "initial_pose_sigma"):
+            if key in params:
+                params[key] = tuple(params[key])
+        if "profile" in params:
+            params["profile"] = tuple(tuple(p) for p in params["profile"])
+        try:
+            config = PRESETS[scenario.preset](**{"name": scenario.name, **params})
+        except TypeError as exc:
+            raise ConfigError(f"filter_vs_smoother: scenario {scenario.name!r}: {exc}") from None
+        return simulate_landmark_sequence(config, np.random.default_rng(seed))
+    from slamkit.data.formats.landmark_datasets import load_landmark_sequence
+
+    return load_landmark_sequence(scenario.dataset, **dict(scenario.params))
+
+
+@dataclass(frozen=True)
+class Task:
+    scenario: ScenarioSpec
+    seed: int
+    estimators: tuple[EstimatorChoice, ...]
+    trajectories_dir: str | None
+    keep_full: bool = False
+
+
+@dataclass(frozen=True)
+class TaskResult:
+    scenario: str
+    seed: int
+    records: list[RunRecord]
+    series: dict[str, ErrorSeries]
+    notes: list[str]
+    reference: str
+    #: only with keep_full (the run the recording shows)
+    sequence: Sequence | None = None
+    runs: dict[str, EstimatorRun] | None = None
+
+
+def run_task(task: Task, observer: PipelineObserver | None = None) -> TaskResult:
+    """Build the sequence, run every estimator, score them (and write their trajectories)."""
+    sequence = build_sequence(task.scenario, task.seed)
+    factories = {c.label: factory(c.type, c.params, seed=task.seed) for c in task.estimators}
+    runs = run_estimators(sequence, factories, observer=observer, kind=NAME,
+                          run_label=f"{task.scenario.name}/seed{task.seed}")
+    reference, reference_name, is_truth = sequence.ground_truth, "ground_truth", True
+    batch = next((r for c, r in zip(task.estimators, runs.values())
+                  if c.type == "batch" and r.estimate is not None), None)
+    if reference is None and batch is not None:
+        reference, reference_name, is_truth = batch.estimate.trajectory, f"{batch.name} solution", False
+    records, series, notes = [], {}, []
+    for choice in task.estimators:
+        run = runs[choice.label]
+        scored = score(run, reference, sequence.world_p_landmarks, reference_is_truth=is_truth)
+        params = {"type": choice.type, "kind": run.kind, "reference": reference_name, **choice.params}
+        if run.failed:
+            params["failed"] = run.failed
+        records.append(RunRecord(task.scenario.name, choice.label, scored.metrics, task.seed, params))
+        notes.extend(scored.notes)
+        if scored.series is not None:
+            series[choice.label] = scored.series
+        if task.trajectories_dir is not None and run.estimate is not None:
+            from slamkit.data.formats.tum import write_tum
+
+            write_tum(file_in(task.trajectories_dir, f"{task.scenario.name}_{choice.label}_seed{task.seed}", ".tum",
+                              "scenario name / estimator label"),
+                      run.estimate.trajectory)
+    return TaskResult(task.scenario.name, task.seed, records, series, notes, reference_name,
+                      sequence if task.keep_full else None, runs if task.keep_full else None)
+
+
+def run_monte_carlo(config: Mapping[str, Any], trajectories_dir: Path | None = None, progress=None,
+                    observer: PipelineObserver | None = None
+                    ) -> tuple[list[TaskResult], list[ScenarioSpec], list[EstimatorChoice]]:
+    """Every scenario x seed (datasets once); the first seed of every scenario runs in this
+    process with ``observer`` (and keeps its sequence and estimates), the rest in the pool."""
+    scenarios = parse_scenarios(config)
+    choices = tuple(parse_estimators(config))
+    seeds = parse_seeds(config)
+    workers = parse_workers(config)
+    tdir = None if trajectories_dir is None else str(trajectories_dir)
+    tasks = [Task(s, seed, choices, tdir, keep_full=(k == 0))
+             for s in scenarios for k, seed in enumerate(seeds if s.simulated else seeds[:1])]
+    advance = progress.task("filter vs smoother", len(tasks)) if progress is not None else (lambda n=1: None)
+    main_tasks = [t for t in tasks if t.keep_full]
+    pool_tasks = [t for t in tasks if not t.keep_full]
+    results: list[TaskResult] = []
+    if workers == 1 or not pool_tasks:
+        for t in main_tasks:
+            results.append(run_task(t, observer))
+            advance()
+        for t in pool_tasks:
+            results.append(run_task(t))
+            advance()
+    else:
+        with ProcessPoolExecutor(max_workers=workers) as pool:
+            futures = [pool.submit(run_task, t) for t in pool_tasks]
+            for t in main_tasks:
+                results.append(run_task(t, observer))
+                advance()
+            for f in futures:
+                results.append(f.result())
+                advance()
+    order = {(t.scenario.name, t.seed): k for k, t in enumerate(tasks)}
+    results.sort(key=lambda r: order[(r.scenario, r.seed)])
+    return results, scenarios, list(choices)
