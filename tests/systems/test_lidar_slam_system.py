@@ -147,6 +147,46 @@ LIDAR_ONLY_INTEL = pytest.mark.xfail(
            "ipc stamps, corridors) break the map; measured 0.33-0.68 m mean, goal 0.047 m", strict=False)
 
 
+def wall_curvature(res, box: tuple[float, float, float, float], along: str) -> tuple[float, float, float]:
+    """The bend of one wall in the map, against what single scans see of it. ``box`` (x0, x1, y0,
+    y1, m, the map's frame) holds the wall, ``along`` the axis it runs along ("x" or "y"). Every
+    keyframe's returns inside the box are taken at their estimated sensor poses, a parabola
+    across the wall is fitted (points more than 0.1 m off are dropped, three times). Returns
+    (curvature of the wall in the map (1/m), the median curvature of the same fit within every
+    single scan that sees >= 2.5 m of it (1/m): a rigid pose cannot bend a scan, so this is the
+    wall's own shape, and the rms residual of a straight line through the map's wall (m))."""
+    a, b = (0, 1) if along == "x" else (1, 0)
+    x0, x1, y0, y1 = box
+    rows = []
+    for k, pose in enumerate(res.sensor_poses(res.optimised_poses)):
+        r, ang = res.keyframe_ranges_m[k], res.keyframe_angles_rad[k]
+        ok = np.isfinite(r)
+        xy = se2.transform_points(pose, np.column_stack([r[ok] * np.cos(ang[ok]), r[ok] * np.sin(ang[ok])]))
+        inside = (xy[:, 0] > x0) & (xy[:, 0] < x1) & (xy[:, 1] > y0) & (xy[:, 1] < y1)
+        rows.append(np.column_stack([xy[inside], np.full(inside.sum(), k)]))
+    pts = np.concatenate(rows)
+    fit = np.polyfit(pts[:, a], pts[:, b], 2)
+    for _ in range(3):
+        pts = pts[np.abs(pts[:, b] - np.polyval(fit, pts[:, a])) < 0.1]
+        fit = np.polyfit(pts[:, a], pts[:, b], 2)
+    line = pts[:, b] - np.polyval(np.polyfit(pts[:, a], pts[:, b], 1), pts[:, a])
+    per_scan = []
+    for k in np.unique(pts[:, 2]):
+        q = pts[pts[:, 2] == k][:, :2]
+        if np.ptp(q[:, a]) >= 2.5 and len(q) >= 12:
+            # in the segment's own axes (the normal pointing along the map's axis b, as the map's fit)
+            _, _, vt = np.linalg.svd(q - q.mean(axis=0))
+            local = (q - q.mean(axis=0)) @ np.column_stack([vt[0], vt[1] * np.sign(vt[1][b])])
+            per_scan.append(2 * np.polyfit(local[:, 0], local[:, 1], 2)[0])
+    return 2 * float(fit[0]), float(np.median(per_scan)), float(line.std())
+
+
+#: Intel walls in the map's frame (the first scan's pose): the inner walls of the left and right
+#: corridors and the inner block's long wall along the bottom corridor (15 m)
+INTEL_INNER_WALLS = {"left": (-6.6, -4.4, -16.2, -2.5), "right": (10.2, 11.8, -17.8, -6.5)}
+INTEL_BOTTOM_WALL = (-4.5, 10.8, -18.75, -17.9)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("name, prior", [("intel", "odometry"), ("fr079", "odometry"),
                                          pytest.param("intel", "constant_velocity", marks=LIDAR_ONLY_INTEL),
@@ -155,8 +195,22 @@ def test_benchmark_goals(name, prior):
     """Issue 11's goals on the whole logs: the published graph-mapping result (Intel 0.031 m,
     fr079 0.056 m) with odometry, within 1.5x of it lidar only; rotation below 1 deg."""
     seq, relations = _log(name)
-    m = run_slam(seq, None, replace(logs_config(), motion_prior=prior), relations=relations).metrics
+    res = run_slam(seq, None, replace(logs_config(), motion_prior=prior), relations=relations)
+    m = res.metrics
     goal = GOALS[name] * (1.0 if prior == "odometry" else 1.5)
     assert m["relation_count"] == {"intel": 2984, "fr079": 1685}[name]
     assert m["relation_trans_mean_m"] <= goal
     assert m["relation_rot_mean_deg"] < 1.0
+    if (name, prior) == ("intel", "odometry"):
+        # Intel's inner corridor walls are arcs (radius ~21 m) in the raw scans themselves: the
+        # map must show the bend single scans see and add none of its own. Measured (map / single
+        # scans, 1/m): left +0.048 / +0.050, right -0.045 / -0.044. The inner block's 15 m wall
+        # along the bottom corridor is straight (two steps of ~5 cm): curvature -0.0045 1/m, line
+        # residual 0.032 m; a graph that bends the loops fails here (odometry edges' information
+        # x 0.1: -0.016 1/m, 0.10 m; no robust kernel: -0.009 1/m, 0.069 m)
+        for side, box in INTEL_INNER_WALLS.items():
+            in_map, in_scans, _ = wall_curvature(res, box, "y")
+            assert abs(in_scans) > 0.03, side
+            assert abs(in_map - in_scans) < 0.005, side
+        in_map, _, line_rms_m = wall_curvature(res, INTEL_BOTTOM_WALL, "x")
+        assert abs(in_map) < 0.008 and line_rms_m < 0.05
