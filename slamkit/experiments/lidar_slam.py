@@ -46,6 +46,7 @@ from slamkit.data.trajectory import Trajectory
 from slamkit.errors import ConfigError
 from slamkit.experiments.observers import StepSnapshot
 from slamkit.experiments.results import RunRecord, markdown_table
+from slamkit.frontend.correlative import CorrelativeConfig
 from slamkit.frontend.icp import IcpConfig
 from slamkit.frontend.keyframes import KeyframeConfig
 from slamkit.frontend.loop_closure import LoopClosure, LoopClosureConfig
@@ -236,6 +237,9 @@ def run_slam(sequence: Sequence, truth: OccupancyGrid | None = None,
         "num_false_loop_closures": float(len(false_pairs)),
         "icp_iterations_mean": c["icp_iterations"] / max(c["matched_scans"], 1),
         "icp_fallbacks": float(c["match_fallbacks"]),
+        "wide_searches": float(c["wide_searches"]),
+        "correlative_searches": float(c["correlative_searches"]),
+        "correlative_wins": float(c["correlative_wins"]),
     }
     duration = float(est.stamps_s[-1] - est.stamps_s[0])
     total = t_end - t_start
@@ -306,7 +310,8 @@ def slam_config_from(values: Mapping[str, Any] | None) -> LidarSlamConfig:
     """``LidarSlamConfig`` from a plain mapping (nested ``keyframes``, ``icp``, ``loops``, ``map``,
     ``isam2``; lists for the tuple fields)."""
     values = dict(values or {})
-    nested = {"keyframes": KeyframeConfig, "icp": IcpConfig, "map": LogOddsConfig, "isam2": Isam2Params}
+    nested = {"keyframes": KeyframeConfig, "icp": IcpConfig, "map": LogOddsConfig, "isam2": Isam2Params,
+              "correlative": CorrelativeConfig}
     kwargs: dict[str, Any] = {}
     for key, value in values.items():
         if key in nested:

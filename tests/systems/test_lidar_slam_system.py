@@ -94,6 +94,10 @@ def test_lidar_only_in_a_simulated_world(world):
 def test_config_is_checked():
     with pytest.raises(ConfigError, match="motion_prior"):
         LidarSlamConfig(motion_prior="imu")
+    with pytest.raises(ConfigError, match="constant_velocity_per"):
+        LidarSlamConfig(constant_velocity_per="minute")
+    with pytest.raises(ConfigError, match="correlative"):
+        LidarSlamConfig(correlative_below_fitness=1.5)
     with pytest.raises(ConfigError, match="robust"):
         LidarSlamConfig(robust="tukey")
     with pytest.raises(ConfigError, match="body_xytheta_lidar"):
