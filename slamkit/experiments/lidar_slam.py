@@ -223,8 +223,8 @@ def run_slam(sequence: Sequence, truth: OccupancyGrid | None = None,
             map_poses = align_se2(poses, gt_poses, stamps)
             fe_map_poses = align_se2(fe_poses, gt_poses, stamps)
     t_map = clock()
-    slam_map = _map(system, map_poses, truth, config.map)
-    fe_map = _map(system, fe_map_poses, truth, config.map)
+    slam_map = system.map(config.map, map_poses, like=truth)
+    fe_map = system.map(config.map, fe_map_poses, like=truth)
     time_map = clock() - t_map
     c = est.counters
     metrics: dict[str, float] = {
@@ -275,16 +275,6 @@ def run_slam(sequence: Sequence, truth: OccupancyGrid | None = None,
                            quality, angles, ranges, system.max_range_m, config, truth, est.stamps_s,
                            est.world_xytheta_body, step, rel, label or sequence.name,
                            np.asarray(config.body_xytheta_lidar, float))
-
-
-def _map(system: LidarSlam, poses: np.ndarray, truth: OccupancyGrid | None, config: LogOddsConfig) -> LogOddsMap:
-    if truth is None:
-        return system.map(config, poses)
-    _, ranges, angles = system.keyframe_scans()
-    m = LogOddsMap.like(truth, config)
-    for p, a, r in zip(system.sensor_poses(poses), angles, ranges):
-        m.update(p, a, r, system.max_range_m)
-    return m
 
 
 def _peak_rss_mb() -> float:

@@ -27,6 +27,13 @@ class KeyframeConfig:
         if not (self.min_translation_m > 0 and self.min_rotation_rad > 0):
             raise ConfigError("KeyframeConfig thresholds must be > 0")
 
+    def exceeded_by(self, k_xytheta_x: np.ndarray, interval_s: float) -> bool:
+        """The rule itself: is a pose ``k_xytheta_x`` (relative to the last keyframe, reached
+        ``interval_s`` after it) far enough for a new keyframe?"""
+        return bool(np.hypot(k_xytheta_x[0], k_xytheta_x[1]) >= self.min_translation_m
+                    or abs(k_xytheta_x[2]) >= self.min_rotation_rad
+                    or (self.max_interval_s is not None and interval_s >= self.max_interval_s))
+
 
 class KeyframeSelector:
     """Streaming selector: ``offer(stamp_s, world_xytheta_body) -> bool`` (True: new keyframe).
@@ -45,10 +52,7 @@ class KeyframeSelector:
         return False
 
     def _is_far(self, stamp_s: float, pose: np.ndarray) -> bool:
-        c = self.config
-        d = se2.between(self._last_pose, pose)
-        return bool(np.hypot(d[0], d[1]) >= c.min_translation_m or abs(d[2]) >= c.min_rotation_rad
-                    or (c.max_interval_s is not None and stamp_s - self._last_stamp >= c.max_interval_s))
+        return self.config.exceeded_by(se2.between(self._last_pose, pose), stamp_s - self._last_stamp)
 
 
 def select_keyframes(stamps_s: np.ndarray, world_xytheta_body: np.ndarray,

@@ -59,6 +59,7 @@ from slamkit.frontend.loop_closure import LoopClosure, LoopClosureConfig, loop_c
 from slamkit.frontend.preprocess import despeckle
 from slamkit.geometry import se2
 from slamkit.maps.log_odds import LogOddsConfig, LogOddsMap
+from slamkit.maps.occupancy_grid import OccupancyGrid
 from slamkit.models import diff_drive
 
 MOTION_PRIORS = ("odometry", "constant_velocity", "identity")
@@ -236,6 +237,7 @@ class LidarSlam:
         self._tree_size = 0
         self._moved_m = 0.0
         self._finished = False
+        self._max_range = 0.0                     # the sensor's range, known from the first scan
         self.counters = {"scans": 0, "matched_scans": 0, "match_fallbacks": 0, "loop_candidates": 0,
                          "loop_closures_online": 0, "loop_closures_final": 0, "icp_iterations": 0,
                          "wide_searches": 0, "correlative_searches": 0, "correlative_wins": 0, "loop_closures_rejected": 0}
@@ -327,10 +329,7 @@ class LidarSlam:
 
     def _is_keyframe(self, k_T_scan: np.ndarray, stamp_s: float) -> bool:
         """The rule of ``slamkit.frontend.keyframes`` on the motion since the newest keyframe."""
-        c = self.config.keyframes
-        return bool(np.hypot(k_T_scan[0], k_T_scan[1]) >= c.min_translation_m
-                    or abs(k_T_scan[2]) >= c.min_rotation_rad
-                    or (c.max_interval_s is not None and stamp_s - self._kf.stamps[-1] >= c.max_interval_s))
+        return self.config.keyframes.exceeded_by(k_T_scan, stamp_s - self._kf.stamps[-1])
 
     def _fallback_information(self) -> np.ndarray:
         return np.diag(np.asarray(self.config.fallback_sigmas, float) ** -2)
@@ -587,26 +586,30 @@ class LidarSlam:
 
     @property
     def max_range_m(self) -> float:
-        return getattr(self, "_max_range", 0.0)
+        return self._max_range
 
     def map(self, config: LogOddsConfig | None = None, world_xytheta_body: np.ndarray | None = None,
-            margin_m: float = 1.0) -> LogOddsMap:
+            margin_m: float = 1.0, like: OccupancyGrid | None = None) -> LogOddsMap:
         """Log-odds map of the keyframe scans at ``world_xytheta_body`` (K, 3) (default: the
-        current keyframe estimate), covering every return plus ``margin_m``."""
+        current keyframe estimate), covering every return plus ``margin_m``, or on the cells of
+        ``like`` (e.g. a ground-truth grid to score against)."""
         cfg = config or self.config.map
         poses = self.keyframe_poses() if world_xytheta_body is None else np.asarray(world_xytheta_body, float)
         return occupancy_map(self.sensor_poses(poses), self._kf.angles, self._kf.ranges, self.max_range_m,
-                             cfg, margin_m)
+                             cfg, margin_m, like)
 
 
 def occupancy_map(world_xytheta_sensors: np.ndarray, angles_rad, ranges_m, max_range_m: float,
-                  config: LogOddsConfig, margin_m: float = 1.0) -> LogOddsMap:
+                  config: LogOddsConfig, margin_m: float = 1.0, like: OccupancyGrid | None = None) -> LogOddsMap:
     """Log-odds map of scans (per-scan angles and ranges, NaN: no return) at sensor poses (K, 3),
-    covering every return plus ``margin_m``."""
-    ends = [se2.transform_points(p, np.column_stack([r * np.cos(a), r * np.sin(a)])[np.isfinite(r)])
-            for p, a, r in zip(world_xytheta_sensors, angles_rad, ranges_m)]
-    xy = np.concatenate(ends + [world_xytheta_sensors[:, :2]])
-    m = LogOddsMap.covering(xy.min(axis=0) - margin_m, xy.max(axis=0) + margin_m, config)
+    covering every return plus ``margin_m`` (or on the cells of ``like``)."""
+    if like is not None:
+        m = LogOddsMap.like(like, config)
+    else:
+        ends = [se2.transform_points(p, np.column_stack([r * np.cos(a), r * np.sin(a)])[np.isfinite(r)])
+                for p, a, r in zip(world_xytheta_sensors, angles_rad, ranges_m)]
+        xy = np.concatenate(ends + [world_xytheta_sensors[:, :2]])
+        m = LogOddsMap.covering(xy.min(axis=0) - margin_m, xy.max(axis=0) + margin_m, config)
     for p, a, r in zip(world_xytheta_sensors, angles_rad, ranges_m):
         m.update(p, a, r, max_range_m)
     return m
