@@ -251,7 +251,26 @@ def test_compiled_core_matches_python_fallback(params, costly, cut, h):
     assert np.array_equal(np.isfinite(a.g), np.isfinite(b.g)) or math.isfinite(a.cost)
     np.testing.assert_array_equal(a.path[[0, -1]] if len(a.path) else a.path,
                                   b.path[[0, -1]] if len(b.path) else b.path)
-    assert abs(a.expansions - b.expansions) <= max(2, 0.2 * b.expansions)
+    if not math.isfinite(a.cost):
+        return
+    # Expansion counts differ with tie-breaking (with h = zero on an open grid, 13 against 10 for
+    # the same optimum), but which cells may be expanded does not: with a consistent heuristic
+    # both must close every cell with f = g* + h < C* and neither may close one with f > C*.
+    # Closed cells carry their exact cost-to-come g*, so the union of both closed sets is checked.
+    w = cost.shape[1]
+    finite = cost[np.isfinite(cost)]
+    hs = float(finite.min())
+    dx, dy = np.abs(np.arange(cost.size) % w - t[0]), np.abs(np.arange(cost.size) // w - t[1])
+    heur = {"zero": np.zeros(cost.size), "euclidean": hs * np.hypot(dx, dy),
+            "octile": hs * (np.maximum(dx, dy) + (math.sqrt(2.0) - 1.0) * np.minimum(dx, dy))}[h]
+    closed = np.union1d(a.order, b.order)
+    g_star = np.where(np.isin(closed, a.order), a.g[closed], b.g[closed])
+    f = g_star + heur[closed]
+    must = set(closed[f < a.cost - 1e-9].tolist())
+    for out in (a, b):
+        assert must <= set(out.order.tolist())
+        assert np.all(out.g[out.order] + heur[out.order] <= out.cost + 1e-9)
+        assert out.expansions == len(out.order)
 
 
 def test_hook_receives_expansion_order():
