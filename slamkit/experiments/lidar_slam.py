@@ -329,7 +329,16 @@ def _simulate(world: Mapping[str, Any], seed: int):
 @dataclass(frozen=True)
 class MclCheckConfig:
     """Global localization on the built map: a second tour (seed ``seed_offset`` + run seed)
-    through the same world, MCL from a uniform prior for at most ``max_updates`` scans."""
+    through the same world, MCL from a uniform prior for at most ``max_updates`` scans, once per
+    filter seed ``filter_seed``, ``filter_seed + 1``, ... (``filter_seeds`` runs).
+
+    One run is a coin flip where the world has near-twins (the generated office and warehouse
+    do): whether MCL settles on the true place or on its twin (15.7 m away in the office) depends
+    on the particles drawn more than on the map. Measured on the four runs of
+    pipelines/lidar_slam.yaml, filter seeds 0-9: 4, 7, 8, 4 of 10 runs localized on the maps of
+    the system before its move to ``slamkit.systems`` and 4, 8, 8, 3 of 10 after, while filter
+    seed 0 alone flipped on office seed 1 (after 3 updates before, not within 100 after). Hence
+    a rate over several filter seeds."""
 
     seed_offset: int = 1000
     max_updates: int = 100
@@ -337,24 +346,44 @@ class MclCheckConfig:
     position_tol_m: float = 0.3
     heading_tol_rad: float = float(np.deg2rad(10.0))
     filter_seed: int = 0
+    filter_seeds: int = 10
+
+    def __post_init__(self) -> None:
+        if self.filter_seeds < 1 or self.max_updates < 1:
+            raise ConfigError("lidar_slam.mcl: filter_seeds and max_updates must be >= 1")
 
 
 def localize_on_map(result: LidarSlamResult, sequence: Sequence, config: MclCheckConfig = MclCheckConfig()
                     ) -> dict[str, float]:
-    """Run :class:`slamkit.estimation.lidar_mcl.LidarMCL` on ``result.map`` along ``sequence``;
-    ``mcl_converged_after_updates``: the number of scan updates after which the estimate stays
-    localized (NaN if it never settles within ``max_updates``); ``mcl_final_error_m``;
-    ``mcl_updates``: updates scored. Scoring stops where the true robot leaves the part of the
-    world the map observed (a map cannot localize a robot in rooms it never saw); the filter
-    starts, from the uniform prior, at the first scan taken inside it."""
+    """Run :class:`slamkit.estimation.lidar_mcl.LidarMCL` on ``result.map`` along ``sequence``
+    once per filter seed (see :class:`MclCheckConfig`); ``mcl_success_rate``: the fraction of
+    runs that end localized and stay so (within ``max_updates``); ``mcl_converged_after_updates``:
+    the median, over those runs, of the number of scan updates after which the estimate stays
+    localized (NaN if none); ``mcl_final_error_m``: the median final position error;
+    ``mcl_updates``: updates scored per run; ``mcl_runs``. Scoring stops where the true robot
+    leaves the part of the world the map observed (a map cannot localize a robot in rooms it
+    never saw); the filter starts, from the uniform prior, at the first scan taken inside it."""
+    if sequence.ground_truth is None:
+        raise ConfigError("localize_on_map needs a sequence with ground truth")
+    runs = np.array([_localize_once(result, sequence, config, config.filter_seed + k)
+                     for k in range(config.filter_seeds)])
+    after, final_m, updates = runs.T
+    ok = np.isfinite(after)
+    return {"mcl_success_rate": float(ok.mean()),
+            "mcl_converged_after_updates": float(np.median(after[ok])) if ok.any() else float("nan"),
+            "mcl_final_error_m": float(np.median(final_m)), "mcl_updates": float(updates.max()),
+            "mcl_runs": float(len(runs))}
+
+
+def _localize_once(result: LidarSlamResult, sequence: Sequence, config: MclCheckConfig, filter_seed: int
+                   ) -> tuple[float, float, float]:
+    """One MCL run: (updates until it stays localized or NaN, final position error (m), updates)."""
     from slamkit.data.estimate import Prior
     from slamkit.estimation._common import NoiseParams
     from slamkit.estimation.lidar_mcl import LidarMCL
 
-    if sequence.ground_truth is None:
-        raise ConfigError("localize_on_map needs a sequence with ground truth")
     mcl = LidarMCL(result.map.occupancy_grid(), NoiseParams.from_metadata(sequence.metadata),
-                   rng=np.random.default_rng(config.filter_seed), free_mask=result.map.observed)
+                   rng=np.random.default_rng(filter_seed), free_mask=result.map.observed)
     mcl.reset(Prior(np.zeros(3), np.eye(3)))
     gt = sequence.ground_truth
     known = result.map.observed & ~result.map.occupancy_grid().occupied
@@ -382,8 +411,7 @@ def localize_on_map(result: LidarSlamResult, sequence: Sequence, config: MclChec
     ok = np.array(good, dtype=bool)
     bad = np.flatnonzero(~ok)
     after = float("nan") if (len(ok) == 0 or not ok[-1]) else float(bad[-1] + 1 if len(bad) else 0)
-    return {"mcl_converged_after_updates": after, "mcl_final_error_m": float(np.hypot(err[0], err[1])),
-            "mcl_updates": float(len(ok))}
+    return after, float(np.hypot(err[0], err[1])), float(len(ok))
 
 
 @dataclass(frozen=True)
@@ -544,19 +572,21 @@ def report_markdown(config: Mapping[str, Any], sim_runs: list[RunRecord], log_ru
     if sim_runs:
         header = ["world", "seed", "estimator", "keyframes", "loops", "false loops", "ATE odometry (m)",
                   "ATE before LC (m)", "ATE after LC (m)", "reduction", "map IoU", "precision", "recall",
-                  "front-end map IoU", "MCL converged after (updates)"]
+                  "front-end map IoU", "MCL localized (rate)", "MCL converged after (median updates)"]
         rows = [[r.dataset, r.seed, r.estimator, int(r.metrics["num_keyframes"]),
                  int(r.metrics["num_loop_closures"]), int(r.metrics["num_false_loop_closures"]),
                  r.metrics.get("ate_odometry_m"), r.metrics.get("ate_frontend_m"), r.metrics.get("ate_rmse_m"),
                  r.metrics.get("ate_reduction"), r.metrics.get("map_iou"), r.metrics.get("map_precision"),
                  r.metrics.get("map_recall"), r.metrics.get("map_frontend_iou"),
-                 r.metrics.get("mcl_converged_after_updates")] for r in sim_runs]
+                 r.metrics.get("mcl_success_rate"), r.metrics.get("mcl_converged_after_updates")]
+                for r in sim_runs]
         text += ("## Simulated worlds\n\nATE: RMSE over keyframes after SE(2) alignment; 'before LC' "
                  "chains the scan matches, 'after LC' is the optimised pose graph. Map IoU: occupied "
                  "cells (p > 0.5) against the ground truth max-pooled to the map resolution, on the cells "
                  "the map observed. MCL: global localization from a uniform prior on the built map along "
-                 "a second tour; updates until it stays within 0.3 m / 10 deg (nan: not within the "
-                 "budget).\n\n")
+                 "a second tour, once per filter seed: the fraction of runs that end within 0.3 m / "
+                 "10 deg and stay so, and the median number of updates until they do (nan: none "
+                 "within the budget).\n\n")
         text += markdown_table(header, rows) + "\n"
     if log_runs:
         text += _log_report(log_runs)

@@ -328,7 +328,12 @@ class LidarSlam:
         self._scan_rel.append(np.asarray(rel, float))
 
     def _is_keyframe(self, k_T_scan: np.ndarray, stamp_s: float) -> bool:
-        """The rule of ``slamkit.frontend.keyframes`` on the motion since the newest keyframe."""
+        """The rule of ``slamkit.frontend.keyframes`` on the motion since the newest keyframe,
+        the matched one (``k_T_scan``), also when there is wheel odometry. Measured (issue 11):
+        the rule on the odometry since the keyframe instead gives 0.189 +- 0.743 m relation error
+        on the whole Intel log with odometry (0.0155 +- 0.0136 m on the match); fr079 and the
+        simulated worlds do not tell the two apart beyond the scatter of which scans become
+        keyframes (12 simulated runs: mean ATE 0.0060 m odometry, 0.0062 m match)."""
         return self.config.keyframes.exceeded_by(k_T_scan, stamp_s - self._kf.stamps[-1])
 
     def _fallback_information(self) -> np.ndarray:

@@ -17,13 +17,15 @@ import numpy as np
 import pytest
 
 from slamkit.data import registry
-from slamkit.data.sequence import Scan
+from slamkit.data.sequence import Odometry, Scan
 from slamkit.errors import ConfigError, DataError
 from slamkit.experiments.lidar_slam import (_sim_parts, _simulate, ate_keyframes_m, first_seconds, run_slam,
                                             slam_config_from)
 from slamkit.experiments.pipeline import load_config
+from slamkit.frontend.keyframes import select_keyframes
 from slamkit.geometry import se2
 from slamkit.metrics.relations import read_relations
+from slamkit.models import diff_drive
 from slamkit.systems.lidar_slam import LidarSlam, LidarSlamConfig
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -76,6 +78,39 @@ def test_streaming_contract(world):
         slam.step(scans[-1])
     grid = slam.map()
     assert grid.num_scans == len(k) and grid.resolution_m == LidarSlamConfig().map.resolution_m
+
+
+def test_keyframes_are_placed_on_the_matched_motion(world):
+    """The keyframe rule (``KeyframeConfig.exceeded_by``) is applied to the scan-matched motion
+    since the newest keyframe, also with wheel odometry: no scan between keyframes passes it by
+    its matched pose, every keyframe's scan-match edge does. The old experiment applied it to
+    the odometry (it matched keyframes only), which picks a different set here (26 of 69 in
+    common) and, measured on the whole Intel log with odometry, 0.189 +- 0.743 m relation error
+    instead of 0.0155 +- 0.0136 m (issue 11)."""
+    seq, _ = world
+    cfg = LidarSlamConfig()
+    slam = LidarSlam(cfg, seq.initial_world_xytheta_body).run(seq)
+    est = slam.estimate()
+    k = est.keyframe_scans
+    anchor = np.searchsorted(k, np.arange(len(est.stamps_s)), side="right") - 1
+    k_T_scan = se2.between(est.keyframe_poses[anchor], est.world_xytheta_body)
+    since_s = est.stamps_s - est.keyframe_stamps_s[anchor]
+    between = np.setdiff1d(np.arange(len(est.stamps_s)), k)
+    assert len(k) == 69 and len(between) == 442 - 69
+    assert not any(cfg.keyframes.exceeded_by(k_T_scan[n], since_s[n]) for n in between)
+    g = slam.graph()
+    chain = g.edge_to == g.edge_from + 1
+    assert chain.sum() == len(k) - 1
+    assert all(cfg.keyframes.exceeded_by(z, 0.0) for z in g.measurements[chain])
+    odometry = np.array([seq.initial_world_xytheta_body], float)
+    at_scan = []
+    for ev in seq:
+        if isinstance(ev, Odometry):
+            odometry = diff_drive.motion(odometry, np.array([[ev.v_mps, ev.omega_radps]]), ev.dt_s)
+        elif isinstance(ev, Scan):
+            at_scan.append(odometry[0])
+    on_odometry = select_keyframes(est.stamps_s, np.array(at_scan), cfg.keyframes)
+    assert len(np.intersect1d(on_odometry, k)) == 26
 
 
 def test_lidar_only_in_a_simulated_world(world):
