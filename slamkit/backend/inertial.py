@@ -236,6 +236,13 @@ class _InertialSmootherBase:
         return Estimate(trajectory=Trajectory(stamps, p, so3.to_quat_wxyz(R)), pose_covariances=covs,
                         step_latency_s=np.array(self._latency), extras=extras)
 
+    def latest_estimate(self) -> Estimate:
+        """The newest state's pose alone, without marginals (constant cost; for observers)."""
+        pose = self._state.pose()
+        traj = Trajectory([self._stamps[-1]], np.asarray(pose.translation())[None],
+                          so3.to_quat_wxyz(np.asarray(pose.rotation().matrix()))[None])
+        return Estimate(trajectory=traj)
+
     # -- internals -------------------------------------------------------------------------------
     def _new_state(self, gps: tuple) -> None:
         k = len(self._stamps)

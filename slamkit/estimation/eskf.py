@@ -184,6 +184,11 @@ class ErrorStateEKF:
                     "bias_sigma": np.sqrt(np.clip(np.array(self._bias_var), 0.0, None)),
                     "world_v_body": np.array(self._vel), "bias_stamps_s": stamps})
 
+    def latest_estimate(self) -> Estimate:
+        """The newest pose and its covariance alone (constant cost; for observers)."""
+        traj = Trajectory([self.t], self.p[None], so3.to_quat_wxyz(self.R)[None])
+        return Estimate(trajectory=traj, pose_covariances=self.P[_POSE][None])
+
     # -- internals -------------------------------------------------------------------------------
     def _record(self) -> None:
         self._stamps.append(self.t)
