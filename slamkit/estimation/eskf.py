@@ -26,7 +26,11 @@ rotation error), and in ``extras`` the velocity, the bias estimates and their si
 
 The hot loop avoids general 15 x 15 products: F = I + dF has non-zero off-diagonal blocks in the
 first nine rows only, so F P F^T is two thin products, (9, 15) x (15, 15) and (15, 15) x (15, 9),
-and Q_d is added on its diagonal blocks.
+and Q_d is added on its diagonal blocks. That step runs fused in C (``_eskfkernel.c``, compiled
+when slamkit is installed, loaded through :mod:`slamkit._native`); :meth:`ErrorStateEKF._propagate_numpy`
+is the same arithmetic in numpy, used without the kernel (``SLAMKIT_NO_NATIVE=1``) and checked
+against it in the tests. The nominal state lives in one flat array ``x`` = (p, v, R row-major,
+b_a, b_g) so the kernel can update it in place.
 """
 
 from __future__ import annotations
@@ -38,6 +42,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from slamkit._native import load_extension
 from slamkit.data.estimate import Estimate, Prior, check_covariance
 from slamkit.data.inertial import InertialSetup, setup_of
 from slamkit.data.sequence import Event, Gps, Imu, Sequence, event_problem
@@ -47,8 +52,13 @@ from slamkit.geometry import so3
 from slamkit.models import strapdown
 
 _I3 = np.eye(3)
+#: the compiled IMU step (``_eskfkernel.c``)
+KERNEL_MODULE = "slamkit.estimation._eskfkernel"
 #: rows and columns of the pose (position, attitude) inside the error state
 _POSE = np.ix_(np.r_[0:3, 6:9], np.r_[0:3, 6:9])
+#: what _record keeps of P, as flat indices: the 6 x 6 pose block, then the 6 bias variances
+_RECORD = np.concatenate([(np.r_[0:3, 6:9][:, None] * 15 + np.r_[0:3, 6:9][None, :]).ravel(),
+                          np.arange(9, 15) * 16])
 
 
 @dataclass(frozen=True)
@@ -104,32 +114,45 @@ class ErrorStateEKF:
         config = config or ErrorStateEKFConfig()
         return cls(setup_of(sequence, imu_noise=config.imu_noise, gps_sigma_m=config.gps_sigma_m), config)
 
+    # the nominal state as views into x (x is updated in place, by the kernel or numpy)
+    @property
+    def p(self) -> np.ndarray:
+        return self._x[0:3]
+
+    @property
+    def v(self) -> np.ndarray:
+        return self._x[3:6]
+
+    @property
+    def R(self) -> np.ndarray:
+        return self._x[6:15].reshape(3, 3)
+
+    @property
+    def ba(self) -> np.ndarray:
+        return self._x[15:18]
+
+    @property
+    def bg(self) -> np.ndarray:
+        return self._x[18:21]
+
     # -- protocol --------------------------------------------------------------------------------
     def reset(self, prior: Prior | None = None) -> None:
         s = self.setup.initial
         self.t = float(s.stamp_s)
-        self.p = s.world_p_body.copy()
-        self.v = s.world_v_body.copy()
-        self.R = s.world_R_body.copy()
-        self.ba = s.accel_bias_mps2.copy()
-        self.bg = s.gyro_bias_radps.copy()
-        self.P = self.setup.initial_covariance.copy()
+        self._x = np.concatenate([s.world_p_body, s.world_v_body, s.world_R_body.reshape(9),
+                                  s.accel_bias_mps2, s.gyro_bias_radps])
+        self.P = np.ascontiguousarray(self.setup.initial_covariance)
         check_covariance(self.P, f"{self.name}: initial covariance")
         self.g = self.setup.gravity_mps2
         n = self.setup.imu_noise
         self._q = (n.accel_noise_density**2, n.gyro_noise_density**2, n.accel_bias_random_walk**2,
                    n.gyro_bias_random_walk**2)
+        self._kernel = load_extension(KERNEL_MODULE)
         self._last: tuple[np.ndarray, np.ndarray] | None = None  # the last (accel, gyro) reading
-        # one row per recorded state; the arrays are replaced (never modified) by the filter, so
-        # keeping references is safe and cheap; estimate() stacks them
+        # one row per recorded state (copies: x and P change in place); estimate() stacks them
         self._stamps: list[float] = []
-        self._p: list[np.ndarray] = []
-        self._R: list[np.ndarray] = []
-        self._vel: list[np.ndarray] = []
-        self._ba: list[np.ndarray] = []
-        self._bg: list[np.ndarray] = []
-        self._bias_var: list[np.ndarray] = []
-        self._covs: list[np.ndarray] = []
+        self._xs: list[np.ndarray] = []
+        self._ps: list[np.ndarray] = []
         self._record()
         self._nis: list[float] = []
         self._latency: list[float] = []
@@ -140,17 +163,19 @@ class ErrorStateEKF:
         if not self._ready:
             raise EstimationError(f"{self.name}: step() called before reset(prior)")
         t0 = time.perf_counter()
-        if isinstance(event, Imu):
-            accel = np.asarray(event.accel_mps2, dtype=float)
-            gyro = np.asarray(event.gyro_radps, dtype=float)
-            if not (np.isfinite(accel).all() and np.isfinite(gyro).all() and math.isfinite(event.stamp_s)):
-                raise EstimationError(f"{self.name}: Imu at t={event.stamp_s}: a reading is not finite")
-            dt = float(event.stamp_s) - self.t
+        if type(event) is Imu or isinstance(event, Imu):
+            stamp = float(event.stamp_s)
+            accel, gyro = event.accel_mps2, event.gyro_radps
+            dt = stamp - self.t
+            if not math.isfinite(stamp):
+                raise EstimationError(f"{self.name}: Imu stamp {event.stamp_s!r} is not finite")
             if dt > 0:
                 if dt > self.config.max_imu_gap_s:
                     self._counts["imu_gaps"] += 1
                 self._propagate(accel, gyro, dt)
-                self.t = float(event.stamp_s)
+                self.t = stamp
+            elif not (np.isfinite(accel).all() and np.isfinite(gyro).all()):
+                raise EstimationError(f"{self.name}: Imu at t={stamp}: a reading is not finite")
             self._last = (accel, gyro)
             self._counts["imu"] += 1
             self._record()
@@ -174,15 +199,17 @@ class ErrorStateEKF:
         if not self._ready:
             raise EstimationError(f"{self.name}: estimate() called before reset(prior)")
         stamps = np.array(self._stamps)
-        traj = Trajectory(stamps, np.array(self._p), so3.to_quat_wxyz(np.array(self._R)))
+        x = np.array(self._xs)
+        kept = np.array(self._ps)
+        traj = Trajectory(stamps, x[:, 0:3], so3.to_quat_wxyz(x[:, 6:15].reshape(-1, 3, 3)))
         return Estimate(
             trajectory=traj,
-            pose_covariances=np.array(self._covs) if self.config.record_covariances else None,
+            pose_covariances=kept[:, :36].reshape(-1, 6, 6) if self.config.record_covariances else None,
             nis=np.array(self._nis), nis_dof=np.full(len(self._nis), 3),
             step_latency_s=np.array(self._latency),
-            extras={**self._counts, "bias": np.column_stack([np.array(self._ba), np.array(self._bg)]),
-                    "bias_sigma": np.sqrt(np.clip(np.array(self._bias_var), 0.0, None)),
-                    "world_v_body": np.array(self._vel), "bias_stamps_s": stamps})
+            extras={**self._counts, "bias": x[:, 15:21],
+                    "bias_sigma": np.sqrt(np.clip(kept[:, -6:], 0.0, None)),
+                    "world_v_body": x[:, 3:6], "bias_stamps_s": stamps})
 
     def latest_estimate(self) -> Estimate:
         """The newest pose and its covariance alone (constant cost; for observers)."""
@@ -191,27 +218,36 @@ class ErrorStateEKF:
 
     # -- internals -------------------------------------------------------------------------------
     def _record(self) -> None:
+        """Keep the state at ``t``: x and (one take) the pose covariance and bias variances."""
         self._stamps.append(self.t)
-        self._p.append(self.p)
-        self._R.append(self.R)
-        self._vel.append(self.v)
-        self._ba.append(self.ba)
-        self._bg.append(self.bg)
-        self._bias_var.append(np.diagonal(self.P)[9:15].copy())
-        if self.config.record_covariances:
-            self._covs.append(self.P[_POSE])
+        self._xs.append(self._x.copy())
+        self._ps.append(self.P.take(_RECORD) if self.config.record_covariances else self.P.take(_RECORD[36:]))
 
     def _propagate(self, accel_m: np.ndarray, gyro_m: np.ndarray, dt: float) -> None:
+        kernel = self._kernel
+        if kernel is not None and type(accel_m) is np.ndarray and accel_m.dtype == np.float64 \
+                and accel_m.flags.c_contiguous and type(gyro_m) is np.ndarray and gyro_m.dtype == np.float64 \
+                and gyro_m.flags.c_contiguous:
+            g = self.g
+            if not kernel.propagate(self._x, self.P, accel_m, gyro_m, dt, g[0], g[1], g[2], *self._q):
+                raise EstimationError(f"{self.name}: Imu at t={self.t + dt}: a reading is not finite")
+            return
+        accel_m = np.asarray(accel_m, dtype=float).reshape(3)
+        gyro_m = np.asarray(gyro_m, dtype=float).reshape(3)
+        if not (np.isfinite(accel_m).all() and np.isfinite(gyro_m).all()):
+            raise EstimationError(f"{self.name}: Imu at t={self.t + dt}: a reading is not finite")
+        self._propagate_numpy(accel_m, gyro_m, dt)
+
+    def _propagate_numpy(self, accel_m: np.ndarray, gyro_m: np.ndarray, dt: float) -> None:
+        """The kernel's arithmetic in numpy (updates x and P in place)."""
         a = accel_m - self.ba
         w = gyro_m - self.bg
-        R = self.R
+        R = self.R.copy()
         Ra = R @ a
         world_a = Ra + self.g
-        dR = _exp_so3(w * dt)
-        R_next = R @ dR
+        R_next = R @ _exp_so3(w * dt)
         # J_r(w dt) ~ I - hat(w dt)/2 to second order is enough for one IMU interval
-        Jr = _I3 - 0.5 * _hat(w * dt)
-        RJr = R_next @ Jr
+        RJr = R_next @ (_I3 - 0.5 * _hat(w * dt))
         # dF: the off-identity part of F (strapdown.error_transition), rows 0..8 only
         dF = np.zeros((9, 15))
         hRa = _hat(Ra)
@@ -229,19 +265,19 @@ class ErrorStateEKF:
         qa, qg, qba, qbg = self._q
         # Q_d = G diag(...) G^T with G = strapdown.noise_jacobian; R R^T = I keeps it diagonal
         # in the accel terms, RJr RJr^T ~ I to second order in the gyro term
-        c_pp, c_pv, c_vv = qa / dt * h2 * h2, qa / dt * h2 * dt, qa * dt
-        A[0, 0] += c_pp; A[1, 1] += c_pp; A[2, 2] += c_pp
-        A[0, 3] += c_pv; A[1, 4] += c_pv; A[2, 5] += c_pv
-        A[3, 0] += c_pv; A[4, 1] += c_pv; A[5, 2] += c_pv
-        A[3, 3] += c_vv; A[4, 4] += c_vv; A[5, 5] += c_vv
-        c_th, c_ba, c_bg = qg * dt, qba * dt, qbg * dt
-        A[6, 6] += c_th; A[7, 7] += c_th; A[8, 8] += c_th
-        A[9, 9] += c_ba; A[10, 10] += c_ba; A[11, 11] += c_ba
-        A[12, 12] += c_bg; A[13, 13] += c_bg; A[14, 14] += c_bg
-        self.P = A
-        self.p = self.p + self.v * dt + h2 * world_a
-        self.v = self.v + world_a * dt
-        self.R = R_next
+        idx = np.arange(3)
+        A[idx, idx] += qa / dt * h2 * h2
+        A[idx, idx + 3] += qa / dt * h2 * dt
+        A[idx + 3, idx] += qa / dt * h2 * dt
+        A[idx + 3, idx + 3] += qa * dt
+        A[idx + 6, idx + 6] += qg * dt
+        A[idx + 9, idx + 9] += qba * dt
+        A[idx + 12, idx + 12] += qbg * dt
+        self.P[...] = A
+        x = self._x
+        x[0:3] += x[3:6] * dt + h2 * world_a
+        x[3:6] += world_a * dt
+        x[6:15] = R_next.reshape(9)
 
     def _update_gps(self, z: np.ndarray, sigma_m: float) -> None:
         sigma = sigma_m if self.config.gps_sigma_m is None else self.config.gps_sigma_m
@@ -255,19 +291,16 @@ class ErrorStateEKF:
         IKH[:, :3] -= K
         P = IKH @ P @ IKH.T + (K * sigma**2) @ K.T
         dx = K @ nu
-        self.p = self.p + dx[0:3]
-        self.v = self.v + dx[3:6]
-        self.R = _exp_so3(dx[6:9]) @ self.R
-        self.ba = self.ba + dx[9:12]
-        self.bg = self.bg + dx[12:15]
+        x = self._x
+        x[0:6] += dx[0:6]
+        x[6:15] = (_exp_so3(dx[6:9]) @ self.R).reshape(9)
+        x[15:21] += dx[9:15]
         G = np.eye(15)
         G[6:9, 6:9] += 0.5 * _hat(dx[6:9])
         P = G @ P @ G.T
-        self.P = 0.5 * (P + P.T)
+        self.P[...] = 0.5 * (P + P.T)
         if self._stamps and self._stamps[-1] == self.t:
             # the fix shares the last IMU stamp: the recorded state there is the updated one
-            for rows in (self._stamps, self._p, self._R, self._vel, self._ba, self._bg, self._bias_var):
+            for rows in (self._stamps, self._xs, self._ps):
                 rows.pop()
-            if self.config.record_covariances:
-                self._covs.pop()
         self._record()
