@@ -223,6 +223,9 @@ class _InertialSmootherBase:
                 factors.add(gtsam.GPSFactor(X(len(self._stamps) - 1), z, gtsam.noiseModel.Isotropic.Sigma(3, sigma)))
                 self._update(factors, gtsam.Values(), {})
         else:
+            problem = event_problem(event)
+            if problem is not None:  # refused even though unused: the input contract of every estimator
+                raise EstimationError(f"{self.name}: {type(event).__name__} at t={event.stamp_s}: {problem}")
             self._counts["ignored_events"] += 1
         self._latency.append(time.perf_counter() - t0)
 

@@ -192,6 +192,9 @@ class ErrorStateEKF:
             self._update_gps(np.asarray(event.world_p_body, dtype=float).reshape(3), float(event.sigma_m))
             self._counts["gps"] += 1
         else:
+            problem = event_problem(event)
+            if problem is not None:  # refused even though unused: the input contract of every estimator
+                raise EstimationError(f"{self.name}: {type(event).__name__} at t={event.stamp_s}: {problem}")
             self._counts["ignored_events"] += 1
         self._latency.append(time.perf_counter() - t0)
 

@@ -44,6 +44,9 @@ class FilterSpec:
     #: takes an ``rng`` (particle methods)
     random: bool
     description: str
+    #: the sequences it runs on: 'planar' (odometry + range-bearing landmark worlds) or
+    #: 'inertial' (IMU + GPS; the start state and noise come from slamkit.data.inertial)
+    sequence_kind: str = "planar"
 
 
 REGISTRY: Registry[FilterSpec] = Registry("filter", [(s.name, s) for s in [
@@ -60,10 +63,13 @@ REGISTRY: Registry[FilterSpec] = Registry("filter", [(s.name, s) for s in [
     FilterSpec("ekf_slam", EKFSLAM, EKFSLAMConfig, False, False, "EKF-SLAM, O(n^2) updates"),
     FilterSpec("fastslam", FastSLAM, FastSLAMConfig, False, True, "FastSLAM 1.0"),
     FilterSpec("es_ekf", ErrorStateEKF, ErrorStateEKFConfig, False, False,
-               "15-state error-state EKF: IMU propagation, GPS updates (inertial sequences)"),
+               "15-state error-state EKF: IMU propagation, GPS updates (inertial sequences)", "inertial"),
 ]])
 
-NAMES: tuple[str, ...] = tuple(REGISTRY)
+#: the planar filters (one contract: the same landmark sequence, a planar Estimate)
+NAMES: tuple[str, ...] = tuple(n for n, f in REGISTRY.items() if f.sequence_kind == "planar")
+#: the inertial filters (IMU + GPS sequences, 3D Estimate)
+INERTIAL_NAMES: tuple[str, ...] = tuple(n for n, f in REGISTRY.items() if f.sequence_kind == "inertial")
 
 
 def _config(spec: FilterSpec, params: Mapping[str, Any]) -> Any:
@@ -81,7 +87,7 @@ def make_estimator(name: str, sequence: Sequence, params: Mapping[str, Any] | No
     name = REGISTRY.canonical(name)
     spec = REGISTRY[name]
     params = dict(params or {})
-    if hasattr(spec.cls, "from_sequence"):
+    if spec.sequence_kind == "inertial":
         # inertial filters read their start state and noise from the sequence
         # (slamkit.data.inertial.setup_of); their params are their config's fields only
         return spec.cls.from_sequence(sequence, config=_config(spec, params))

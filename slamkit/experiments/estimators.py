@@ -55,6 +55,9 @@ class EstimatorSpec:
     #: the constructor takes ``rng`` (particle methods)
     random: bool
     description: str
+    #: the sequences it runs on: 'planar' (landmark worlds and datasets) or 'inertial' (IMU + GPS,
+    #: ``slamkit.data.inertial``)
+    sequence_kind: str = "planar"
 
 
 #: the GTSAM smoothers (slamkit.backend); the filters' rows come from slamkit.estimation.registry
@@ -67,10 +70,10 @@ SMOOTHERS: tuple[EstimatorSpec, ...] = (
                   False, "FixedLagLandmarkSLAMConfig", False, "fixed-lag smoother (lag in seconds)"),
     EstimatorSpec("isam2_imu", "smoother", "slamkit.backend.inertial:Isam2Inertial", False,
                   "InertialSmootherConfig", False,
-                  "iSAM2 with preintegrated IMU (CombinedImuFactor) and GPS factors (inertial sequences)"),
+                  "iSAM2 with preintegrated IMU (CombinedImuFactor) and GPS factors", "inertial"),
     EstimatorSpec("fixed_lag_imu", "smoother", "slamkit.backend.inertial:FixedLagInertial", False,
                   "FixedLagInertialConfig", False,
-                  "fixed-lag smoother with preintegrated IMU and GPS factors (lag in seconds)"),
+                  "fixed-lag smoother with preintegrated IMU and GPS factors (lag in seconds)", "inertial"),
 )
 
 
@@ -79,7 +82,8 @@ def _filter_rows() -> dict[str, EstimatorSpec]:
     from slamkit.estimation import registry as filters
 
     return {name: EstimatorSpec(name, "filter", f"{f.cls.__module__}:{f.cls.__name__}",
-                                f.needs_landmark_map, f.config_cls.__name__, f.random, f.description)
+                                f.needs_landmark_map, f.config_cls.__name__, f.random, f.description,
+                                f.sequence_kind)
             for name, f in filters.REGISTRY.items()}
 
 

@@ -1,5 +1,5 @@
 """Inertial navigation through the filter_vs_smoother pipeline: the folder, report tables and
-recording of a short run, and (slow) the issue's claims on the shipped pipelines/inertial.yaml."""
+recording of a short run, and (slow) the issue's claims on the shipped pipelines/filter_vs_smoother_inertial.yaml."""
 
 from __future__ import annotations
 
@@ -28,7 +28,7 @@ def test_short_inertial_run_writes_tables_and_recording(tmp_path, verify_rrd) ->
     config = {"pipeline": "filter_vs_smoother", "name": "inertial_test", "seeds": 2, "workers": 2,
               "scenarios": [{"preset": "car3d", "params": {"duration_s": 8.0}},
                             {"dataset": "kitti-imu-gps", "name": "kitti10",
-                             "params": {"outage_s": 10.0, "gap_s": 20.0, "first_outage_after_s": 20.0,
+                             "params": {"outage_s": 10.0, "gap_s": 10.0, "first_outage_after_s": 20.0,
                                         "max_duration_s": 60.0}}],
               "estimators": {"es_ekf": {}, "isam2_imu": {}, "fixed_lag_imu": {"lag_s": 3.0}}}
     out = run_pipeline(config, tmp_path / "out", progress=False, observer_factory=observer_for).out_dir
@@ -54,7 +54,7 @@ def test_short_inertial_run_writes_tables_and_recording(tmp_path, verify_rrd) ->
 def test_shipped_inertial_pipeline_is_valid() -> None:
     from slamkit.experiments.config_models import check_pipeline
 
-    config = yaml.safe_load((ROOT / "pipelines" / "inertial.yaml").read_text())
+    config = yaml.safe_load((ROOT / "pipelines" / "filter_vs_smoother_inertial.yaml").read_text())
     check_pipeline(config)
     assert [s.name for s in parse_scenarios(config)] == ["car3d", "kitti_outage10s", "kitti_outage30s",
                                                          "kitti_outage60s"]
@@ -63,11 +63,11 @@ def test_shipped_inertial_pipeline_is_valid() -> None:
 @pytest.mark.slow
 @pytest.mark.skipif(not KITTI, reason="gtsam wheel Data folder not found")
 def test_inertial_pipeline_claims() -> None:
-    """pipelines/inertial.yaml (10 seeds of a 60 s car3d drive; KITTI with 10, 30, 60 s GPS
+    """pipelines/filter_vs_smoother_inertial.yaml (10 seeds of a 60 s car3d drive; KITTI with 10, 30, 60 s GPS
     outages): the ES-EKF's Monte-Carlo NEES inside its chi2(60)/10 band and >= 95% of its bias
     components within 3 sigma; on KITTI the iSAM2 smoother's error at the fixes withheld in 30 s
     outages at least 2x below the ES-EKF's, and the fixed-lag smoother's below the ES-EKF's."""
-    config = yaml.safe_load((ROOT / "pipelines" / "inertial.yaml").read_text())
+    config = yaml.safe_load((ROOT / "pipelines" / "filter_vs_smoother_inertial.yaml").read_text())
     results, scenarios, choices = run_monte_carlo(config)
     output = assemble(config, results, scenarios, choices)
     row = next(r for r in output.extra["consistency"] if r["dataset"] == "car3d" and r["estimator"] == "es_ekf")

@@ -104,6 +104,9 @@ def run_task(task: Task, observer: PipelineObserver | None = None) -> TaskResult
                   if c.type == "batch" and r.estimate is not None), None)
     if reference is None and batch is not None:
         reference, reference_name, is_truth = batch.estimate.trajectory, f"{batch.name} solution", False
+    if reference is None and batch is None:
+        reference_name = ("withheld GPS fixes" if sequence.metadata.get("withheld_gps") is not None
+                          else "none")
     records, series, notes = [], {}, []
     for choice in task.estimators:
         run = runs[choice.label]
