@@ -28,7 +28,6 @@ A = [[0, R], [R, 0]]: Sigma_world = A Sigma_body A^T (first order, Pose3 retract
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 from typing import Mapping
 
@@ -37,8 +36,8 @@ import numpy as np
 from gtsam.symbol_shorthand import B, V, X
 
 from slamkit.data.estimate import Estimate, Prior
-from slamkit.data.inertial import InertialSetup, setup_of
-from slamkit.data.sequence import Event, Gps, Imu, Sequence, event_problem
+from slamkit.data.inertial import InertialEventLoop, InertialSetup, setup_of
+from slamkit.data.sequence import Sequence
 from slamkit.data.trajectory import Trajectory
 from slamkit.errors import ConfigError, EstimationError
 from slamkit.geometry import so3
@@ -136,8 +135,9 @@ def _body_pose_cov(R: np.ndarray, cov_world: np.ndarray) -> np.ndarray:
     return A.T @ cov_world @ A
 
 
-class _InertialSmootherBase:
-    """Turns IMU and GPS events into states and factors; subclasses own the solver."""
+class _InertialSmootherBase(InertialEventLoop):
+    """Turns IMU and GPS events into states and factors (``step`` is
+    :class:`~slamkit.data.inertial.InertialEventLoop`'s); subclasses own the solver."""
 
     name = "inertial_smoother"
     config_class: type[InertialSmootherConfig] = InertialSmootherConfig
@@ -177,57 +177,31 @@ class _InertialSmootherBase:
         values.insert(V(0), s.world_v_body)
         values.insert(B(0), bias)
         self._stamps = [float(s.stamp_s)]
-        self._t_last = float(s.stamp_s)        # the end of the preintegrated interval
-        self._last: tuple[np.ndarray, np.ndarray] | None = None
-        self._latency: list[float] = []
-        self._counts = {"imu": 0, "gps": 0, "late_gps": 0, "states": 1, "ignored_events": 0}
-        self._pending_gps: list[gtsam.NonlinearFactor] = []
+        self._start_loop(s.stamp_s)            # self.t: the end of the preintegrated interval
+        self._counts["states"] = 1
         self._reset_solver()
         self._update(factors, values, {X(0): self._stamps[0], V(0): self._stamps[0], B(0): self._stamps[0]})
         self._ready = True
 
-    def step(self, event: Event) -> None:
-        if not self._ready:
-            raise EstimationError(f"{self.name}: step() called before reset(prior)")
-        t0 = time.perf_counter()
-        if isinstance(event, Imu):
-            accel = np.asarray(event.accel_mps2, dtype=float)
-            gyro = np.asarray(event.gyro_radps, dtype=float)
-            if not (np.isfinite(accel).all() and np.isfinite(gyro).all()):
-                raise EstimationError(f"{self.name}: Imu at t={event.stamp_s}: a reading is not finite")
-            dt = float(event.stamp_s) - self._t_last
-            if dt > 0:
-                self._pim.integrateMeasurement(accel, gyro, dt)
-                self._t_last = float(event.stamp_s)
-            self._last = (accel, gyro)
-            self._counts["imu"] += 1
-            if self._t_last - self._stamps[-1] >= self.config.state_period_s - 1e-9:
-                self._new_state(())
-        elif isinstance(event, Gps):
-            problem = event_problem(event)
-            if problem is not None:
-                raise EstimationError(f"{self.name}: Gps at t={event.stamp_s}: {problem}")
-            dt = float(event.stamp_s) - self._t_last
-            if dt > 0 and self._last is not None:
-                self._pim.integrateMeasurement(self._last[0], self._last[1], dt)
-                self._t_last = float(event.stamp_s)
-            elif dt < 0:
-                self._counts["late_gps"] += 1
-            sigma = float(event.sigma_m) if self.config.gps_sigma_m is None else self.config.gps_sigma_m
-            z = np.asarray(event.world_p_body, dtype=float).reshape(3)
-            self._counts["gps"] += 1
-            if self._pim.deltaTij() > 0:
-                self._new_state((z, sigma))
-            else:  # the fix lands on the newest state
-                factors = gtsam.NonlinearFactorGraph()
-                factors.add(gtsam.GPSFactor(X(len(self._stamps) - 1), z, gtsam.noiseModel.Isotropic.Sigma(3, sigma)))
-                self._update(factors, gtsam.Values(), {})
-        else:
-            problem = event_problem(event)
-            if problem is not None:  # refused even though unused: the input contract of every estimator
-                raise EstimationError(f"{self.name}: {type(event).__name__} at t={event.stamp_s}: {problem}")
-            self._counts["ignored_events"] += 1
-        self._latency.append(time.perf_counter() - t0)
+    def _integrate(self, accel: np.ndarray, gyro: np.ndarray, dt: float) -> None:
+        accel = np.asarray(accel, dtype=float)
+        gyro = np.asarray(gyro, dtype=float)
+        if not (np.isfinite(accel).all() and np.isfinite(gyro).all()):
+            raise EstimationError(f"{self.name}: Imu at t={self.t + dt}: a reading is not finite")
+        self._pim.integrateMeasurement(accel, gyro, dt)
+
+    def _after_imu(self) -> None:
+        if self.t - self._stamps[-1] >= self.config.state_period_s - 1e-9:
+            self._new_state(())
+
+    def _fix(self, z: np.ndarray, sigma_m: float) -> None:
+        sigma = sigma_m if self.config.gps_sigma_m is None else self.config.gps_sigma_m
+        if self._pim.deltaTij() > 0:
+            self._new_state((z, sigma))
+        else:  # the fix lands on the newest state
+            factors = gtsam.NonlinearFactorGraph()
+            factors.add(gtsam.GPSFactor(X(len(self._stamps) - 1), z, gtsam.noiseModel.Isotropic.Sigma(3, sigma)))
+            self._update(factors, gtsam.Values(), {})
 
     def estimate(self) -> Estimate:
         if not self._ready:
@@ -268,9 +242,9 @@ class _InertialSmootherBase:
         if gps:
             z, sigma = gps
             factors.add(gtsam.GPSFactor(X(k), z, gtsam.noiseModel.Isotropic.Sigma(3, sigma)))
-        self._stamps.append(self._t_last)
+        self._stamps.append(self.t)
         self._counts["states"] += 1
-        t = self._t_last
+        t = self.t
         self._update(factors, values, {X(k): t, V(k): t, B(k): t})
         self._state = gtsam.NavState(self._current(k, "pose"), self._current(k, "velocity"))
         self._bias = self._current(k, "bias")

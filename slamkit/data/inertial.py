@@ -16,6 +16,9 @@ writes (the simulator ``slamkit.sim.inertial_world`` and the KITTI reader
   world-frame rotation vector, accel bias, gyro bias) -- the 15-dimensional error state of
   :mod:`slamkit.estimation.eskf`.
 
+:class:`InertialEventLoop` is the ``step(event)`` of every inertial estimator (the timing rule
+above, input checks, counters), so the filter and the smoothers cannot drift apart on it.
+
 GPS outages (:func:`withhold_gps`): every ``Gps`` event inside a window is removed from the
 sequence and kept in ``metadata["withheld_gps"]`` (stamps, positions, window index), so a scorer
 can measure the position error at the fixes no estimator saw.
@@ -24,13 +27,15 @@ can measure the position error at the fixes no estimator saw.
 from __future__ import annotations
 
 import dataclasses
+import math
+import time
 from dataclasses import dataclass
 from typing import Any, Mapping
 
 import numpy as np
 
-from slamkit.data.sequence import Gps, Sequence
-from slamkit.errors import ConfigError, DataError
+from slamkit.data.sequence import Gps, Imu, Sequence, event_problem
+from slamkit.errors import ConfigError, DataError, EstimationError
 from slamkit.models.imu import ImuNoise
 
 #: standard gravity (m/s^2); the KITTI example of GTSAM uses 9.8
@@ -161,3 +166,73 @@ def withhold_gps(sequence: Sequence, windows: np.ndarray, name: str | None = Non
     metadata["withheld_gps"] = {"stamps_s": np.array(stamps), "world_p_body": np.array(positions).reshape(-1, 3),
                                 "window": np.array(index, dtype=int), "windows_s": w}
     return dataclasses.replace(sequence, name=name or sequence.name, events=tuple(kept), metadata=metadata)
+
+
+# ---- the event loop of inertial estimators -------------------------------------------------------
+
+class InertialEventLoop:
+    """``step(event)`` for inertial estimators, one timing rule for the filter and the smoothers.
+
+    An ``Imu`` reading is integrated over the interval from the previous reading (or the start
+    state, or the last fix) to its stamp; a ``Gps`` fix stamped after the last reading first
+    extends that reading to the fix (a late fix is applied as it is and counted); every other
+    event is checked (``event_problem``) and ignored. Subclasses set ``name`` and ``_ready`` and
+    implement ``_integrate(accel, gyro, dt)`` (which refuses non-finite readings), ``_after_imu()``
+    and ``_fix(world_p_body (3,), sigma_m)``; :meth:`_start_loop` resets the clock and counters.
+    """
+
+    name = "inertial"
+    #: longer intervals between IMU readings are still integrated but counted
+    max_imu_gap_s = float("inf")
+
+    def _start_loop(self, stamp_s: float) -> None:
+        self.t = float(stamp_s)
+        self._last: tuple[np.ndarray, np.ndarray] | None = None
+        self._latency: list[float] = []
+        self._counts = {"imu": 0, "gps": 0, "late_gps": 0, "imu_gaps": 0, "ignored_events": 0}
+
+    def step(self, event) -> None:
+        if not getattr(self, "_ready", False):
+            raise EstimationError(f"{self.name}: step() called before reset(prior)")
+        t0 = time.perf_counter()
+        if isinstance(event, Imu):
+            stamp = float(event.stamp_s)
+            accel, gyro = event.accel_mps2, event.gyro_radps
+            if not math.isfinite(stamp):
+                raise EstimationError(f"{self.name}: Imu stamp {event.stamp_s!r} is not finite")
+            dt = stamp - self.t
+            if dt > 0:
+                if dt > self.max_imu_gap_s:
+                    self._counts["imu_gaps"] += 1
+                self._integrate(accel, gyro, dt)
+                self.t = stamp
+            elif not (np.isfinite(accel).all() and np.isfinite(gyro).all()):
+                raise EstimationError(f"{self.name}: Imu at t={stamp}: a reading is not finite")
+            self._last = (accel, gyro)
+            self._counts["imu"] += 1
+            self._after_imu()
+        else:
+            problem = event_problem(event)
+            if problem is not None:  # refused even when unused: the input contract of every estimator
+                raise EstimationError(f"{self.name}: {type(event).__name__} at t={event.stamp_s}: {problem}")
+            if isinstance(event, Gps):
+                dt = float(event.stamp_s) - self.t
+                if dt > 0 and self._last is not None:
+                    self._integrate(*self._last, dt)
+                    self.t = float(event.stamp_s)
+                elif dt < 0:
+                    self._counts["late_gps"] += 1
+                self._fix(np.asarray(event.world_p_body, dtype=float).reshape(3), float(event.sigma_m))
+                self._counts["gps"] += 1
+            else:
+                self._counts["ignored_events"] += 1
+        self._latency.append(time.perf_counter() - t0)
+
+    def _integrate(self, accel: np.ndarray, gyro: np.ndarray, dt: float) -> None:
+        raise NotImplementedError
+
+    def _after_imu(self) -> None:
+        raise NotImplementedError
+
+    def _fix(self, world_p_body: np.ndarray, sigma_m: float) -> None:
+        raise NotImplementedError

@@ -20,7 +20,7 @@ applied at the current time and counted in ``extras["late_gps"]``.
 
 The start state, its covariance and the noise are the sequence's
 :class:`~slamkit.data.inertial.InertialSetup` (the planar ``Prior`` of ``reset`` has no velocity
-or biases; it is checked and otherwise unused). ``estimate()`` returns the filtered pose at every
+or biases and is not used). ``estimate()`` returns the filtered pose at every
 IMU event with its (6, 6) covariance in the runner's convention (position, then the world-frame
 rotation error), and in ``extras`` the velocity, the bias estimates and their sigmas.
 
@@ -38,14 +38,14 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Mapping
 
 import numpy as np
 
 from slamkit._native import load_extension
 from slamkit.data.estimate import Estimate, Prior, check_covariance
-from slamkit.data.inertial import InertialSetup, setup_of
-from slamkit.data.sequence import Event, Gps, Imu, Sequence, event_problem
+from slamkit.data.inertial import InertialEventLoop, InertialSetup, setup_of
+from slamkit.data.sequence import Sequence
 from slamkit.data.trajectory import Trajectory
 from slamkit.errors import ConfigError, EstimationError
 from slamkit.geometry import so3
@@ -99,14 +99,17 @@ def _hat(v: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
 
 
-class ErrorStateEKF:
-    """The 15-state ES-EKF (registry name ``es_ekf``); see the module docstring."""
+class ErrorStateEKF(InertialEventLoop):
+    """The 15-state ES-EKF (registry name ``es_ekf``); see the module docstring. ``step`` is
+    :class:`~slamkit.data.inertial.InertialEventLoop`'s: IMU readings go to :meth:`_integrate`,
+    fixes to :meth:`_fix`."""
 
     name = "es_ekf"
 
     def __init__(self, setup: InertialSetup, config: ErrorStateEKFConfig | None = None) -> None:
         self.setup = setup
         self.config = config or ErrorStateEKFConfig()
+        self.max_imu_gap_s = self.config.max_imu_gap_s
         self._ready = False
 
     @classmethod
@@ -138,7 +141,7 @@ class ErrorStateEKF:
     # -- protocol --------------------------------------------------------------------------------
     def reset(self, prior: Prior | None = None) -> None:
         s = self.setup.initial
-        self.t = float(s.stamp_s)
+        self._start_loop(s.stamp_s)
         self._x = np.concatenate([s.world_p_body, s.world_v_body, s.world_R_body.reshape(9),
                                   s.accel_bias_mps2, s.gyro_bias_radps])
         self.P = np.ascontiguousarray(self.setup.initial_covariance)
@@ -148,55 +151,13 @@ class ErrorStateEKF:
         self._q = (n.accel_noise_density**2, n.gyro_noise_density**2, n.accel_bias_random_walk**2,
                    n.gyro_bias_random_walk**2)
         self._kernel = load_extension(KERNEL_MODULE)
-        self._last: tuple[np.ndarray, np.ndarray] | None = None  # the last (accel, gyro) reading
         # one row per recorded state (copies: x and P change in place); estimate() stacks them
         self._stamps: list[float] = []
         self._xs: list[np.ndarray] = []
         self._ps: list[np.ndarray] = []
         self._record()
         self._nis: list[float] = []
-        self._latency: list[float] = []
-        self._counts = {"imu": 0, "gps": 0, "late_gps": 0, "imu_gaps": 0, "ignored_events": 0}
         self._ready = True
-
-    def step(self, event: Event) -> None:
-        if not self._ready:
-            raise EstimationError(f"{self.name}: step() called before reset(prior)")
-        t0 = time.perf_counter()
-        if type(event) is Imu or isinstance(event, Imu):
-            stamp = float(event.stamp_s)
-            accel, gyro = event.accel_mps2, event.gyro_radps
-            dt = stamp - self.t
-            if not math.isfinite(stamp):
-                raise EstimationError(f"{self.name}: Imu stamp {event.stamp_s!r} is not finite")
-            if dt > 0:
-                if dt > self.config.max_imu_gap_s:
-                    self._counts["imu_gaps"] += 1
-                self._propagate(accel, gyro, dt)
-                self.t = stamp
-            elif not (np.isfinite(accel).all() and np.isfinite(gyro).all()):
-                raise EstimationError(f"{self.name}: Imu at t={stamp}: a reading is not finite")
-            self._last = (accel, gyro)
-            self._counts["imu"] += 1
-            self._record()
-        elif isinstance(event, Gps):
-            problem = event_problem(event)
-            if problem is not None:
-                raise EstimationError(f"{self.name}: Gps at t={event.stamp_s}: {problem}")
-            dt = float(event.stamp_s) - self.t
-            if dt > 0 and self._last is not None:
-                self._propagate(*self._last, dt)
-                self.t = float(event.stamp_s)
-            elif dt < 0:
-                self._counts["late_gps"] += 1
-            self._update_gps(np.asarray(event.world_p_body, dtype=float).reshape(3), float(event.sigma_m))
-            self._counts["gps"] += 1
-        else:
-            problem = event_problem(event)
-            if problem is not None:  # refused even though unused: the input contract of every estimator
-                raise EstimationError(f"{self.name}: {type(event).__name__} at t={event.stamp_s}: {problem}")
-            self._counts["ignored_events"] += 1
-        self._latency.append(time.perf_counter() - t0)
 
     def estimate(self) -> Estimate:
         if not self._ready:
@@ -220,13 +181,16 @@ class ErrorStateEKF:
         return Estimate(trajectory=traj, pose_covariances=self.P[_POSE][None])
 
     # -- internals -------------------------------------------------------------------------------
+    def _after_imu(self) -> None:
+        self._record()
+
     def _record(self) -> None:
         """Keep the state at ``t``: x and (one take) the pose covariance and bias variances."""
         self._stamps.append(self.t)
         self._xs.append(self._x.copy())
         self._ps.append(self.P.take(_RECORD) if self.config.record_covariances else self.P.take(_RECORD[36:]))
 
-    def _propagate(self, accel_m: np.ndarray, gyro_m: np.ndarray, dt: float) -> None:
+    def _integrate(self, accel_m: np.ndarray, gyro_m: np.ndarray, dt: float) -> None:
         kernel = self._kernel
         if kernel is not None and type(accel_m) is np.ndarray and accel_m.dtype == np.float64 \
                 and accel_m.flags.c_contiguous and type(gyro_m) is np.ndarray and gyro_m.dtype == np.float64 \
@@ -282,7 +246,7 @@ class ErrorStateEKF:
         x[3:6] += world_a * dt
         x[6:15] = R_next.reshape(9)
 
-    def _update_gps(self, z: np.ndarray, sigma_m: float) -> None:
+    def _fix(self, z: np.ndarray, sigma_m: float) -> None:
         sigma = sigma_m if self.config.gps_sigma_m is None else self.config.gps_sigma_m
         P = self.P
         nu = z - self.p

@@ -30,6 +30,16 @@ def _error(nominal, true):
     return np.concatenate([pt - p, vt - v, so3.log(Rt @ R.T), bat - ba, bgt - bg])
 
 
+def _central_difference(error_of, n: int, eps: float = 1e-6) -> np.ndarray:
+    """(15, n) columns (error_of(+eps e_i) - error_of(-eps e_i)) / (2 eps)."""
+    out = np.zeros((15, n))
+    for i in range(n):
+        d = np.zeros(n)
+        d[i] = eps
+        out[:, i] = (error_of(d) - error_of(-d)) / (2 * eps)
+    return out
+
+
 def _perturb(x, dx):
     p, v, R, ba, bg = x
     return (p + dx[0:3], v + dx[3:6], so3.exp(dx[6:9]) @ R, ba + dx[9:12], bg + dx[12:15])
@@ -46,18 +56,12 @@ def test_error_transition_matches_finite_differences(seed):
     p, v, R = _step(*x, accel_m, gyro_m)
     nominal = (p, v, R, x[3], x[4])
     F = strapdown.error_transition(x[2], accel_m - x[3], gyro_m - x[4], DT)
-    eps = 1e-6
-    numeric = np.zeros((15, 15))
-    for i in range(15):
-        cols = []
-        for sign in (1.0, -1.0):
-            dx = np.zeros(15)
-            dx[i] = sign * eps
-            xt = _perturb(x, dx)
-            pt, vt, Rt = _step(*xt, accel_m, gyro_m)
-            cols.append(_error(nominal, (pt, vt, Rt, xt[3], xt[4])))
-        numeric[:, i] = (cols[0] - cols[1]) / (2 * eps)
-    np.testing.assert_allclose(F, numeric, atol=1e-7)
+
+    def error_of(dx):
+        xt = _perturb(x, dx)
+        return _error(nominal, (*_step(*xt, accel_m, gyro_m), xt[3], xt[4]))
+
+    np.testing.assert_allclose(F, _central_difference(error_of, 15), atol=1e-7)
 
 
 def test_noise_jacobian_matches_finite_differences():
@@ -68,17 +72,11 @@ def test_noise_jacobian_matches_finite_differences():
     p, v, R = _step(*x, accel_m, gyro_m)
     nominal = (p, v, R, x[3], x[4])
     Gm = strapdown.noise_jacobian(x[2], gyro_m - x[4], DT)
-    eps = 1e-6
-    numeric = np.zeros((15, 12))
-    for i in range(12):
-        cols = []
-        for sign in (1.0, -1.0):
-            n = np.zeros(12)
-            n[i] = sign * eps
-            pt, vt, Rt = _step(*x, accel_m, gyro_m, na=n[0:3], ng=n[3:6])
-            cols.append(_error(nominal, (pt, vt, Rt, x[3] + n[6:9], x[4] + n[9:12])))
-        numeric[:, i] = (cols[0] - cols[1]) / (2 * eps)
-    np.testing.assert_allclose(Gm, numeric, atol=1e-9)
+
+    def error_of(n):
+        return _error(nominal, (*_step(*x, accel_m, gyro_m, na=n[0:3], ng=n[3:6]), x[3] + n[6:9], x[4] + n[9:12]))
+
+    np.testing.assert_allclose(Gm, _central_difference(error_of, 12), atol=1e-9)
 
 
 def test_process_noise_of_a_level_step():
