@@ -26,6 +26,7 @@ KERNELS: dict[str, str] = {
     "slamkit.maps._raycast": "Amanatides-Woo ray casting",
     "slamkit.planning._gridsearch": "grid A*/Dijkstra search core",
     "slamkit.estimation._pfkernel": "particle-filter likelihood, motion and resampling",
+    "slamkit.estimation._eskfkernel": "error-state EKF IMU step (inertial navigation)",
 }
 
 _lock = threading.Lock()

@@ -125,9 +125,12 @@ def test_every_registry_estimator_satisfies_its_protocol() -> None:
     from slamkit.experiments.estimators import REGISTRY, factory
     from slamkit.sim.landmark_world import mildly_nonlinear, simulate_landmark_sequence
 
+    from slamkit.sim.inertial_world import PRESETS, simulate_inertial_sequence
+
     seq = simulate_landmark_sequence(mildly_nonlinear(duration_s=1.0), np.random.default_rng(0))
+    inertial = simulate_inertial_sequence(PRESETS["car3d"](duration_s=1.0), np.random.default_rng(0))
     for name, spec in REGISTRY.items():
         built = factory(name)
-        est = built(seq)
+        est = built(inertial if spec.sequence_kind == "inertial" else seq)
         assert built.kind == spec.kind
         assert isinstance(est, BatchEstimator if spec.kind == "batch" else Estimator), name

@@ -25,6 +25,7 @@ SUITES: dict[str, str] = {
     "planning": "slamkit.bench.planning:run",
     "control": "slamkit.bench.control:run",
     "scan-matching": "slamkit.bench.scan_matching:run",
+    "inertial": "slamkit.bench.inertial:run",
 }
 
 

@@ -88,6 +88,14 @@ class Estimator(Protocol):
 
 
 @runtime_checkable
+class LatestBelief(Protocol):
+    """An estimator whose ``estimate()`` grows with the run (high-rate inertial estimators)
+    offers its newest pose alone, at constant cost, for observers that look every few events."""
+
+    def latest_estimate(self) -> Estimate: ...
+
+
+@runtime_checkable
 class ParticleBelief(Protocol):
     """An estimator whose belief is a particle set exposes it as (N, >= 3) poses (viewers draw it)."""
 

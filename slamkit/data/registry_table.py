@@ -207,6 +207,9 @@ WHEEL_FILES: dict[str, tuple[int, str, str | None]] = {
     "Plaza2_DR.txt": (327_200, "afd63364d0650e90ca1a9f13ceb9105104f52ab6768beb1cdf584ab9aada024e", "123657e3d06f91927096e95f27364ded8113ea6e"),
     "Plaza2_TD.txt": (192_496, "05e884e9e131b805db71bacd345b8606e8d53fe21a6b5a3acbbb4f33d0a68cfd", "c24a2c9845993f43e70032d1cdcb76befd9c5069"),
     "w100.graph": (20_262, "00e68e8ba3985213814862f53a533916a005c2b40d374d840f6d069d91abaa06", None),
+    "KittiEquivBiasedImu.txt": (6_648_928, "90264418a69979eccd6d84eb69560225dff544bf6affe353ea37bb70d4ecf38a", None),
+    "KittiEquivBiasedImu_metadata.txt": (221, "70f51ea40a05f1097484634d60064f16bc1622abcaa872458e555442afa44580", None),
+    "KittiGps_converted.txt": (42_122, "aa6f2a1332a40e8cbcd071de650f6b62fc58253e8bef83c8efeb51548dc9102c", None),
     "w10000.graph": (4_203_673, "1e88f220bd580a4c2b9fc065358608a53b26b1c30033405990b4cdc83236fc89", None),
 }
 
@@ -554,6 +557,14 @@ ENTRIES: dict[str, dict] = {
         kind="landmark_2d", format="toro", files=["gtsam_data/example.graph"],
         title="gtsam's tiny 2D pose + bearing-range example (VERTEX2/EDGE2 + BR)", licence=LIC_GTSAM,
         counts=dict(poses=95, edges=94, landmarks=24, bearing_range=422)),
+    "kitti-imu-gps": dict(
+        kind="inertial", format="gtsam_kitti_imu_gps",
+        files=["gtsam_data/KittiEquivBiasedImu.txt", "gtsam_data/KittiGps_converted.txt",
+               "gtsam_data/KittiEquivBiasedImu_metadata.txt"],
+        title="KITTI raw drive IMU (~100 Hz) and GPS (1 Hz, local metric frame) of gtsam's IMUKittiExampleGPS",
+        licence=LIC_GTSAM, counts=dict(imu=46968, gps=470, duration_s=471),
+        notes="No independent ground truth: score by withholding GPS (slamkit.data.inertial.withhold_gps). "
+              "Read by slamkit.data.formats.kitti_imu_gps."),
     "goats15": dict(
         kind="range_slam_2d", format="pyfg", files=["gtsam_data/goats_15.pyfg"],
         title="CORA range-aided SLAM, GOATS 15", licence=LIC_GTSAM,

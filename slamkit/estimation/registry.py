@@ -25,6 +25,7 @@ from slamkit.data.sequence import Sequence
 from slamkit.errors import ConfigError
 from slamkit.estimation.ekf import EKFLocalization, EKFLocalizationConfig
 from slamkit.estimation.ekf_slam import EKFSLAM, EKFSLAMConfig
+from slamkit.estimation.eskf import ErrorStateEKF, ErrorStateEKFConfig
 from slamkit.estimation.fastslam import FastSLAM, FastSLAMConfig
 from slamkit.estimation.histogram_filter import HistogramFilter, HistogramFilterConfig
 from slamkit.estimation.mcl import MCLConfig, MonteCarloLocalization
@@ -43,6 +44,9 @@ class FilterSpec:
     #: takes an ``rng`` (particle methods)
     random: bool
     description: str
+    #: the sequences it runs on: 'planar' (odometry + range-bearing landmark worlds) or
+    #: 'inertial' (IMU + GPS; the start state and noise come from slamkit.data.inertial)
+    sequence_kind: str = "planar"
 
 
 REGISTRY: Registry[FilterSpec] = Registry("filter", [(s.name, s) for s in [
@@ -58,9 +62,23 @@ REGISTRY: Registry[FilterSpec] = Registry("filter", [(s.name, s) for s in [
                "grid (histogram) Bayes filter localization"),
     FilterSpec("ekf_slam", EKFSLAM, EKFSLAMConfig, False, False, "EKF-SLAM, O(n^2) updates"),
     FilterSpec("fastslam", FastSLAM, FastSLAMConfig, False, True, "FastSLAM 1.0"),
+    FilterSpec("es_ekf", ErrorStateEKF, ErrorStateEKFConfig, False, False,
+               "15-state error-state EKF: IMU propagation, GPS updates (inertial sequences)", "inertial"),
 ]])
 
-NAMES: tuple[str, ...] = tuple(REGISTRY)
+#: the planar filters (one contract: the same landmark sequence, a planar Estimate)
+NAMES: tuple[str, ...] = tuple(n for n, f in REGISTRY.items() if f.sequence_kind == "planar")
+#: the inertial filters (IMU + GPS sequences, 3D Estimate)
+INERTIAL_NAMES: tuple[str, ...] = tuple(n for n, f in REGISTRY.items() if f.sequence_kind == "inertial")
+
+
+def _config(spec: FilterSpec, params: Mapping[str, Any]) -> Any:
+    fields = {f.name for f in dataclasses.fields(spec.config_cls)}
+    unknown = sorted(set(params) - fields)
+    if unknown:
+        raise ConfigError(f"filter {spec.name!r}: unknown parameter(s) {unknown}; "
+                          f"{spec.config_cls.__name__} has {sorted(fields)}")
+    return spec.config_cls(**params)
 
 
 def make_estimator(name: str, sequence: Sequence, params: Mapping[str, Any] | None = None,
@@ -69,14 +87,13 @@ def make_estimator(name: str, sequence: Sequence, params: Mapping[str, Any] | No
     name = REGISTRY.canonical(name)
     spec = REGISTRY[name]
     params = dict(params or {})
+    if spec.sequence_kind == "inertial":
+        # inertial filters read their start state and noise from the sequence
+        # (slamkit.data.inertial.setup_of); their params are their config's fields only
+        return spec.cls.from_sequence(sequence, config=_config(spec, params))
     noise = NoiseParams.from_metadata(sequence.metadata,
                                       **{k: float(params.pop(k)) for k in SENSOR_SIGMAS if k in params})
-    fields = {f.name for f in dataclasses.fields(spec.config_cls)}
-    unknown = sorted(set(params) - fields)
-    if unknown:
-        raise ConfigError(f"filter {name!r}: unknown parameter(s) {unknown}; "
-                          f"{spec.config_cls.__name__} has {sorted(fields)}")
-    kwargs: dict[str, Any] = {"noise": noise, "config": spec.config_cls(**params)}
+    kwargs: dict[str, Any] = {"noise": noise, "config": _config(spec, params)}
     if spec.random:
         kwargs["rng"] = rng if rng is not None else np.random.default_rng(0)
     if spec.needs_landmark_map:

@@ -104,7 +104,8 @@ class PoseGraphPipeline(PipelineConfig):
 
 class ScenarioEntry(BaseModel):
     model_config = STRICT
-    preset: Literal["mild", "strong"] | None = None
+    #: landmark-world presets (slamkit.sim.landmark_world) and inertial ones (slamkit.sim.inertial_world)
+    preset: Literal["mild", "strong", "car3d", "car3d_tactical"] | None = None
     dataset: str | None = None
     name: str | None = None
     params: dict[str, Any] = {}
@@ -248,6 +249,7 @@ def _check_estimators(raw: Any, doc: YamlDocument | None, source: str) -> None:
 
 
 def _check_scenarios(model: FilterVsSmootherPipeline, doc: YamlDocument | None, source: str) -> None:
+    from slamkit.sim.inertial_world import PRESETS as INERTIAL_PRESETS, InertialScenario
     from slamkit.sim.landmark_world import LandmarkScenario
 
     for k, entry in enumerate(model.scenarios):
@@ -256,4 +258,5 @@ def _check_scenarios(model: FilterVsSmootherPipeline, doc: YamlDocument | None, 
                 where = doc.where(("scenarios", k)) if doc is not None else source
                 raise ConfigError(f"{where}: scenarios.{k}: needs exactly one of 'preset' or 'dataset'")
             if entry.preset is not None:
-                _nested(model_of(LandmarkScenario), entry.params, doc, source, ("scenarios", k, "params"))
+                scenario = InertialScenario if entry.preset in INERTIAL_PRESETS else LandmarkScenario
+                _nested(model_of(scenario), entry.params, doc, source, ("scenarios", k, "params"))

@@ -4,7 +4,9 @@ one ``Sequence``.
 One table spans the filters of ``slamkit.estimation`` (their rows and construction come from
 ``slamkit.estimation.registry``) and the smoothers of ``slamkit.backend`` (ARCHITECTURE.md
 section 6 names: ``ekf``, ``ukf``, ``pf``, ``mcl``, ``histogram``, ``ekf_slam``, ``fastslam``,
-``batch``, ``isam2``, ``fixed_lag``). Smoother modules are imported only when one is built.
+``batch``, ``isam2``, ``fixed_lag``; for inertial sequences ``es_ekf``, ``isam2_imu``,
+``fixed_lag_imu``, which read their start state and noise from the sequence's
+:class:`~slamkit.data.inertial.InertialSetup` instead of ``NoiseParams``). Smoother modules are imported only when one is built.
 Both tables are a :class:`slamkit.naming.Registry`: snake_case names, old spellings accepted
 with a deprecation warning, an unknown name one ConfigError with the closest suggestion.
 
@@ -53,6 +55,9 @@ class EstimatorSpec:
     #: the constructor takes ``rng`` (particle methods)
     random: bool
     description: str
+    #: the sequences it runs on: 'planar' (landmark worlds and datasets) or 'inertial' (IMU + GPS,
+    #: ``slamkit.data.inertial``)
+    sequence_kind: str = "planar"
 
 
 #: the GTSAM smoothers (slamkit.backend); the filters' rows come from slamkit.estimation.registry
@@ -63,6 +68,12 @@ SMOOTHERS: tuple[EstimatorSpec, ...] = (
                   "Isam2LandmarkSLAMConfig", False, "iSAM2 incremental smoothing"),
     EstimatorSpec("fixed_lag", "smoother", "slamkit.backend.landmark_slam:FixedLagLandmarkSLAM",
                   False, "FixedLagLandmarkSLAMConfig", False, "fixed-lag smoother (lag in seconds)"),
+    EstimatorSpec("isam2_imu", "smoother", "slamkit.backend.inertial:Isam2Inertial", False,
+                  "InertialSmootherConfig", False,
+                  "iSAM2 with preintegrated IMU (CombinedImuFactor) and GPS factors", "inertial"),
+    EstimatorSpec("fixed_lag_imu", "smoother", "slamkit.backend.inertial:FixedLagInertial", False,
+                  "FixedLagInertialConfig", False,
+                  "fixed-lag smoother with preintegrated IMU and GPS factors (lag in seconds)", "inertial"),
 )
 
 
@@ -71,7 +82,8 @@ def _filter_rows() -> dict[str, EstimatorSpec]:
     from slamkit.estimation import registry as filters
 
     return {name: EstimatorSpec(name, "filter", f"{f.cls.__module__}:{f.cls.__name__}",
-                                f.needs_landmark_map, f.config_cls.__name__, f.random, f.description)
+                                f.needs_landmark_map, f.config_cls.__name__, f.random, f.description,
+                                f.sequence_kind)
             for name, f in filters.REGISTRY.items()}
 
 
@@ -158,9 +170,11 @@ def factory(name: str, params: Mapping[str, Any] | None = None, seed: int = 0) -
             rng = np.random.default_rng(seed) if s.random else None
             return make_estimator(name, sequence, {**noise_params, **params}, rng=rng)
         # smoothers carry their noise inside their config (slamkit.backend.landmark_slam)
-        noise = NoiseParams.from_metadata(sequence.metadata,
-                                          **{k: float(v) for k, v in noise_params.items()})
-        config = _config(config_cls, {"noise": noise, **params}, f"estimator {name!r}")
+        given = dict(params)
+        if any(f.name == "noise" for f in dataclasses.fields(config_cls)):
+            given["noise"] = NoiseParams.from_metadata(sequence.metadata,
+                                                       **{k: float(v) for k, v in noise_params.items()})
+        config = _config(config_cls, given, f"estimator {name!r}")
         if hasattr(cls, "from_sequence"):
             return cls.from_sequence(sequence, config=config)
         return cls(config=config)

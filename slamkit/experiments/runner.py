@@ -42,7 +42,8 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from slamkit.data.estimate import BatchEstimator, Estimate, Estimator, ParticleBelief, Prior
+from slamkit.data.estimate import (BatchEstimator, Estimate, Estimator, LatestBelief, ParticleBelief,
+                                   Prior)
 from slamkit.data.sequence import RangeBearing, Sequence
 from slamkit.data.trajectory import Trajectory
 from slamkit.errors import DataError, SlamkitError
@@ -91,8 +92,9 @@ def _kind_of(factory: Callable, estimator: Any) -> str:
 
 def belief_snapshot(name: str, estimator: Any, event: Any) -> BeliefSnapshot:
     """What an observer may draw after ``event``: pose, covariance, landmarks, particles and the
-    observation just processed (for association lines)."""
-    est = estimator.estimate()
+    observation just processed (for association lines). Estimators with ``latest_estimate``
+    (:class:`~slamkit.data.estimate.LatestBelief`) are asked only for their newest pose."""
+    est = estimator.latest_estimate() if isinstance(estimator, LatestBelief) else estimator.estimate()
     traj = est.trajectory
     covariance = None
     if est.pose_covariances is not None and len(est.pose_covariances):

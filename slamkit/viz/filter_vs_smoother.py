@@ -12,6 +12,8 @@ once, time on the ``time`` timeline in seconds):
     world/estimate/<name>/particles       particles of particle methods (time)
     world/estimate/<name>/landmarks       landmarks a SLAM estimator holds (time)
     world/estimate/<name>/associations    pose -> landmark lines for the observations just used (time)
+    world/gps, world/gps_withheld, plots/outage, plots/bias/...   inertial sequences only
+                                          (slamkit.viz.inertial)
     plots/error/<name>                    position error (m) of every pose (send_columns)
     plots/nees/<name>                     pose NEES, or its Monte-Carlo average (send_columns)
     plots/nees/band_lower, band_upper     its 95% chi-square band
@@ -38,9 +40,11 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
+from slamkit.data.inertial import is_inertial
 from slamkit.experiments.filter_vs_smoother import FilterVsSmootherPayload
 from slamkit.experiments.observers import BeliefSnapshot, StepSnapshot
 from slamkit.experiments.pipeline import PipelineOutput
+from slamkit.viz.inertial import log_inertial
 from slamkit.viz.recording import open_recording
 
 APPLICATION_ID = "slamkit_filter_vs_smoother"
@@ -79,9 +83,16 @@ def ellipse_outlines(centres_xy: np.ndarray, covariances_xy: np.ndarray, n_sigma
     return np.concatenate([pts, np.zeros(pts.shape[:2] + (1,))], axis=2)
 
 
-def blueprint(prefixes: Iterable[str] = ("",)) -> rrb.Blueprint:
-    """One spatial view per scenario over an error and a NEES plot."""
+def _positions(trajectory) -> np.ndarray:
+    """(N, 3) positions to draw: planar trajectories on z = 0, 3D ones as they are."""
+    return _xyz(trajectory.xytheta()[:, :2]) if trajectory.planar else np.asarray(trajectory.world_t_body)
+
+
+def blueprint(prefixes: Iterable[str] = ("",), inertial: Iterable[str] = ()) -> rrb.Blueprint:
+    """One spatial view per scenario over an error and a NEES plot; inertial scenarios add a
+    bias plot and the GPS outage windows (``slamkit.viz.inertial``)."""
     prefixes = list(prefixes)
+    inertial = [x for x in prefixes if x in set(inertial)]
 
     def p(path: str, prefix: str) -> str:
         return f"{prefix}/{path}" if prefix else path
@@ -90,9 +101,14 @@ def blueprint(prefixes: Iterable[str] = ("",)) -> rrb.Blueprint:
     errors = [rrb.TimeSeriesView(origin=p("plots/error", x), name=f"{x} position error (m)".strip())
               for x in prefixes]
     nees = [rrb.TimeSeriesView(origin=p("plots/nees", x), name=f"{x} NEES".strip()) for x in prefixes]
+    plots = [rrb.Grid(*errors), rrb.Grid(*nees)]
+    if inertial:
+        plots.append(rrb.Grid(*[rrb.TimeSeriesView(origin=p("plots/bias", x), name=f"{x} IMU biases".strip())
+                                for x in inertial],
+                              *[rrb.TimeSeriesView(origin=p("plots/outage", x), name=f"{x} GPS outage".strip())
+                                for x in inertial]))
     return rrb.Blueprint(
-        rrb.Horizontal(rrb.Grid(*views), rrb.Vertical(rrb.Grid(*errors), rrb.Grid(*nees)),
-                       column_shares=[3, 2]),
+        rrb.Horizontal(rrb.Grid(*views), rrb.Vertical(*plots), column_shares=[3, 2]),
         collapse_panels=True,
     )
 
@@ -136,17 +152,21 @@ def log_comparison(stream, sequence, runs: Mapping[str, Any], series: Mapping[st
         stream.log("world/ground_truth", rr.LineStrips3D([sequence.ground_truth.world_t_body],
                                                          radii=[0.03], colors=[COLOR_GROUND_TRUTH]),
                    static=True)
+    if is_inertial(sequence):
+        log_inertial(stream, sequence, runs)
     for name, run in runs.items():
         est = run.estimate  # an EstimatorRun (None when it failed)
         if est is None:
             continue
         base = f"world/estimate/{name}"
-        xyt = est.trajectory.xytheta()
-        stream.log(base, rr.LineStrips3D([_xyz(xyt[:, :2])], radii=[0.025], colors=[colors[name]]),
+        xyz = _positions(est.trajectory)
+        stream.log(base, rr.LineStrips3D([xyz], radii=[0.025], colors=[colors[name]]),
                    static=True)
-        if est.pose_covariances is not None and len(est.pose_covariances) == len(xyt):
-            idx = np.arange(0, len(xyt), ELLIPSE_EVERY)
-            outlines = ellipse_outlines(xyt[idx, :2], np.asarray(est.pose_covariances)[idx, :2, :2])
+        if est.pose_covariances is not None and len(est.pose_covariances) == len(xyz):
+            # horizontal (x, y) ellipses at the pose's height; both pose conventions put x, y first
+            idx = np.arange(0, len(xyz), ELLIPSE_EVERY)
+            outlines = ellipse_outlines(xyz[idx, :2], np.asarray(est.pose_covariances)[idx, :2, :2])
+            outlines[..., 2] += xyz[idx, 2][:, None]
             stream.log(f"{base}/covariance", rr.LineStrips3D(outlines, radii=[0.01], colors=[colors[name]]),
                        static=True)
         if est.world_p_landmarks:
@@ -197,11 +217,12 @@ def log_snapshot(stream, snapshot: StepSnapshot[BeliefSnapshot], color: tuple[in
     base = f"world/estimate/{belief.estimator}"
     stream.set_time(TIMELINE, duration=float(snapshot.stamp_s))
     pose = belief.pose.xytheta()[0]
-    stream.log(f"{base}/pose", rr.Points3D(_xyz(pose[:2]), radii=[0.15], colors=[color]))
+    where = _positions(belief.pose)[:1]
+    stream.log(f"{base}/pose", rr.Points3D(where, radii=[0.15], colors=[color]))
     if belief.covariance is not None:
-        stream.log(f"{base}/ellipse", rr.LineStrips3D(
-            ellipse_outlines(pose[None, :2], np.asarray(belief.covariance)[None, :2, :2]),
-            radii=[0.015], colors=[color]))
+        outline = ellipse_outlines(pose[None, :2], np.asarray(belief.covariance)[None, :2, :2])
+        outline[..., 2] += where[0, 2]
+        stream.log(f"{base}/ellipse", rr.LineStrips3D(outline, radii=[0.015], colors=[color]))
     if belief.particles is not None:
         stream.log(f"{base}/particles", rr.Points3D(_xyz(np.asarray(belief.particles)[:, :2]),
                                                     radii=[0.03], colors=[color]))
@@ -246,6 +267,7 @@ class FilterVsSmootherObserver:
     def __init__(self, path, spawn: bool = False):
         self.recording = open_recording(APPLICATION_ID, path, spawn)
         self._prefixes: list[str] = []
+        self._inertial: set[str] = set()
         self._colors: dict[str, tuple[int, int, int]] = {}
         self._done = False
 
@@ -253,10 +275,13 @@ class FilterVsSmootherObserver:
         """One colour per estimator for the whole recording, in the order they appear."""
         return self._colors.setdefault(estimator, color_of(len(self._colors)))
 
-    def _show(self, scenario: str) -> None:
-        if scenario not in self._prefixes:
-            self._prefixes.append(scenario)
-            self.recording.stream.send_blueprint(blueprint(self._prefixes))
+    def _show(self, scenario: str, inertial: bool = False) -> None:
+        if scenario not in self._prefixes or (inertial and scenario not in self._inertial):
+            if scenario not in self._prefixes:
+                self._prefixes.append(scenario)
+            if inertial:
+                self._inertial.add(scenario)
+            self.recording.stream.send_blueprint(blueprint(self._prefixes, self._inertial))
 
     def on_step(self, snapshot: StepSnapshot[BeliefSnapshot]) -> None:
         scenario = snapshot.run.split("/", 1)[0]
@@ -271,7 +296,7 @@ class FilterVsSmootherObserver:
         for name in payload.estimators:
             self._color(name)
         for o in payload.scenarios:
-            self._show(o.name)
+            self._show(o.name, is_inertial(o.sequence))
             log_comparison(_Prefixed(self.recording.stream, o.name), o.sequence, o.runs, o.series, o.anees,
                            colors=self._colors)
         self.recording.close()

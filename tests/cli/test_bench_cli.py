@@ -38,4 +38,4 @@ def test_bench_json_shape_and_ratios() -> None:
 def test_unknown_suite_is_a_usage_error() -> None:
     result = CliRunner().invoke(app, ["bench", "nope"])
     assert result.exit_code == 2
-    assert "error: unknown bench 'nope'; choose from control, filters, planning" in result.output
+    assert "error: unknown bench 'nope'; choose from control, filters, inertial, planning" in result.output

@@ -11,9 +11,12 @@ from slamkit.data.sequence import Gps, Odometry, RangeBearing
 from slamkit.errors import EstimationError
 from slamkit.estimation.kalman import KalmanFilter
 from slamkit.experiments.estimators import REGISTRY, factory
+from slamkit.sim.inertial_world import PRESETS as INERTIAL_PRESETS, simulate_inertial_sequence
 from slamkit.sim.landmark_world import mildly_nonlinear, simulate_landmark_sequence
 
 SEQ = simulate_landmark_sequence(mildly_nonlinear(duration_s=2.0), np.random.default_rng(0))
+#: the inertial estimators (es_ekf, isam2_imu, fixed_lag_imu) are built for an IMU + GPS sequence
+INERTIAL_SEQ = simulate_inertial_sequence(INERTIAL_PRESETS["car3d"](duration_s=2.0), np.random.default_rng(0))
 GOOD = Prior(np.zeros(3), np.diag([1e-4, 1e-4, 1e-4]))
 
 
@@ -36,7 +39,7 @@ def test_a_bad_prior_is_refused_when_it_is_made(cov, text) -> None:
     (Gps(0.1, np.array([0.0, 0.0]), 0.0), r"Gps at t=0\.1: sigma_m=0\.0 must be finite and > 0"),
 ])
 def test_every_estimator_refuses_a_non_finite_measurement(name, event, text) -> None:
-    est = factory(name)(SEQ)
+    est = factory(name)(INERTIAL_SEQ if REGISTRY[name].sequence_kind == "inertial" else SEQ)
     if not hasattr(est, "step"):
         pytest.skip("batch estimators solve a whole sequence")
     est.reset(GOOD)

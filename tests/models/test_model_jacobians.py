@@ -12,12 +12,13 @@ from typing import Callable
 import numpy as np
 import pytest
 
-from slamkit.geometry import se3
+from slamkit.geometry import se3, so3
 from slamkit.models import diff_drive as dd
 from slamkit.models import gps
 from slamkit.models import lidar
 from slamkit.models import planar
 from slamkit.models import range_bearing as rb
+from slamkit.models import strapdown
 from slamkit.models.bicycle import Bicycle
 from slamkit.models.camera import PinholeCamera
 from slamkit.models.stereo import StereoCamera
@@ -49,6 +50,30 @@ _CAM = PinholeCamera(458.6, 457.3, 367.2, 248.4, k1=-0.28, k2=0.074, k3=0.01, p1
 _STEREO = StereoCamera(700.0, 690.0, 320.0, 240.0, 0.12)
 _T_CAM = se3.exp(np.array([0.5, -0.2, 1.0, 0.1, -0.3, 0.2]))
 _P_WORLD = se3.transform_points(_T_CAM, np.array([0.4, -0.3, 3.0]))  # 3 m in front of the camera
+
+# strapdown: one IMU step from a moving, tilted state with biases; the function is the 15-dim
+# error (true - nominal, world-frame attitude error) after the step, as a function of the error
+# dx before it and of the step's noise n = (n_a, n_g, w_ba, w_bg)
+_SD_STATE = (np.array([1.0, -2.0, 0.5]), np.array([3.0, 1.0, -0.2]), so3.exp(np.array([0.2, -0.4, 1.1])),
+             np.array([0.05, -0.02, 0.1]), np.array([0.003, -0.001, 0.002]))
+_SD_ACC, _SD_GYR, _SD_DT, _SD_G = np.array([0.9, -0.6, 9.5]), np.array([0.7, -0.3, 0.9]), 0.01, np.array([0, 0, -9.81])
+
+
+def _strapdown_error(dx, n):
+    p, v, R, ba, bg = _SD_STATE
+    Rt, bat, bgt = so3.exp(dx[6:9]) @ R, ba + dx[9:12], bg + dx[12:15]
+    true = strapdown.propagate(p + dx[0:3], v + dx[3:6], Rt, _SD_ACC - bat - n[0:3], _SD_GYR - bgt - n[3:6],
+                               _SD_DT, _SD_G)
+    nominal = strapdown.propagate(p, v, R, _SD_ACC - ba, _SD_GYR - bg, _SD_DT, _SD_G)
+    return np.concatenate([true[0] - nominal[0], true[1] - nominal[1], so3.log(true[2] @ nominal[2].T),
+                           bat + n[6:9] - ba, bgt + n[9:12] - bg])
+
+
+def _strapdown_jacobians(dx, n):
+    _, _, R, ba, bg = _SD_STATE
+    return (strapdown.error_transition(R, _SD_ACC - ba, _SD_GYR - bg, _SD_DT),
+            strapdown.noise_jacobian(R, _SD_GYR - bg, _SD_DT))
+
 
 CASES = [
     _motion_case("diff_drive.motion", dd.motion, dd.motion_jacobians, [1.3, 0.8]),
@@ -85,6 +110,8 @@ CASES = [
          (np.array([1.0, 2.0, 0.4]), np.array([-3.0, 5.0])), (0, 1), (1,)),
     Case("range_bearing.inverse_observe", rb.inverse_observe, rb.inverse_observe_jacobians,
          (np.array([1.0, 2.0, 0.4]), np.array([4.0, -2.5])), (0, 1)),
+    Case("strapdown.error_transition and noise_jacobian (one IMU step)", _strapdown_error, _strapdown_jacobians,
+         (np.zeros(15), np.zeros(12)), (0, 1), tol=1e-8),
 ]
 
 
@@ -125,6 +152,7 @@ COVERED = {
     "camera.PinholeCamera.project_jacobian", "camera.PinholeCamera.distort_jacobian",
     "camera.PinholeCamera.project_world_jacobians",
     "stereo.StereoCamera.project_jacobian", "stereo.StereoCamera.triangulate_jacobian",
+    "strapdown.noise_jacobian",
 }
 EXEMPT = {
     # the same broadcasting function with a shape check; compared slice by slice in test_diff_drive

@@ -17,6 +17,14 @@ Config (``pipelines/filter_vs_smoother.yaml``)::
       pf: {n_particles: 500}
       batch: {}
 
+Inertial scenarios (issue 13) run through the same loop: the presets ``car3d`` and
+``car3d_tactical`` (:mod:`slamkit.sim.inertial_world`) and the dataset ``kitti-imu-gps`` (params
+``outage_s``, ``gap_s``, ``first_outage_after_s``, ``max_duration_s``: GPS withheld in windows),
+with the estimators ``es_ekf``, ``isam2_imu``, ``fixed_lag_imu``; their runs add the metrics of
+:mod:`slamkit.metrics.inertial` (position error at withheld fixes, bias error against the
+simulator's truth) and the report the "GPS outages" and "IMU biases" tables
+(``pipelines/filter_vs_smoother_inertial.yaml``).
+
 Simulated scenarios are drawn once per seed; datasets are deterministic and run once (seed 0
 seeds the particle methods). A dataset without ground truth is scored against the batch
 solution when ``batch`` is configured (NEES is then not computed: the batch solution is not the

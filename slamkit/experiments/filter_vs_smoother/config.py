@@ -18,6 +18,11 @@ from slamkit.paths import path_component
 
 #: the pipeline's registry name (``pipeline: filter_vs_smoother``)
 NAME = "filter_vs_smoother"
+#: simulated presets: landmark worlds (slamkit.sim.landmark_world) and inertial drives
+#: (slamkit.sim.inertial_world)
+LANDMARK_PRESETS = ("mild", "strong")
+INERTIAL_PRESETS = ("car3d", "car3d_tactical")
+PRESETS = LANDMARK_PRESETS + INERTIAL_PRESETS
 
 
 @dataclass(frozen=True)
@@ -46,15 +51,15 @@ def parse_scenarios(config: Mapping[str, Any]) -> list[ScenarioSpec]:
     out: list[ScenarioSpec] = []
     for k, item in enumerate(raw):
         if isinstance(item, str):
-            item = {"preset": item} if item in ("mild", "strong") else {"dataset": item}
+            item = {"preset": item} if item in PRESETS else {"dataset": item}
         if not isinstance(item, Mapping) or (("preset" in item) == ("dataset" in item)):
             raise ConfigError(f"filter_vs_smoother: scenarios[{k}] needs exactly one of 'preset' or "
                               f"'dataset', got {item!r}")
         unknown = set(item) - {"preset", "dataset", "name", "params"}
         if unknown:
             raise ConfigError(f"filter_vs_smoother: scenarios[{k}] has unknown key(s) {sorted(unknown)}")
-        if "preset" in item and item["preset"] not in ("mild", "strong"):
-            raise ConfigError(f"filter_vs_smoother: scenarios[{k}].preset must be mild or strong, "
+        if "preset" in item and item["preset"] not in PRESETS:
+            raise ConfigError(f"filter_vs_smoother: scenarios[{k}].preset must be one of {', '.join(PRESETS)}, "
                               f"got {item['preset']!r}")
         name = path_component(str(item.get("name") or item.get("preset") or item.get("dataset")),
                               f"filter_vs_smoother: scenarios[{k}] name")

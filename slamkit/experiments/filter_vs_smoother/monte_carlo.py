@@ -18,20 +18,31 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from slamkit.data.inertial import is_inertial
 from slamkit.data.sequence import Sequence
 from slamkit.errors import ConfigError
 from slamkit.experiments.estimators import factory
-from slamkit.experiments.filter_vs_smoother.config import (NAME, EstimatorChoice, ScenarioSpec,
-                                                            parse_estimators, parse_scenarios,
+from slamkit.experiments.filter_vs_smoother.config import (INERTIAL_PRESETS, NAME, EstimatorChoice,
+                                                            ScenarioSpec, parse_estimators, parse_scenarios,
                                                             parse_seeds, parse_workers)
 from slamkit.experiments.observers import PipelineObserver
 from slamkit.experiments.results import RunRecord
 from slamkit.experiments.runner import EstimatorRun, ErrorSeries, run_estimators, score
+from slamkit.metrics.inertial import inertial_metrics
 from slamkit.paths import file_in
 
 
 def build_sequence(scenario: ScenarioSpec, seed: int) -> Sequence:
     """The sequence of one scenario and seed (datasets ignore the seed)."""
+    if scenario.preset in INERTIAL_PRESETS:
+        from slamkit.sim.inertial_world import PRESETS as INERTIAL, simulate_inertial_sequence
+
+        params = {k: tuple(v) if isinstance(v, list) else v for k, v in scenario.params.items()}
+        try:
+            config = INERTIAL[scenario.preset](**{**params, "name": scenario.name})
+        except TypeError as exc:
+            raise ConfigError(f"filter_vs_smoother: scenario {scenario.name!r}: {exc}") from None
+        return simulate_inertial_sequence(config, np.random.default_rng(seed))
     if scenario.simulated:
         from slamkit.sim.landmark_world import PRESETS, simulate_landmark_sequence
 
@@ -49,6 +60,12 @@ def build_sequence(scenario: ScenarioSpec, seed: int) -> Sequence:
         except TypeError as exc:
             raise ConfigError(f"filter_vs_smoother: scenario {scenario.name!r}: {exc}") from None
         return simulate_landmark_sequence(config, np.random.default_rng(seed))
+    from slamkit.data import registry
+
+    if registry.get(scenario.dataset).kind == "inertial":
+        from slamkit.data.formats.kitti_imu_gps import load_kitti_imu_gps
+
+        return load_kitti_imu_gps(scenario.dataset, label=scenario.name, **dict(scenario.params))
     from slamkit.data.formats.landmark_datasets import load_landmark_sequence
 
     return load_landmark_sequence(scenario.dataset, **dict(scenario.params))
@@ -87,10 +104,15 @@ def run_task(task: Task, observer: PipelineObserver | None = None) -> TaskResult
                   if c.type == "batch" and r.estimate is not None), None)
     if reference is None and batch is not None:
         reference, reference_name, is_truth = batch.estimate.trajectory, f"{batch.name} solution", False
+    if reference is None and batch is None:
+        reference_name = ("withheld GPS fixes" if sequence.metadata.get("withheld_gps") is not None
+                          else "none")
     records, series, notes = [], {}, []
     for choice in task.estimators:
         run = runs[choice.label]
         scored = score(run, reference, sequence.world_p_landmarks, reference_is_truth=is_truth)
+        if run.estimate is not None and is_inertial(sequence):
+            scored.metrics.update(inertial_metrics(run.estimate, sequence.metadata))
         params = {"type": choice.type, "kind": run.kind, "reference": reference_name, **choice.params}
         if run.failed:
             params["failed"] = run.failed

@@ -35,9 +35,9 @@ def report_markdown(config: Mapping[str, Any], summary: list[dict[str, Any]], co
     text += "## Scenarios\n\n" + "\n".join(lines) + "\n\n"
     text += "## Metrics\n\n" + summary_markdown(summary) + "\n\n"
     if consistency:
-        text += ("## Consistency (pose NEES, 3 dof)\n\n"
+        text += ("## Consistency (pose NEES, d = 3 dof planar, 6 dof 3D)\n\n"
                  "Average NEES over the M runs at every step; a consistent estimator keeps its time "
-                 "mean inside the two-sided 95% band of chi2(3M)/M (Bar-Shalom et al. 2001, sec. "
+                 "mean inside the two-sided 95% band of chi2(dM)/M (Bar-Shalom et al. 2001, sec. "
                  "5.4), and about 95% of the steps inside it.\n\n")
         table = [[r["dataset"], r["estimator"], r["runs"], r["anees_mean"],
                   f"[{r['band95'][0]:.3g}, {r['band95'][1]:.3g}]",
@@ -45,12 +45,37 @@ def report_markdown(config: Mapping[str, Any], summary: list[dict[str, Any]], co
                   r["steps_in_band_fraction"], r["degenerate_fraction"]] for r in consistency]
         text += markdown_table(["scenario", "estimator", "runs M", "mean NEES", "95% band", "verdict",
                                 "steps in band", "degenerate steps"], table) + "\n\n"
+    text += inertial_markdown(summary)
     failed = [(rec.dataset, rec.estimator, rec.seed, rec.params.get("failed"))
               for r in results for rec in r.records if rec.params.get("failed")]
     if failed:
         notes = notes + [f"{d} / {e} / seed {s}: {msg}" for d, e, s, msg in failed]
     if notes:
         text += "## Notes\n\n" + "\n".join(f"- {n}" for n in notes[:50]) + "\n"
+    return text
+
+
+#: the inertial metrics (slamkit.metrics.inertial) the report tabulates on their own
+OUTAGE_METRICS = ("outage_windows", "outage_rmse_m", "outage_end_error_mean_m", "outage_max_error_m")
+BIAS_METRICS = ("accel_bias_rmse_mps2", "gyro_bias_rmse_radps", "bias_within_3sigma_fraction")
+
+
+def inertial_markdown(summary: list[dict[str, Any]]) -> str:
+    """The GPS-outage and bias tables of inertial scenarios (empty when there are none)."""
+    text = ""
+    for title, intro, metrics in (
+            ("GPS outages", "Position error at the GPS fixes withheld in outage windows (estimate "
+             "interpolated to each fix; filters online, smoothers their final estimate).", OUTAGE_METRICS),
+            ("IMU biases", "Bias error against the simulator's truth (RMS over the second half) and the "
+             "fraction of bias components inside their 3-sigma bounds.", BIAS_METRICS)):
+        cells: dict[tuple[str, str], dict[str, Any]] = {}
+        for r in summary:
+            if r["metric"] in metrics:
+                cells.setdefault((r["dataset"], r["estimator"]), {})[r["metric"]] = r["mean"]
+        if not cells:
+            continue
+        rows = [[d, e] + [v.get(m) for m in metrics] for (d, e), v in cells.items()]
+        text += f"## {title}\n\n{intro}\n\n" + markdown_table(["scenario", "estimator", *metrics], rows) + "\n\n"
     return text
 
 
