@@ -11,7 +11,9 @@ graph-based SLAM", IEEE ITS Magazine 2010; the local/global split of Cartographe
 1. Every scan is despeckled (``slamkit.frontend.preprocess``), turned into body-frame points
    (``body_xytheta_lidar``: where the lidar sits on the robot) and matched by point-to-line ICP
    (``slamkit.frontend.icp``) against a local submap -- the last ``submap_keyframes`` keyframes'
-   points in the newest keyframe's frame -- starting from the ``motion_prior``: the wheel
+   points in the newest keyframe's frame, placed at their graph or front-end poses
+   (``submap_poses``) and optionally reduced to one point per ``icp.target_voxel_m`` cell so
+   that the normals span the walls -- starting from the ``motion_prior``: the wheel
    odometry since the previous scan (``odometry``), the previous scan-to-scan motion
    (``constant_velocity``, lidar only) or no motion (``identity``). Lidar only, the heading of
    the start is searched first (``rotation_search_deg``), and an uncertain match can be retried

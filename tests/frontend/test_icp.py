@@ -201,6 +201,31 @@ def test_corridor_submap_stacked_scans_need_a_voxel_filter_and_no_trim():
     assert len(IcpTarget(target, 6, 0.05).points) < 0.5 * len(target)
 
 
+def test_degeneracy_aware_step_keeps_the_prior_along_a_featureless_corridor():
+    """Two parallel walls and nothing else (Zhang, Kaess & Singh 2016): the scan moved
+    (0.3, 0.05); the prior says (0.25, 0). Plain point-to-line ICP wanders along the corridor on
+    noise and the walls' ends (measured x = 0.156 m after 50 iterations, not converged); the
+    degeneracy-aware step solves y and the heading and keeps x at the prior (measured x = 0.250,
+    y = 0.0495, 4 iterations)."""
+    rng = np.random.default_rng(1)
+    walls = lambda x: np.concatenate([np.column_stack([x, np.full_like(x, 1.0)]),
+                                      np.column_stack([x, np.full_like(x, -1.0)])])
+    target = walls(np.linspace(-3.0, 8.0, 200)) + rng.normal(0.0, 0.01, (400, 2))
+    source = walls(np.linspace(-2.5, 8.5, 180)) - np.array([0.3, 0.05]) + rng.normal(0.0, 0.01, (360, 2))
+    prior = np.array([0.25, 0.0, 0.0])
+    plain = icp(source, target, prior, IcpConfig(trim_fraction=1.0, max_correspondence_m=0.5))
+    aware = icp(source, target, prior, IcpConfig(trim_fraction=1.0, max_correspondence_m=0.5, degenerate_below=0.01))
+    assert abs(plain.target_T_source[0] - 0.25) > 0.05 and not plain.converged
+    assert aware.converged and abs(aware.target_T_source[0] - 0.25) < 1e-3
+    assert abs(aware.target_T_source[1] - 0.05) < 0.005 and abs(aware.target_T_source[2]) < 1e-3
+    # well-constrained geometry: the same step as plain ICP
+    x = np.linspace(0.0, 4.0, 80)
+    room = np.concatenate([walls(x), np.column_stack([np.full_like(x[:40], 4.0), np.linspace(-1.0, 1.0, 40)])])
+    moved = se2.transform_points(se2.inverse(np.array([0.1, -0.05, 0.02])), room)
+    a = icp(moved, room, np.zeros(3), IcpConfig(degenerate_below=0.01))
+    np.testing.assert_allclose(a.target_T_source, icp(moved, room, np.zeros(3)).target_T_source, atol=1e-9)
+
+
 def test_bad_input():
     with pytest.raises(ConfigError):
         IcpConfig(method="plane")
