@@ -191,7 +191,10 @@ INTEL_BOTTOM_WALL = (-4.5, 10.8, -18.75, -17.9)
                                          ("intel", "constant_velocity"), ("fr079", "constant_velocity")])
 def test_benchmark_goals(name, prior):
     """Issue 11's goals on the whole logs: the published graph-mapping result (Intel 0.031 m,
-    fr079 0.056 m) with odometry, within 1.5x of it lidar only; rotation below 1 deg."""
+    fr079 0.056 m) with odometry, within 1.5x of it lidar only; rotation below 1 deg. Measured
+    (mean +- std, m): Intel 0.016 +- 0.014 with odometry, 0.026 +- 0.050 lidar only (0.453 +-
+    1.334 before the lidar-only matcher settings of slam_by_motion_prior); fr079 0.031 +- 0.024
+    and 0.036 +- 0.025."""
     seq, relations = _log(name)
     res = run_slam(seq, None, logs_config(prior), relations=relations)
     m = res.metrics
