@@ -178,6 +178,8 @@ class LidarSlamPipeline(PipelineConfig):
     worlds: list[dict[str, Any]] = []
     logs: list[Union[str, LogEntryModel]] = []
     slam: dict[str, Any] = {}
+    #: per motion prior, fields of ``slam`` that replace it for that prior (merged key by key)
+    slam_by_motion_prior: dict[Literal["odometry", "constant_velocity", "identity"], dict[str, Any]] = {}
     robust_variants: Annotated[list[Literal["none", "huber", "cauchy"]], Field(min_length=1)] | None = None
     motion_priors: Annotated[list[Literal["odometry", "constant_velocity", "identity"]],
                              Field(min_length=1)] | None = None
@@ -194,6 +196,8 @@ class LidarSlamPipeline(PipelineConfig):
             where = doc.where(()) if doc is not None else source
             raise ConfigError(f"{where}: lidar_slam needs 'worlds' (grid scenarios) or 'logs' (laser logs)")
         _nested(model_of(LidarSlamConfig), self.slam, doc, source, ("slam",))
+        for prior, values in self.slam_by_motion_prior.items():
+            _nested(model_of(LidarSlamConfig), values, doc, source, ("slam_by_motion_prior", prior))
         if isinstance(self.mcl, dict):
             _nested(model_of(MclCheckConfig), self.mcl, doc, source, ("mcl",))
         for k, world in enumerate(self.worlds):

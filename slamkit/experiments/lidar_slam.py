@@ -318,6 +318,23 @@ def slam_config_from(values: Mapping[str, Any] | None) -> LidarSlamConfig:
     return _dataclass_from(LidarSlamConfig, kwargs, "lidar_slam.slam")
 
 
+def _merged(base: Mapping[str, Any], override: Mapping[str, Any]) -> dict[str, Any]:
+    """``base`` with ``override``'s keys replacing its own, nested mappings merged key by key."""
+    out = dict(base)
+    for key, value in override.items():
+        nested = isinstance(value, Mapping) and isinstance(out.get(key), Mapping)
+        out[key] = _merged(out[key], value) if nested else value
+    return out
+
+
+def slam_section_for(config: Mapping[str, Any], motion_prior: str) -> dict[str, Any]:
+    """A pipeline's ``slam`` mapping for one motion prior: ``slam`` with the prior's entry of
+    ``slam_by_motion_prior`` merged in (what a matcher needs without odometry differs from what
+    it needs with it: pipelines/lidar_slam_logs.yaml)."""
+    per_prior = (config.get("slam_by_motion_prior") or {}).get(motion_prior) or {}
+    return {**_merged(config.get("slam") or {}, per_prior), "motion_prior": motion_prior}
+
+
 def _simulate(world: Mapping[str, Any], seed: int):
     from slamkit.sim.scenario import scenario_from_dict, simulate
 
@@ -478,6 +495,7 @@ def run(config: Mapping[str, Any], folder, progress, observer=None):
     robusts = config.get("robust_variants") or [slam_cfg.robust]
     priors = config.get("motion_priors") or [slam_cfg.motion_prior]
     variants = [(r, p) for r in robusts for p in priors]
+    slam_by_prior = {p: slam_config_from(slam_section_for(config, p)) for p in priors}
     n_false, false_seed = int(config.get("false_loop_closures", 0)), int(config.get("false_loop_seed", 0))
     mcl_cfg = None if not config.get("mcl") else _dataclass_from(
         MclCheckConfig, config["mcl"] if isinstance(config["mcl"], Mapping) else {}, "lidar_slam.mcl")
@@ -497,7 +515,7 @@ def run(config: Mapping[str, Any], folder, progress, observer=None):
                 second = trim_to_free_space(second, grid)
             for robust, prior in variants:
                 label = _label(robust, prior)
-                res = run_slam(seq, grid, replace(slam_cfg, robust=robust, motion_prior=prior), observer,
+                res = run_slam(seq, grid, replace(slam_by_prior[prior], robust=robust), observer,
                                n_false, false_seed, label=f"{seq.name}_{robust}" + ("" if prior == "odometry" else f"_{prior}"))
                 results.append(res)
                 metrics = dict(res.metrics)
@@ -519,7 +537,7 @@ def run(config: Mapping[str, Any], folder, progress, observer=None):
         relations = read_relations(entry.relations) if entry.relations else None
         for robust, prior in variants:
             suffix = ("" if len(robusts) == 1 else f"_{robust}") + ("" if prior == "odometry" else f"_{prior}")
-            res = run_slam(seq, None, replace(slam_cfg, robust=robust, motion_prior=prior), observer,
+            res = run_slam(seq, None, replace(slam_by_prior[prior], robust=robust), observer,
                            relations=relations, label=f"{entry.name}{suffix}")
             results.append(res)
             runs.append(RunRecord(entry.name, _label(robust, prior), dict(res.metrics),

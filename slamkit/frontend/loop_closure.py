@@ -106,7 +106,7 @@ def detect_loops(world_xytheta_keyframes: np.ndarray, keyframe_points: list[np.n
             continue
         tried += 1
         if i not in targets:
-            targets[i] = IcpTarget(keyframe_points[i], config.icp.normal_neighbours)
+            targets[i] = IcpTarget(keyframe_points[i], config.icp.normal_neighbours, config.icp.target_voxel_m)
         ok, res = verify_loop(targets[i], keyframe_points[j], se2.between(poses[i], poses[j]), config)
         if ok:
             accepted.append(LoopClosure(int(i), int(j), res.target_T_source, res))

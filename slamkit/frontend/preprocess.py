@@ -31,3 +31,21 @@ def despeckle(ranges_m: np.ndarray, jump_m: float = 0.3, relative: float = 0.05,
     # comparisons with NaN are False: a beam next to two no-returns is isolated too
     agrees = (np.abs(r - prev) <= tol) | (np.abs(r - nxt) <= tol)
     return np.where(agrees, r, np.nan)
+
+
+def voxel_downsample(points_xy: np.ndarray, voxel_m: float) -> np.ndarray:
+    """The centroid of the points (N, 2) in every occupied ``voxel_m`` grid cell (M, 2), in the
+    order of the cells' first points (the voxel filter of PCL / KISS-ICP). A submap stacked from
+    scans taken close together samples each wall every few millimetres, well below the range
+    noise (~1 cm), so the PCA normals of a point's nearest neighbours point anywhere; one point
+    per cell makes the neighbourhood span the wall instead (``slamkit.frontend.icp.IcpTarget``)."""
+    p = np.asarray(points_xy, dtype=float)
+    if voxel_m <= 0 or len(p) == 0:
+        return p
+    cells = np.floor(p / voxel_m).astype(np.int64)
+    _, first, inverse = np.unique(cells, axis=0, return_index=True, return_inverse=True)
+    inverse = inverse.ravel()
+    sums = np.zeros((len(first), 2))
+    np.add.at(sums, inverse, p)
+    centroids = sums / np.bincount(inverse)[:, None]
+    return centroids[np.argsort(first, kind="stable")]

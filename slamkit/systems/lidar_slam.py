@@ -11,7 +11,9 @@ graph-based SLAM", IEEE ITS Magazine 2010; the local/global split of Cartographe
 1. Every scan is despeckled (``slamkit.frontend.preprocess``), turned into body-frame points
    (``body_xytheta_lidar``: where the lidar sits on the robot) and matched by point-to-line ICP
    (``slamkit.frontend.icp``) against a local submap -- the last ``submap_keyframes`` keyframes'
-   points in the newest keyframe's frame -- starting from the ``motion_prior``: the wheel
+   points in the newest keyframe's frame, placed at their graph or front-end poses
+   (``submap_poses``) and optionally reduced to one point per ``icp.target_voxel_m`` cell so
+   that the normals span the walls -- starting from the ``motion_prior``: the wheel
    odometry since the previous scan (``odometry``), the previous scan-to-scan motion
    (``constant_velocity``, lidar only) or no motion (``identity``). Lidar only, the heading of
    the start is searched first (``rotation_search_deg``), and an uncertain match can be retried
@@ -56,7 +58,7 @@ from slamkit.frontend.correlative import CorrelativeConfig, CorrelativeGrid, cor
 from slamkit.frontend.icp import IcpConfig, IcpResult, IcpTarget, icp, rotation_search, scan_to_points
 from slamkit.frontend.keyframes import KeyframeConfig
 from slamkit.frontend.loop_closure import LoopClosure, LoopClosureConfig, loop_candidates, verify_loop
-from slamkit.frontend.preprocess import despeckle
+from slamkit.frontend.preprocess import despeckle, voxel_downsample
 from slamkit.geometry import se2
 from slamkit.maps.log_odds import LogOddsConfig, LogOddsMap
 from slamkit.maps.occupancy_grid import OccupancyGrid
@@ -79,6 +81,11 @@ class LidarSlamConfig:
     loop_rounds: int = 2
     robust: str = "cauchy"
     submap_keyframes: int = 3
+    #: the scan-matching submap's keyframes are placed at their ``graph`` poses (moved by loop
+    #: closures) or at their ``frontend`` poses (the chained matches, as Cartographer's local
+    #: SLAM: a wrong loop closure that pulls two recent keyframes apart cannot double the walls
+    #: the next scans are matched against)
+    submap_poses: Literal["graph", "frontend"] = "graph"
     #: the consistency check of ``finish()``: a loop closure whose whitened squared residual at the
     #: robust solution exceeds this (the 99.9% quantile of chi-square with 3 dof) is dropped
     #: (with ``robust: none`` the graph is plain least squares: no check either)
@@ -131,6 +138,8 @@ class LidarSlamConfig:
             raise ConfigError(f"lidar_slam.robust must be none, huber or cauchy, got {self.robust!r}")
         if self.motion_prior not in MOTION_PRIORS:
             raise ConfigError(f"lidar_slam.motion_prior must be one of {MOTION_PRIORS}, got {self.motion_prior!r}")
+        if self.submap_poses not in ("graph", "frontend"):
+            raise ConfigError(f"lidar_slam.submap_poses must be graph or frontend, got {self.submap_poses!r}")
         if self.constant_velocity_per not in ("second", "scan"):
             raise ConfigError(f"lidar_slam.constant_velocity_per must be second or scan, got {self.constant_velocity_per!r}")
         if self.loop_rounds < 0 or self.submap_keyframes < 1 or self.loop_submap_keyframes < 0:
@@ -419,8 +428,9 @@ class LidarSlam:
             extra = 2 if found else 0
         self._graph.update(extra)
         self.observer.on_keyframe(Keyframe(k, stamp, self._graph.poses()[k].copy(), pts))
+        local = kf.frontend if self.config.submap_poses == "frontend" else self._graph.poses()
         self._target = self._submap_at(k, range(max(0, k - self.config.submap_keyframes + 1), k + 1),
-                                       self._graph.poses(), self.config.icp.normal_neighbours)
+                                       local, self.config.icp)
         self._likelihood = None
 
     # ---- loop closure ------------------------------------------------------------------------
@@ -461,20 +471,22 @@ class LidarSlam:
         self.counters["loop_candidates"] += 1
         s = cfg.loop_submap_keyframes
         K = len(self._kf.points)
-        target = self._submap_at(i, range(max(0, i - s), min(K, i + s + 1)), poses,
-                                 cfg.loops.icp.normal_neighbours)
+        target = self._submap_at(i, range(max(0, i - s), min(K, i + s + 1)), poses, cfg.loops.icp)
         if target is None:
             return None
         ok, res = verify_loop(target, pts_j, se2.between(poses[i], poses[j]), cfg.loops)
         return LoopClosure(i, j, res.target_T_source, res) if ok else None
 
-    def _submap_at(self, k: int, members, poses: np.ndarray, neighbours: int) -> IcpTarget | None:
-        """Keyframes ``members``' points in keyframe k's frame, prepared for ICP (None: too few)."""
+    def _submap_at(self, k: int, members, poses, icp_config: IcpConfig) -> IcpTarget | None:
+        """Keyframes ``members``' points in keyframe k's frame (``poses``: the keyframes' poses,
+        (K, 3) or a list of (3,)), prepared for ICP with
+        ``icp_config``'s normals and voxel filter (None: too few points)."""
         pts = np.concatenate([se2.transform_points(se2.between(poses[k], poses[m]), self._kf.points[m])
                               for m in members])
-        if len(pts) < max(3, neighbours):
+        pts = voxel_downsample(pts, icp_config.target_voxel_m)
+        if len(pts) < max(3, icp_config.normal_neighbours):
             return None
-        return IcpTarget(pts, neighbours)
+        return IcpTarget(pts, icp_config.normal_neighbours)
 
     def _accept(self, closure: LoopClosure, poses: np.ndarray) -> None:
         correction = se2.between(se2.between(poses[closure.i], poses[closure.j]), closure.i_T_j)

@@ -24,6 +24,7 @@ from slamkit.experiments.lidar_slam import (
     localize_on_map,
     run_slam,
     slam_config_from,
+    slam_section_for,
     trim_to_free_space,
 )
 from slamkit.systems.lidar_slam import LidarSlamConfig
@@ -145,6 +146,25 @@ def test_config_errors():
                             "map": {"resolution_m": 0.05}})
     assert cfg.loops.search_radius_m == 2.0 and cfg.loops.icp.trim_fraction == 0.8
     assert cfg.map.resolution_m == 0.05
+
+
+def test_slam_by_motion_prior_is_merged_into_slam_key_by_key():
+    config = {"slam": {"submap_keyframes": 8, "icp": {"trim_fraction": 0.9, "max_iterations": 30},
+                       "loops": {"min_fitness": 0.6, "icp": {"trim_fraction": 0.9}}},
+              "slam_by_motion_prior": {"constant_velocity": {"icp": {"trim_fraction": 1.0, "target_voxel_m": 0.05},
+                                                             "loops": {"icp": {"target_voxel_m": 0.05}}}}}
+    lidar_only = slam_config_from(slam_section_for(config, "constant_velocity"))
+    assert lidar_only.motion_prior == "constant_velocity" and lidar_only.submap_keyframes == 8
+    assert (lidar_only.icp.trim_fraction, lidar_only.icp.max_iterations, lidar_only.icp.target_voxel_m) == (1.0, 30, 0.05)
+    assert (lidar_only.loops.min_fitness, lidar_only.loops.icp.trim_fraction,
+            lidar_only.loops.icp.target_voxel_m) == (0.6, 0.9, 0.05)
+    with_odometry = slam_config_from(slam_section_for(config, "odometry"))
+    assert with_odometry.icp.trim_fraction == 0.9 and with_odometry.icp.target_voxel_m == 0.0
+    from slamkit.experiments.config_models import check_pipeline
+
+    with pytest.raises(ConfigError, match="slam_by_motion_prior"):
+        check_pipeline({"pipeline": "lidar_slam", "logs": ["intel-log"],
+                        "slam_by_motion_prior": {"constant_velocity": {"icp": {"voxel": 0.05}}}})
 
 
 def test_trim_to_free_space(world):

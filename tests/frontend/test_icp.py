@@ -153,6 +153,79 @@ def test_corridor_is_degenerate_along_its_axis():
     assert sx > 10 * sy  # measured 18x
 
 
+#: a corridor 2 m wide along x with one door recess on either side and no end wall within 20 m
+#: (segments x0, y0, x1, y1)
+CORRIDOR = np.array([
+    [-2.0, 1.0, 4.0, 1.0], [5.0, 1.0, 40.0, 1.0], [4.0, 1.0, 4.0, 1.4], [5.0, 1.0, 5.0, 1.4], [4.0, 1.4, 5.0, 1.4],
+    [-2.0, -1.0, 7.0, -1.0], [8.0, -1.0, 40.0, -1.0], [7.0, -1.0, 7.0, -1.4], [8.0, -1.0, 8.0, -1.4],
+    [7.0, -1.4, 8.0, -1.4]])
+FRONT_BEAMS = np.deg2rad(np.arange(-90.0, 90.5, 1.0))
+
+
+def _corridor_scan(pose: np.ndarray, rng: np.random.Generator, sigma_m: float = 0.01) -> np.ndarray:
+    """Body-frame end points of a 180 deg, 1 deg scan from ``pose`` (ray-segment intersection)."""
+    ang = pose[2] + FRONT_BEAMS
+    d = np.column_stack([np.cos(ang), np.sin(ang)])
+    p0, e = CORRIDOR[:, :2], CORRIDOR[:, 2:] - CORRIDOR[:, :2]
+    den = d[:, None, 0] * e[None, :, 1] - d[:, None, 1] * e[None, :, 0]
+    w = p0[None] - pose[None, None, :2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (w[..., 0] * e[None, :, 1] - w[..., 1] * e[None, :, 0]) / den
+        s = (w[..., 0] * d[:, None, 1] - w[..., 1] * d[:, None, 0]) / den
+    r = np.where((np.abs(den) > 1e-12) & (t > 0) & (s >= 0) & (s <= 1), t, np.inf).min(axis=1)
+    r = np.where(r < 20.0, r + rng.normal(0.0, sigma_m, r.shape), np.nan)
+    return scan_to_points(r, FRONT_BEAMS, 20.0)
+
+
+def test_corridor_submap_stacked_scans_need_a_voxel_filter_and_no_trim():
+    """The Intel lidar-only failure in miniature (issue 11): a robot turns on the spot at a corridor
+    entry (8 scans, -15..20 deg, stacked into the submap), then drives 0.3 m down the corridor while
+    the constant-velocity prior still says 'standing'. The stacked walls are sampled every few mm,
+    below the 1 cm range noise, so PCA normals of 6 neighbours point anywhere (on Intel: mean
+    |n_x| = 0.35 on a wall along x): ICP reports x known to 4 mm and stays at the prior. With one
+    target point per 5 cm cell the normals are right, the corridor is honestly weak along x, and
+    without trimming the door jambs (the worst residuals while x is off, the only points that
+    constrain x) pull the match most of the way."""
+    rng = np.random.default_rng(0)
+    target = np.concatenate([se2.transform_points(np.array([0.0, 0.0, h]), _corridor_scan(np.array([0.0, 0.0, h]), rng))
+                             for h in np.deg2rad([-15.0, -10.0, -5.0, 0.0, 5.0, 10.0, 15.0, 20.0])])
+    source = _corridor_scan(np.array([0.3, 0.0, 0.0]), rng)
+    base = IcpConfig(trim_fraction=0.9, max_correspondence_m=0.5, max_iterations=30)
+    stuck = icp(source, target, np.zeros(3), base)
+    fixed = icp(source, target, np.zeros(3), IcpConfig(trim_fraction=1.0, max_correspondence_m=0.5,
+                                                       max_iterations=30, target_voxel_m=0.05))
+    # measured: stuck at x = -0.000 m with sigma_x 4 mm; fixed x = 0.204 m, sigma_x 3.4 cm
+    assert abs(stuck.target_T_source[0]) < 0.01 and np.sqrt(stuck.covariance[0, 0]) < 0.005
+    assert 0.15 < fixed.target_T_source[0] < 0.31 and np.sqrt(fixed.covariance[0, 0]) > 0.02
+    assert abs(fixed.target_T_source[1]) < 0.01 and abs(fixed.target_T_source[2]) < 0.005
+    assert len(IcpTarget(target, 6, 0.05).points) < 0.5 * len(target)
+
+
+def test_degeneracy_aware_step_keeps_the_prior_along_a_featureless_corridor():
+    """Two parallel walls and nothing else (Zhang, Kaess & Singh 2016): the scan moved
+    (0.3, 0.05); the prior says (0.25, 0). Plain point-to-line ICP wanders along the corridor on
+    noise and the walls' ends (measured x = 0.156 m after 50 iterations, not converged); the
+    degeneracy-aware step solves y and the heading and keeps x at the prior (measured x = 0.250,
+    y = 0.0495, 4 iterations)."""
+    rng = np.random.default_rng(1)
+    walls = lambda x: np.concatenate([np.column_stack([x, np.full_like(x, 1.0)]),
+                                      np.column_stack([x, np.full_like(x, -1.0)])])
+    target = walls(np.linspace(-3.0, 8.0, 200)) + rng.normal(0.0, 0.01, (400, 2))
+    source = walls(np.linspace(-2.5, 8.5, 180)) - np.array([0.3, 0.05]) + rng.normal(0.0, 0.01, (360, 2))
+    prior = np.array([0.25, 0.0, 0.0])
+    plain = icp(source, target, prior, IcpConfig(trim_fraction=1.0, max_correspondence_m=0.5))
+    aware = icp(source, target, prior, IcpConfig(trim_fraction=1.0, max_correspondence_m=0.5, degenerate_below=0.01))
+    assert abs(plain.target_T_source[0] - 0.25) > 0.05 and not plain.converged
+    assert aware.converged and abs(aware.target_T_source[0] - 0.25) < 1e-3
+    assert abs(aware.target_T_source[1] - 0.05) < 0.005 and abs(aware.target_T_source[2]) < 1e-3
+    # well-constrained geometry: the same step as plain ICP
+    x = np.linspace(0.0, 4.0, 80)
+    room = np.concatenate([walls(x), np.column_stack([np.full_like(x[:40], 4.0), np.linspace(-1.0, 1.0, 40)])])
+    moved = se2.transform_points(se2.inverse(np.array([0.1, -0.05, 0.02])), room)
+    a = icp(moved, room, np.zeros(3), IcpConfig(degenerate_below=0.01))
+    np.testing.assert_allclose(a.target_T_source, icp(moved, room, np.zeros(3)).target_T_source, atol=1e-9)
+
+
 def test_bad_input():
     with pytest.raises(ConfigError):
         IcpConfig(method="plane")

@@ -10,7 +10,7 @@ from slamkit.errors import ConfigError
 from slamkit.frontend.icp import scan_to_points
 from slamkit.frontend.keyframes import KeyframeConfig, select_keyframes
 from slamkit.frontend.loop_closure import LoopClosureConfig, detect_loops, loop_candidates, verify_loop
-from slamkit.frontend.preprocess import despeckle
+from slamkit.frontend.preprocess import despeckle, voxel_downsample
 from slamkit.geometry import se2
 from slamkit.maps.generators import OfficeConfig, office
 from slamkit.maps.raycast import RayCaster
@@ -101,6 +101,15 @@ def test_despeckle_removes_isolated_returns():
     np.testing.assert_array_equal(np.isnan(out), np.isnan(expected))
     # circular: the last beam neighbours the first
     assert np.isnan(despeckle(np.array([1.0, 1.0, 1.0, 9.0]), circular=True)[3])
+
+
+def test_voxel_downsample_keeps_one_centroid_per_cell():
+    pts = np.array([[0.01, 0.01], [0.03, 0.04], [0.12, 0.0], [0.02, 0.02], [-0.01, 0.0]])
+    out = voxel_downsample(pts, 0.05)
+    # cells (0, 0): the three points in [0, 0.05)^2; (2, 0): 0.12; (-1, 0): -0.01 -- in the order of
+    # the cells' first points
+    np.testing.assert_allclose(out, [[0.02, 7.0 / 300.0], [0.12, 0.0], [-0.01, 0.0]])
+    np.testing.assert_array_equal(voxel_downsample(pts, 0.0), pts)
 
 
 def test_bad_config():
