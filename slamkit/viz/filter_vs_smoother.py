@@ -185,12 +185,12 @@ def log_comparison(stream, sequence, runs: Mapping[str, Any], series: Mapping[st
                                     indexes=[rr.TimeColumn(TIMELINE, duration=np.asarray(s.stamps_s)[ok])],
                                     columns=rr.Scalars.columns(scalars=s.nees[ok]))
     band = None
-    for name, (stamps, values, b, _m) in anees.items():
-        ok = np.isfinite(values)
+    for name, curve in anees.items():
+        ok = np.isfinite(curve.anees)
         if ok.any():
-            stream.send_columns(f"plots/nees/{name}", indexes=[rr.TimeColumn(TIMELINE, duration=stamps[ok])],
-                                columns=rr.Scalars.columns(scalars=values[ok]))
-            band = (stamps[ok], b)
+            stream.send_columns(f"plots/nees/{name}", indexes=[rr.TimeColumn(TIMELINE, duration=curve.stamps_s[ok])],
+                                columns=rr.Scalars.columns(scalars=curve.anees[ok]))
+            band = (curve.stamps_s[ok], curve.band)
     if band is None and any(s.nees is not None for s in series.values()):
         from slamkit.metrics.consistency import chi2_band
 

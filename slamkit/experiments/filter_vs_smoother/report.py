@@ -23,7 +23,7 @@ def report_markdown(config: Mapping[str, Any], summary: list[dict[str, Any]], co
     seeds = {s.name: sum(1 for r in results if r.scenario == s.name) for s in scenarios}
     text = f"# Filters against smoothers: {config.get('name', 'filter_vs_smoother')}\n\n"
     text += ("Every estimator sees the same sequence. Cells are the mean over runs ± the half width "
-             "of the 95% Student-t confidence interval. ATE and RPE after SE(2) alignment; NEES "
+             "of the 95% Student-t confidence interval. ATE and RPE after SE(2) (planar) or SE(3) (3D) alignment; NEES "
              "from the unaligned pose error and the estimator's own covariance (filters: filtered, "
              "smoothers: final marginals); latencies per `step` call.\n\n")
     lines = []
@@ -132,22 +132,25 @@ def plot_errors(outcome: ScenarioOutcome, plt):
 
 
 def plot_nees(outcome: ScenarioOutcome, plt):
-    """The Monte-Carlo average NEES of every estimator against its 95% band (log scale)."""
+    """The Monte-Carlo average NEES of every estimator against its 95% band and its expected
+    value d, the pose dimension (log scale)."""
     fig, ax = plt.subplots(figsize=(9, 4))
-    band = None
-    for name, (stamps, anees, b, m) in outcome.anees.items():
-        ax.plot(stamps, anees, lw=0.8, label=f"{name} (M={m})")
-        band = b
-    if band is not None:
-        ax.axhspan(band[0], band[1], color="tab:green", alpha=0.15, label="95% band")
-        ax.axhline(3.0, color="tab:green", lw=0.6)
+    curve = None
+    for name, curve in outcome.anees.items():
+        ax.plot(curve.stamps_s, curve.anees, lw=0.8, label=f"{name} (M={curve.runs})")
+    if curve is not None:
+        ax.axhspan(curve.band[0], curve.band[1], color="tab:green", alpha=0.15, label="95% band")
+        ax.axhline(curve.dof, color="tab:green", lw=0.6)
     ax.set_yscale("log")
-    # the first steps start from the exact prior (NEES ~ 0); a floor keeps the band readable
-    ax.set_ylim(bottom=1e-2)
+    # runs that start from the exact prior have NEES ~ 0 at first: a floor keeps the band readable
+    lowest = min((float(np.nanmin(c.anees[c.anees > 0])) for c in outcome.anees.values() if np.any(c.anees > 0)),
+                 default=1e-2)
+    ax.set_ylim(bottom=max(1e-2, 0.5 * lowest))
     ax.set_xlabel("time (s)")
-    ax.set_ylabel("average pose NEES (3 dof)")
+    dofs = sorted({c.dof for c in outcome.anees.values()})
+    ax.set_ylabel(f"average pose NEES ({', '.join(map(str, dofs))} dof)")
     ax.set_title(f"{outcome.name}: NEES averaged over runs")
-    ax.legend(fontsize=8, loc="upper left")
+    ax.legend(fontsize=8, loc="best")
     fig.tight_layout()
     return fig
 

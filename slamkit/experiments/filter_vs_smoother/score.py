@@ -30,6 +30,8 @@ class NeesCurve(NamedTuple):
     band: tuple[float, float]
     #: M, the runs averaged
     runs: int
+    #: d, the pose dimension (3 planar, 6 in 3D): the expected value of the average NEES
+    dof: int
 
 
 #: above this fraction of steps without a positive-definite covariance no verdict is given
@@ -72,7 +74,7 @@ def consistency_table(results: list[TaskResult], scenarios: list[ScenarioSpec],
                          "inside_band": bool(finite.any() and band[0] <= mean <= band[1]),
                          "steps_in_band_fraction": inside, "degenerate_fraction": degenerate,
                          "verdict": nees_verdict(mean, band, degenerate)})
-            curves[(s.name, c.label)] = NeesCurve(stamps, anees, band, len(series))
+            curves[(s.name, c.label)] = NeesCurve(stamps, anees, band, len(series), series[0].dof)
     return rows, curves
 
 
