@@ -27,6 +27,7 @@ from slamkit.backend._convert import pose_key, poses_from_values, to_pose
 from slamkit.backend.graph import ROBUST_KINDS, gauge_prior, gaussian_from_information, robust
 from slamkit.data.pose_graph import PoseGraph
 from slamkit.errors import BackendError
+from slamkit.geometry import se2
 
 
 @dataclass(frozen=True)
@@ -191,6 +192,23 @@ class Isam2PoseGraph:
             model = robust(model, self.robust_kind, self.robust_k)
         self._factors.add(gtsam.BetweenFactorPose2(pose_key(i), pose_key(j), to_pose(2, z), model))
         self._edges.append((int(i), int(j), z, info))
+
+    def add_prior(self, i: int, world_xytheta: np.ndarray, covariance: np.ndarray) -> None:
+        """A PriorFactor on vertex ``i``: an absolute pose measurement (a scan matched against a
+        known map) with its (3, 3) ``covariance`` in world (x, y, theta) terms, turned into
+        GTSAM's body-frame tangent (the inverse of ``se2.covariance_body_to_world``)."""
+        row = np.asarray(world_xytheta, dtype=float).reshape(3)
+        cov_body = se2.covariance_world_to_body(row, np.asarray(covariance, dtype=float).reshape(3, 3))
+        self._factors.add(gtsam.PriorFactorPose2(pose_key(i), to_pose(2, row),
+                                                 gtsam.noiseModel.Gaussian.Covariance(0.5 * (cov_body + cov_body.T))))
+
+    def covariances(self) -> np.ndarray:
+        """(N, 3, 3) marginal covariances of every vertex in world (x, y, theta) terms
+        (``se2.covariance_body_to_world`` of GTSAM's body-frame marginals)."""
+        out = np.empty((len(self._ids), 3, 3))
+        for k, (vid, pose) in enumerate(zip(self._ids, self._poses)):
+            out[k] = se2.covariance_body_to_world(pose, self._isam.marginalCovariance(pose_key(vid)))
+        return out
 
     def update(self, extra_steps: int = 0) -> None:
         """Solve what was added (plus ``extra_steps`` empty updates: more relinearisation after a

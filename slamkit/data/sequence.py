@@ -13,6 +13,7 @@ from typing import Any, Iterable, Iterator, Mapping
 import numpy as np
 
 from slamkit.data.trajectory import Trajectory
+from slamkit.maps.occupancy_grid import OccupancyGrid
 
 
 @dataclass(frozen=True)
@@ -110,7 +111,9 @@ class Sequence:
     ``ground_truth`` is the true ``world_T_body`` at (at least) every event stamp that changes
     the robot state; ``world_p_landmarks`` maps landmark id to its true (x, y) when known.
     ``metadata`` carries units, frames and noise parameters (for example ``odometry_sigma``
-    or ``range_bearing_sigma``) that estimators use as their noise models.
+    or ``range_bearing_sigma``) that estimators use as their noise models. ``occupancy_grid``
+    is the world's map when the sequence comes with one (simulated grid worlds): what a robot
+    localising against a known map is given, as ``world_p_landmarks`` is for landmark maps.
     """
 
     name: str
@@ -119,6 +122,7 @@ class Sequence:
     world_p_landmarks: Mapping[int, np.ndarray] | None = None
     initial_world_xytheta_body: np.ndarray | None = None
     metadata: Mapping[str, Any] = field(default_factory=dict)
+    occupancy_grid: OccupancyGrid | None = None
 
     def __iter__(self) -> Iterator[Event]:
         return iter(self.events)
