@@ -202,13 +202,15 @@ class Isam2PoseGraph:
         self._factors.add(gtsam.PriorFactorPose2(pose_key(i), to_pose(2, row),
                                                  gtsam.noiseModel.Gaussian.Covariance(0.5 * (cov_body + cov_body.T))))
 
+    def covariance(self, row: int) -> np.ndarray:
+        """(3, 3) marginal covariance of the vertex added ``row``-th, in world (x, y, theta) terms
+        (``se2.covariance_body_to_world`` of GTSAM's body-frame marginal)."""
+        return se2.covariance_body_to_world(self._poses[row],
+                                            self._isam.marginalCovariance(pose_key(self._ids[row])))
+
     def covariances(self) -> np.ndarray:
-        """(N, 3, 3) marginal covariances of every vertex in world (x, y, theta) terms
-        (``se2.covariance_body_to_world`` of GTSAM's body-frame marginals)."""
-        out = np.empty((len(self._ids), 3, 3))
-        for k, (vid, pose) in enumerate(zip(self._ids, self._poses)):
-            out[k] = se2.covariance_body_to_world(pose, self._isam.marginalCovariance(pose_key(vid)))
-        return out
+        """(N, 3, 3) :meth:`covariance` of every vertex."""
+        return np.array([self.covariance(k) for k in range(len(self._ids))]).reshape(-1, 3, 3)
 
     def update(self, extra_steps: int = 0) -> None:
         """Solve what was added (plus ``extra_steps`` empty updates: more relinearisation after a

@@ -95,6 +95,15 @@ class ParticleBelief(Protocol):
 
 
 @runtime_checkable
+class LatestBelief(Protocol):
+    """An online estimator that can give its newest pose alone, cheaply: an Estimate whose
+    trajectory is that one pose (with its covariance and any landmarks). Observers' snapshots
+    use it instead of ``estimate()``, which rebuilds the whole trajectory."""
+
+    def latest(self) -> Estimate: ...
+
+
+@runtime_checkable
 class BatchEstimator(Protocol):
     name: str
 

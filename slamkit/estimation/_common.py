@@ -188,6 +188,18 @@ class FilterBase:
             extras={"ignored_events": self._ignored, **self._extras()},
         )
 
+    def latest(self) -> Estimate:
+        """The newest pose, its covariance and the landmarks only (what an observer draws at a
+        snapshot), without rebuilding the trajectory."""
+        if not self._ready:
+            raise EstimationError(f"{self.name}: latest() called before reset(prior)")
+        mean, cov = self._pose_and_covariance()
+        stamp = self._pending if self._pending is not None else (self._stamps[-1] if self._stamps else 0.0)
+        lm, lm_cov = self._landmarks()
+        return Estimate(trajectory=Trajectory.from_se2(np.array([stamp]), np.asarray(mean).reshape(1, 3)),
+                        pose_covariances=np.asarray(cov).reshape(1, 3, 3), world_p_landmarks=lm,
+                        landmark_covariances=lm_cov)
+
     # -- hooks -----------------------------------------------------------------------------
     def _reset(self, prior: Prior) -> None:
         raise NotImplementedError

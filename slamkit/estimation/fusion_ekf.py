@@ -124,7 +124,7 @@ class FusionEkfConfig:
     #: (m/sqrt(s), m/sqrt(s), rad/sqrt(s)): what the five states cannot model
     v_random_walk: float = 0.05
     omega_random_walk: float = 0.05
-    pose_random_walk: tuple[float, float, float] = (0.1, 0.1, 0.03)
+    pose_random_walk: tuple[float, float, float] = (0.1, 0.1, 0.06)
     #: R_enc (v, omega) and the default R_lidar (x, y, theta)
     encoder_covariance: tuple[float, float] = (0.001, 0.001)
     lidar_covariance: tuple[float, float, float] = (0.01, 0.01, 0.001)

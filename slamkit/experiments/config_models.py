@@ -106,6 +106,8 @@ class ScenarioEntry(BaseModel):
     model_config = STRICT
     preset: Literal["mild", "strong"] | None = None
     dataset: str | None = None
+    #: a scenario YAML (slamkit.sim.scenario), e.g. pipelines/scenarios/office_tour.yaml
+    scenario: str | None = None
     name: str | None = None
     params: dict[str, Any] = {}
 
@@ -252,8 +254,16 @@ def _check_scenarios(model: FilterVsSmootherPipeline, doc: YamlDocument | None, 
 
     for k, entry in enumerate(model.scenarios):
         if isinstance(entry, ScenarioEntry):
-            if (entry.preset is None) == (entry.dataset is None):
+            if sum(v is not None for v in (entry.preset, entry.dataset, entry.scenario)) != 1:
                 where = doc.where(("scenarios", k)) if doc is not None else source
-                raise ConfigError(f"{where}: scenarios.{k}: needs exactly one of 'preset' or 'dataset'")
+                raise ConfigError(f"{where}: scenarios.{k}: needs exactly one of 'preset', 'dataset' or 'scenario'")
             if entry.preset is not None:
                 _nested(model_of(LandmarkScenario), entry.params, doc, source, ("scenarios", k, "params"))
+            if entry.scenario is not None:
+                from slamkit.sim.scenario import load_scenario
+
+                where = doc.where(("scenarios", k)) if doc is not None else source
+                try:  # the file exists and its fields with the overrides make a scenario
+                    load_scenario(entry.scenario, entry.params)
+                except ConfigError as exc:
+                    raise ConfigError(f"{where}: scenarios.{k}: {exc}") from None

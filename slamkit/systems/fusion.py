@@ -149,6 +149,10 @@ class FusionLocalizer:
             return
         self.ekf.step(event)
 
+    def latest(self) -> Estimate:
+        """The newest pose only (for observers; see ``runner.belief_snapshot``)."""
+        return self.ekf.latest()
+
     def estimate(self) -> Estimate:
         est = self.ekf.estimate()
         m = self.matcher
@@ -165,9 +169,10 @@ class FusionLocalizer:
 class FusionSmootherConfig:
     matcher: MapMatchConfig = MapMatchConfig()
     #: white-noise densities of the wheel speed (m/s/sqrt(Hz)) and of the gyro rate
-    #: (rad/s/sqrt(Hz)) in the preintegrated odometry: var(d) = sigma_v^2 dt per increment
-    odometry_v_density: float = 0.05
-    odometry_omega_density: float = 0.05
+    #: (rad/s/sqrt(Hz)) in the preintegrated odometry: var(d) = sigma_v^2 dt per increment; the
+    #: defaults are the EKF's pose_random_walk, so filter and smoother assume the same noise
+    odometry_v_density: float = 0.1
+    odometry_omega_density: float = 0.06
     #: R_lidar of the pose-fix priors (as the EKF's default), or the fix's own covariance
     lidar_covariance: tuple[float, float, float] = (0.01, 0.01, 0.001)
     lidar_noise: str = "fixed"
@@ -212,6 +217,7 @@ class FusionSmoother:
         self._t_enc: float | None = None
         self._updates = 0
         self._cached: tuple[int, Estimate] | None = None
+        self._fix_stamps: list[float] = []
         self._ready = True
 
     def step(self, event: Event) -> None:
@@ -255,12 +261,22 @@ class FusionSmoother:
         info = np.linalg.inv(self._pre.covariance + 1e-12 * np.eye(3))
         g.add_edge(i, i + 1, self._pre.delta, info, robust_edge=False)
         if fix is not None:
+            self._fix_stamps.append(stamp)
             cov = fix.covariance if self.config.lidar_noise == "measured" else np.diag(self.config.lidar_covariance)
             g.add_prior(i + 1, fix.world_xytheta_body, cov)
         g.update()
         self._updates += 1
         self._stamps.append(stamp)
         self._pre.reset()
+
+    def latest(self) -> Estimate:
+        """The newest keyframe's current estimate and marginal covariance (for observers)."""
+        if not self._ready:
+            raise EstimationError(f"{self.name}: latest() called before reset(prior)")
+        pose = self.graph.poses()[-1]
+        cov = self.graph.covariance(self.graph.num_poses - 1) if self.graph.num_poses > 1 else np.eye(3) * 1e-12
+        return Estimate(trajectory=Trajectory.from_se2(np.array([self._stamps[-1]]), pose[None]),
+                        pose_covariances=cov[None])
 
     def estimate(self) -> Estimate:
         """The smoothed keyframes (after ``final_updates`` more iSAM2 steps) with their marginal
@@ -275,7 +291,8 @@ class FusionSmoother:
                         pose_covariances=self.graph.covariances(),
                         extras={"keyframes": self.graph.num_poses, "isam2_updates": self._updates,
                                 "accepted_fixes": m.accepted if m else 0,
-                                "rejected_fixes": m.rejected if m else 0})
+                                "rejected_fixes": m.rejected if m else 0,
+                                "lidar_update_stamps_s": np.array(self._fix_stamps)})
         self._cached = (self.graph.num_poses, est)
         return est
 

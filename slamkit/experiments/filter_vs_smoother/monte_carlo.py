@@ -32,6 +32,10 @@ from slamkit.paths import file_in
 
 def build_sequence(scenario: ScenarioSpec, seed: int) -> Sequence:
     """The sequence of one scenario and seed (datasets ignore the seed)."""
+    if scenario.scenario is not None:
+        from slamkit.sim.scenario import load_scenario, simulate
+
+        return simulate(load_scenario(scenario.scenario, {"name": scenario.name, **scenario.params}), seed).sequence
     if scenario.simulated:
         from slamkit.sim.landmark_world import PRESETS, simulate_landmark_sequence
 
