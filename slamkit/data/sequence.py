@@ -13,6 +13,7 @@ from typing import Any, Iterable, Iterator, Mapping
 import numpy as np
 
 from slamkit.data.trajectory import Trajectory
+from slamkit.errors import EstimationError
 from slamkit.maps.occupancy_grid import OccupancyGrid
 
 
@@ -94,6 +95,14 @@ def event_problem(event: Event) -> str | None:
         if not (np.isfinite(event.gyro_radps).all() and np.isfinite(event.accel_mps2).all()):
             return "a gyro or accelerometer reading is not finite"
     return None
+
+
+def check_event(event: Event, who: str) -> None:
+    """An EstimationError naming ``who``, the event type and stamp when ``event_problem`` finds
+    one (what every estimator's ``step`` checks first)."""
+    problem = event_problem(event)
+    if problem is not None:
+        raise EstimationError(f"{who}: {type(event).__name__} at t={event.stamp_s}: {problem}")
 
 
 def beam_angles_rad(angle_min_rad: float, increment_rad: float, n: int) -> np.ndarray:

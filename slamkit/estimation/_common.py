@@ -18,7 +18,7 @@ from scipy.stats import chi2
 
 from slamkit.data.estimate import Estimate, Prior
 from slamkit.data.noise import NoiseParams  # noqa: F401  (the filters import it from here)
-from slamkit.data.sequence import Event, Gps, Imu, Odometry, RangeBearing, Scan, WheelEncoders, event_problem
+from slamkit.data.sequence import Event, Gps, Imu, Odometry, RangeBearing, Scan, WheelEncoders, check_event
 from slamkit.data.trajectory import Trajectory
 from slamkit.errors import EstimationError
 from slamkit.geometry.angles import wrap_angle
@@ -136,9 +136,7 @@ class FilterBase:
         # the newest row instead of appending one out of order.
         if self._pending is not None and stamp > self._pending:
             self._finalize()
-        problem = event_problem(event)
-        if problem is not None:
-            raise EstimationError(f"{self.name}: {type(event).__name__} at t={event.stamp_s}: {problem}")
+        check_event(event, self.name)
         self._dispatch(event)
         self._pending = stamp if self._pending is None else max(stamp, self._pending)
         self._latency.append(time.perf_counter() - t0)

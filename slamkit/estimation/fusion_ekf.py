@@ -99,6 +99,14 @@ class WheelCalibration:
             return None
         return cls(int(metadata[keys[0]]), float(metadata[keys[1]]), float(metadata[keys[2]]))
 
+    @staticmethod
+    def required(calibration: "WheelCalibration | None", who: str) -> "WheelCalibration":
+        """``calibration``, or a ConfigError naming ``who`` when there is none."""
+        if calibration is None:
+            raise ConfigError(f"{who}: wheel encoder events need the wheel calibration "
+                              "(metadata encoder_ticks_per_rev, wheel_radius_m, half_axle_m)")
+        return calibration
+
     def rates(self, encoders: WheelEncoders, dt_s: float) -> np.ndarray:
         """(v_mps, omega_radps) over the ``dt_s`` the tick increments of ``encoders`` span."""
         d, dth = odometry_from_ticks(encoders.ticks_right, encoders.ticks_left, self.ticks_per_rev,
@@ -226,10 +234,7 @@ class FusionEKF(FilterBase):
             previous, s["t_enc"] = s["t_enc"], stamp
             if previous is None or stamp <= previous:
                 return  # the first reading only starts the clock
-            if self.calibration is None:
-                raise ConfigError(f"{self.name}: wheel encoder events need the wheel calibration "
-                                  "(metadata encoder_ticks_per_rev, wheel_radius_m, half_axle_m)")
-            z = self.calibration.rates(event, stamp - previous)
+            z = WheelCalibration.required(self.calibration, self.name).rates(event, stamp - previous)
             self._update(z, s["x"][3:], H_ENCODERS, self._R_enc, wrap=False)
         else:
             self._predict_to(stamp)

@@ -63,10 +63,7 @@ class WheelOdometry(FilterBase):
         self._ignored += 1
 
     def _encoders(self, encoders: WheelEncoders) -> None:
-        cal = self.calibration
-        if cal is None:
-            raise ConfigError(f"{self.name}: wheel encoder events need the wheel calibration "
-                              "(metadata encoder_ticks_per_rev, wheel_radius_m, half_axle_m)")
+        cal = WheelCalibration.required(self.calibration, self.name)
         d, dth = (float(v) for v in diff_drive.odometry_from_ticks(
             encoders.ticks_right, encoders.ticks_left, cal.ticks_per_rev, cal.wheel_radius_m, cal.half_axle_m))
         # wheel distances d_R, d_L -> (d, dtheta) = A (d_R, d_L)

@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from slamkit.data.estimate import Estimate, Prior
-from slamkit.data.sequence import Event, Imu, Scan, Sequence, WheelEncoders, event_problem
+from slamkit.data.sequence import Event, Imu, Scan, Sequence, WheelEncoders, check_event
 from slamkit.data.trajectory import Trajectory
 from slamkit.errors import ConfigError, EstimationError
 from slamkit.estimation.fusion_ekf import FusionEKF, FusionEkfConfig, PoseFix, WheelCalibration
@@ -100,10 +100,12 @@ class MapMatcher:
         return PoseFix(float(scan.stamp_s), res.target_T_source, 0.5 * (cov + cov.T))
 
 
-def _map_matcher(sequence: Sequence, config: MapMatchConfig, use_lidar: bool) -> MapMatcher | None:
-    if not use_lidar or sequence.occupancy_grid is None:
-        return None
-    return MapMatcher(sequence.occupancy_grid, config)
+def sensors_of(sequence: Sequence, config) -> tuple[WheelCalibration | None, MapMatcher | None]:
+    """What a fusion system is built from: the wheel calibration the sequence's metadata states
+    and a matcher on its map (None when ``config.use_lidar`` is off or there is no map)."""
+    grid = sequence.occupancy_grid
+    matcher = MapMatcher(grid, config.matcher) if config.use_lidar and grid is not None else None
+    return WheelCalibration.from_metadata(sequence.metadata), matcher
 
 
 # --------------------------------------------------------------------------------------------
@@ -132,8 +134,7 @@ class FusionLocalizer:
     @classmethod
     def from_sequence(cls, sequence: Sequence, config: FusionLocalizerConfig = FusionLocalizerConfig()
                       ) -> "FusionLocalizer":
-        return cls(WheelCalibration.from_metadata(sequence.metadata),
-                   _map_matcher(sequence, config.matcher, config.use_lidar), config)
+        return cls(*sensors_of(sequence, config), config)
 
     def reset(self, prior: Prior) -> None:
         self.ekf.reset(prior)
@@ -200,8 +201,7 @@ class FusionSmoother:
     @classmethod
     def from_sequence(cls, sequence: Sequence, config: FusionSmootherConfig = FusionSmootherConfig()
                       ) -> "FusionSmoother":
-        return cls(WheelCalibration.from_metadata(sequence.metadata),
-                   _map_matcher(sequence, config.matcher, config.use_lidar), config)
+        return cls(*sensors_of(sequence, config), config)
 
     def reset(self, prior: Prior) -> None:
         from slamkit.backend.isam2 import Isam2PoseGraph
@@ -213,7 +213,6 @@ class FusionSmoother:
         self._first = True
         self._pre = PlanarPreintegration()
         self._gyro = 0.0
-        self._t_imu: float | None = None
         self._t_enc: float | None = None
         self._updates = 0
         self._cached: tuple[int, Estimate] | None = None
@@ -223,9 +222,7 @@ class FusionSmoother:
     def step(self, event: Event) -> None:
         if not self._ready:
             raise EstimationError(f"{self.name}: step() called before reset(prior)")
-        problem = event_problem(event)
-        if problem is not None:
-            raise EstimationError(f"{self.name}: {type(event).__name__} at t={event.stamp_s}: {problem}")
+        check_event(event, self.name)
         stamp = float(event.stamp_s)
         if self._first:
             self._stamps[0] = stamp
@@ -241,11 +238,8 @@ class FusionSmoother:
         previous, self._t_enc = self._t_enc, stamp
         if previous is None or stamp <= previous:
             return
-        if self.calibration is None:
-            raise ConfigError(f"{self.name}: wheel encoder events need the wheel calibration "
-                              "(metadata encoder_ticks_per_rev, wheel_radius_m, half_axle_m)")
         dt = stamp - previous
-        v, _ = self.calibration.rates(event, dt)
+        v, _ = WheelCalibration.required(self.calibration, self.name).rates(event, dt)
         c = self.config
         self._pre.integrate(v * dt, self._gyro * dt, c.odometry_v_density ** 2 * dt,
                             c.odometry_omega_density ** 2 * dt, dt)
