@@ -148,11 +148,12 @@ def plot_error_norms(outcome: ScenarioOutcome, plt):
     axes[0].set_ylabel("position error (cm)")
     axes[1].set_ylabel("heading error (deg)")
     axes[1].set_xlabel("time (s)")
-    # a 3 s close-up (from the first slip window, else from 10 s): each lidar update a line
-    start = float(windows[0][0]) if len(windows) else 10.0
+    # a 3 s close-up (from the first slip window, else from 10 s) of the estimators with lidar
+    # updates, each update a vertical line
+    start = float(min(a for a, _ in windows)) if len(windows) else 10.0
     for k, name in enumerate(names):
         s, stamps = outcome.series[name], _lidar_updates(outcome.runs.get(name))
-        if stamps is None:
+        if stamps is None or not len(stamps):
             continue
         inside = (s.stamps_s >= start) & (s.stamps_s <= start + 3.0)
         color = colors[k % len(colors)]
