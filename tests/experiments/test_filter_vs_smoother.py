@@ -107,7 +107,7 @@ def test_shipped_fusion_config_is_valid(monkeypatch) -> None:
     from slamkit.experiments.pipeline import load_config
 
     monkeypatch.chdir(ROOT)
-    config = load_config(ROOT / "pipelines" / "fusion.yaml")
+    config = load_config(ROOT / "pipelines" / "filter_vs_smoother_fusion.yaml")
     assert [s.name for s in parse_scenarios(config)] == ["office_tour", "warehouse_tour", "office_radius_only"]
     assert {c.type for c in parse_estimators(config)} == {"dead_reckoning", "fusion_ekf", "fusion_isam2"}
 
