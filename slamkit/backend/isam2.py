@@ -27,6 +27,7 @@ from slamkit.backend._convert import pose_key, poses_from_values, to_pose
 from slamkit.backend.graph import ROBUST_KINDS, gauge_prior, gaussian_from_information, robust
 from slamkit.data.pose_graph import PoseGraph
 from slamkit.errors import BackendError
+from slamkit.geometry import se2
 
 
 @dataclass(frozen=True)
@@ -191,6 +192,25 @@ class Isam2PoseGraph:
             model = robust(model, self.robust_kind, self.robust_k)
         self._factors.add(gtsam.BetweenFactorPose2(pose_key(i), pose_key(j), to_pose(2, z), model))
         self._edges.append((int(i), int(j), z, info))
+
+    def add_prior(self, i: int, world_xytheta: np.ndarray, covariance: np.ndarray) -> None:
+        """A PriorFactor on vertex ``i``: an absolute pose measurement (a scan matched against a
+        known map) with its (3, 3) ``covariance`` in world (x, y, theta) terms, turned into
+        GTSAM's body-frame tangent (the inverse of ``se2.covariance_body_to_world``)."""
+        row = np.asarray(world_xytheta, dtype=float).reshape(3)
+        cov_body = se2.covariance_world_to_body(row, np.asarray(covariance, dtype=float).reshape(3, 3))
+        self._factors.add(gtsam.PriorFactorPose2(pose_key(i), to_pose(2, row),
+                                                 gtsam.noiseModel.Gaussian.Covariance(0.5 * (cov_body + cov_body.T))))
+
+    def covariance(self, row: int) -> np.ndarray:
+        """(3, 3) marginal covariance of the vertex added ``row``-th, in world (x, y, theta) terms
+        (``se2.covariance_body_to_world`` of GTSAM's body-frame marginal)."""
+        return se2.covariance_body_to_world(self._poses[row],
+                                            self._isam.marginalCovariance(pose_key(self._ids[row])))
+
+    def covariances(self) -> np.ndarray:
+        """(N, 3, 3) :meth:`covariance` of every vertex."""
+        return np.array([self.covariance(k) for k in range(len(self._ids))]).reshape(-1, 3, 3)
 
     def update(self, extra_steps: int = 0) -> None:
         """Solve what was added (plus ``extra_steps`` empty updates: more relinearisation after a

@@ -59,7 +59,7 @@ from gtsam.symbol_shorthand import L, X
 
 from slamkit.data.estimate import Estimate, Prior
 from slamkit.data.noise import NoiseParams, prior_of
-from slamkit.data.sequence import Event, Odometry, RangeBearing, Sequence, event_problem
+from slamkit.data.sequence import Event, Odometry, RangeBearing, Sequence, check_event
 from slamkit.data.trajectory import Trajectory
 from slamkit.geometry import se2
 from slamkit.errors import ConfigError, EstimationError
@@ -224,9 +224,7 @@ class _LandmarkSmootherBase:
     def step(self, event: Event) -> None:
         if not self._ready:
             raise EstimationError(f"{self.name}: step() called before reset(prior)")
-        problem = event_problem(event)
-        if problem is not None:
-            raise EstimationError(f"{self.name}: {type(event).__name__} at t={event.stamp_s}: {problem}")
+        check_event(event, self.name)
         t0 = time.perf_counter()
         stamp = float(event.stamp_s)
         # self._pending stays the object being filled until processed, so _current_pose sees

@@ -89,8 +89,10 @@ class Estimator(Protocol):
 
 @runtime_checkable
 class LatestBelief(Protocol):
-    """An estimator whose ``estimate()`` grows with the run (high-rate inertial estimators)
-    offers its newest pose alone, at constant cost, for observers that look every few events."""
+    """An online estimator whose ``estimate()`` grows with the run (high-rate inertial and fusion
+    estimators) offers its newest pose alone, at constant cost: an Estimate whose trajectory is
+    that one pose (with its covariance and any landmarks). Observers' snapshots use it instead of
+    rebuilding the whole trajectory every few events."""
 
     def latest_estimate(self) -> Estimate: ...
 

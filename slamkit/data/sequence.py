@@ -13,6 +13,8 @@ from typing import Any, Iterable, Iterator, Mapping
 import numpy as np
 
 from slamkit.data.trajectory import Trajectory
+from slamkit.errors import EstimationError
+from slamkit.maps.occupancy_grid import OccupancyGrid
 
 
 @dataclass(frozen=True)
@@ -95,6 +97,14 @@ def event_problem(event: Event) -> str | None:
     return None
 
 
+def check_event(event: Event, who: str) -> None:
+    """An EstimationError naming ``who``, the event type and stamp when ``event_problem`` finds
+    one (what every estimator's ``step`` checks first)."""
+    problem = event_problem(event)
+    if problem is not None:
+        raise EstimationError(f"{who}: {type(event).__name__} at t={event.stamp_s}: {problem}")
+
+
 def beam_angles_rad(angle_min_rad: float, increment_rad: float, n: int) -> np.ndarray:
     """The (n,) beam angles of an evenly spaced scan: angle_min + k increment, with both numbers
     rounded to float32 first -- the precision ``sensor_msgs/LaserScan`` carries -- so a scan
@@ -110,7 +120,9 @@ class Sequence:
     ``ground_truth`` is the true ``world_T_body`` at (at least) every event stamp that changes
     the robot state; ``world_p_landmarks`` maps landmark id to its true (x, y) when known.
     ``metadata`` carries units, frames and noise parameters (for example ``odometry_sigma``
-    or ``range_bearing_sigma``) that estimators use as their noise models.
+    or ``range_bearing_sigma``) that estimators use as their noise models. ``occupancy_grid``
+    is the world's map when the sequence comes with one (simulated grid worlds): what a robot
+    localising against a known map is given, as ``world_p_landmarks`` is for landmark maps.
     """
 
     name: str
@@ -119,6 +131,7 @@ class Sequence:
     world_p_landmarks: Mapping[int, np.ndarray] | None = None
     initial_world_xytheta_body: np.ndarray | None = None
     metadata: Mapping[str, Any] = field(default_factory=dict)
+    occupancy_grid: OccupancyGrid | None = None
 
     def __iter__(self) -> Iterator[Event]:
         return iter(self.events)

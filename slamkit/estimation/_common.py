@@ -18,7 +18,7 @@ from scipy.stats import chi2
 
 from slamkit.data.estimate import Estimate, Prior
 from slamkit.data.noise import NoiseParams  # noqa: F401  (the filters import it from here)
-from slamkit.data.sequence import Event, Gps, Odometry, RangeBearing, event_problem
+from slamkit.data.sequence import Event, Gps, Imu, Odometry, RangeBearing, Scan, WheelEncoders, check_event
 from slamkit.data.trajectory import Trajectory
 from slamkit.errors import EstimationError
 from slamkit.geometry.angles import wrap_angle
@@ -131,22 +131,32 @@ class FilterBase:
         stamp = float(event.stamp_s)
         # The trajectory row of a stamp is the posterior after the *last* event at that stamp,
         # so it is summarised lazily when the next stamp begins (or in estimate()): a predict
-        # followed by an update at the same stamp costs one summary, not two.
-        if self._pending is not None and self._pending != stamp:
+        # followed by an update at the same stamp costs one summary, not two. A late event
+        # (stamp before the pending one; only filters with a late-event rule accept it) refreshes
+        # the newest row instead of appending one out of order.
+        if self._pending is not None and stamp > self._pending:
             self._finalize()
-        problem = event_problem(event)
-        if problem is not None:
-            raise EstimationError(f"{self.name}: {type(event).__name__} at t={event.stamp_s}: {problem}")
+        check_event(event, self.name)
+        self._dispatch(event)
+        self._pending = stamp if self._pending is None else max(stamp, self._pending)
+        self._latency.append(time.perf_counter() - t0)
+
+    def _dispatch(self, event: Event) -> None:
+        """Hand ``event`` to its hook by type (an event type without a hook counts as ignored)."""
         if isinstance(event, Odometry):
             self._predict(event)
         elif isinstance(event, RangeBearing):
             self._update(event)
         elif isinstance(event, Gps):
             self._update_gps(event)
+        elif isinstance(event, Imu):
+            self._imu(event)
+        elif isinstance(event, WheelEncoders):
+            self._encoders(event)
+        elif isinstance(event, Scan):
+            self._scan(event)
         else:
             self._ignored += 1
-        self._pending = stamp
-        self._latency.append(time.perf_counter() - t0)
 
     def _finalize(self) -> None:
         mean, cov = self._pose_and_covariance()
@@ -176,6 +186,18 @@ class FilterBase:
             extras={"ignored_events": self._ignored, **self._extras()},
         )
 
+    def latest_estimate(self) -> Estimate:
+        """The newest pose, its covariance and the landmarks only (what an observer draws at a
+        snapshot), without rebuilding the trajectory."""
+        if not self._ready:
+            raise EstimationError(f"{self.name}: latest_estimate() called before reset(prior)")
+        mean, cov = self._pose_and_covariance()
+        stamp = self._pending if self._pending is not None else (self._stamps[-1] if self._stamps else 0.0)
+        lm, lm_cov = self._landmarks()
+        return Estimate(trajectory=Trajectory.from_se2(np.array([stamp]), np.asarray(mean).reshape(1, 3)),
+                        pose_covariances=np.asarray(cov).reshape(1, 3, 3), world_p_landmarks=lm,
+                        landmark_covariances=lm_cov)
+
     # -- hooks -----------------------------------------------------------------------------
     def _reset(self, prior: Prior) -> None:
         raise NotImplementedError
@@ -188,6 +210,15 @@ class FilterBase:
 
     def _update_gps(self, gps: Gps) -> None:
         # Filters that cannot use GPS count it as ignored rather than failing the run.
+        self._ignored += 1
+
+    def _imu(self, imu: Imu) -> None:
+        self._ignored += 1
+
+    def _encoders(self, encoders: WheelEncoders) -> None:
+        self._ignored += 1
+
+    def _scan(self, scan: Scan) -> None:
         self._ignored += 1
 
     def _pose_and_covariance(self) -> tuple[np.ndarray, np.ndarray]:

@@ -107,6 +107,8 @@ class ScenarioEntry(BaseModel):
     #: landmark-world presets (slamkit.sim.landmark_world) and inertial ones (slamkit.sim.inertial_world)
     preset: Literal["mild", "strong", "car3d", "car3d_tactical"] | None = None
     dataset: str | None = None
+    #: a scenario YAML (slamkit.sim.scenario), e.g. pipelines/scenarios/office_tour.yaml
+    scenario: str | None = None
     name: str | None = None
     params: dict[str, Any] = {}
 
@@ -258,9 +260,17 @@ def _check_scenarios(model: FilterVsSmootherPipeline, doc: YamlDocument | None, 
 
     for k, entry in enumerate(model.scenarios):
         if isinstance(entry, ScenarioEntry):
-            if (entry.preset is None) == (entry.dataset is None):
+            if sum(v is not None for v in (entry.preset, entry.dataset, entry.scenario)) != 1:
                 where = doc.where(("scenarios", k)) if doc is not None else source
-                raise ConfigError(f"{where}: scenarios.{k}: needs exactly one of 'preset' or 'dataset'")
+                raise ConfigError(f"{where}: scenarios.{k}: needs exactly one of 'preset', 'dataset' or 'scenario'")
             if entry.preset is not None:
                 scenario = InertialScenario if entry.preset in INERTIAL_PRESETS else LandmarkScenario
                 _nested(model_of(scenario), entry.params, doc, source, ("scenarios", k, "params"))
+            if entry.scenario is not None:
+                from slamkit.sim.scenario import load_scenario
+
+                where = doc.where(("scenarios", k)) if doc is not None else source
+                try:  # the file exists and its fields with the overrides make a scenario
+                    load_scenario(entry.scenario, entry.params)
+                except ConfigError as exc:
+                    raise ConfigError(f"{where}: scenarios.{k}: {exc}") from None

@@ -76,6 +76,19 @@ SMOOTHERS: tuple[EstimatorSpec, ...] = (
                   "fixed-lag smoother with preintegrated IMU and GPS factors (lag in seconds)", "inertial"),
 )
 
+#: estimators built by ``cls.from_sequence(sequence, config=...)`` outside the filter table: the
+#: wheel-odometry baseline and the multi-rate fusion systems (``slamkit.systems.fusion``), which
+#: read IMU, encoder and scan events and need a grid world's metadata and map
+SYSTEMS: tuple[EstimatorSpec, ...] = (
+    EstimatorSpec("dead_reckoning", "filter", "slamkit.estimation.wheel_odometry:WheelOdometry", False,
+                  "WheelOdometryConfig", False, "wheel-encoder dead reckoning"),
+    EstimatorSpec("fusion_ekf", "filter", "slamkit.systems.fusion:FusionLocalizer", False,
+                  "FusionLocalizerConfig", False, "5-state IMU/encoder EKF with scan-to-map pose fixes"),
+    EstimatorSpec("fusion_isam2", "smoother", "slamkit.systems.fusion:FusionSmoother", False,
+                  "FusionSmootherConfig", False,
+                  "iSAM2 over lidar keyframes: preintegrated wheel/gyro odometry and scan-to-map fixes"),
+)
+
 
 def _filter_rows() -> dict[str, EstimatorSpec]:
     """The filters as registered by the estimation layer (one table, not a copy of it)."""
@@ -88,7 +101,7 @@ def _filter_rows() -> dict[str, EstimatorSpec]:
 
 
 REGISTRY: Registry[EstimatorSpec] = Registry("estimator", {**_filter_rows(),
-                                                           **{s.name: s for s in SMOOTHERS}})
+                                                           **{s.name: s for s in SMOOTHERS + SYSTEMS}})
 
 
 def names() -> list[str]:
@@ -127,11 +140,23 @@ def available() -> list[str]:
 
 
 def _config(cls: type, params: Mapping[str, Any], where: str) -> Any:
-    fields = {f.name for f in dataclasses.fields(cls)}
-    unknown = sorted(set(params) - fields)
+    """``cls(**params)``; a mapping given for a field whose default is a dataclass overrides
+    that default's fields (recursively), a list for a tuple field becomes a tuple."""
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    unknown = sorted(set(params) - set(fields))
     if unknown:
         raise ConfigError(f"{where}: unknown parameter(s) {unknown}; {cls.__name__} has {sorted(fields)}")
-    return cls(**params)
+    kwargs = {}
+    for name, value in params.items():
+        f = fields[name]
+        default = f.default_factory() if f.default_factory is not dataclasses.MISSING else f.default
+        if isinstance(value, Mapping) and dataclasses.is_dataclass(default) and not isinstance(default, type):
+            nested = _config(type(default), value, f"{where}.{name}")
+            value = dataclasses.replace(default, **{k: getattr(nested, k) for k in value})
+        elif isinstance(value, list):
+            value = tuple(value)
+        kwargs[name] = value
+    return cls(**kwargs)
 
 
 @dataclass(frozen=True)
@@ -164,6 +189,9 @@ def factory(name: str, params: Mapping[str, Any] | None = None, seed: int = 0) -
     config_cls = getattr(module, s.config, None) if s.config else None
 
     def build(sequence: Sequence):
+        if s in SYSTEMS:
+            config = _config(config_cls, {**noise_params, **params}, f"estimator {name!r}")
+            return cls.from_sequence(sequence, config=config)
         if s.kind == "filter":
             from slamkit.estimation.registry import make_estimator
 

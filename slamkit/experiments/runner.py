@@ -27,6 +27,8 @@ from the estimate (:func:`pose_dof`: 3 for a planar trajectory, 6 otherwise):
 * ``landmark_rmse_m``: RMS landmark position error after a Umeyama alignment (SE(2), or SE(3)
   for 3D estimates) of the estimated landmarks onto the true ones (SLAM estimators;
   localisation filters are handed the true map and have none);
+* ``final_position_error_m``, ``final_heading_error_deg``: the unaligned world-frame error of
+  the last scored pose (where a run ends up: the prior fixes the frame);
 * ``step_latency_median_ms``, ``step_latency_p99_ms`` (online estimators), ``total_time_s``.
 
 Architecture note (issue 18): the runner serves every pipeline that feeds estimators; the
@@ -298,6 +300,10 @@ def score(run: EstimatorRun, reference: Trajectory | None,
     except DataError:
         notes.append(f"{run.name}: path shorter than {RPE_DELTA_M} m, no RPE")
     err = world_pose_error(pairs.ref, pairs.est)
+    dof = err.shape[1]
+    metrics["final_position_error_m"] = float(np.linalg.norm(err[-1, :2 if dof == 3 else 3]))
+    metrics["final_heading_error_deg"] = float(np.degrees(abs(err[-1, 2]) if dof == 3
+                                                          else np.linalg.norm(err[-1, 3:])))
     sigma = nees = None
     P = world_pose_covariances(est)
     if P is not None and len(P) == len(est.trajectory):

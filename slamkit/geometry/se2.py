@@ -164,3 +164,11 @@ def covariance_body_to_world(world_xytheta_body: np.ndarray, cov_body: np.ndarra
     c, s = np.cos(theta), np.sin(theta)
     A = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
     return A @ np.asarray(cov_body, dtype=float) @ A.T
+
+
+def covariance_world_to_body(world_xytheta_body: np.ndarray, cov_world: np.ndarray) -> np.ndarray:
+    """The inverse of :func:`covariance_body_to_world`: P_body = A^T P_world A."""
+    theta = float(np.asarray(world_xytheta_body, dtype=float).reshape(3)[2])
+    c, s = np.cos(theta), np.sin(theta)
+    A = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    return A.T @ np.asarray(cov_world, dtype=float) @ A

@@ -9,6 +9,12 @@ Sensors and what each event means (all stamps on one clock starting at 0):
   reading (``slamkit.models.encoders``), from the exact wheel angles
   phi_R = (s + l theta) / r, phi_L = (s - l theta) / r of the cumulative arc length s and
   unwrapped heading theta; ``diff_drive.odometry_from_ticks`` turns them back into motion.
+  What the robot believes and the truth can differ (a calibration error and slip):
+  ``wheel_radius_error`` makes the true radius r (1 + error) while the metadata states the nominal
+  r (so an estimator reading ``wheel_radius_m`` is wrong by that factor), and during the slip
+  windows (``slip_windows_s`` stated, plus ``slip_episodes`` windows of ``slip_duration_s`` drawn
+  from the slip stream of ``rng``) each wheel turns (1 + ``slip_ratio_lr``) times what rolling
+  over the ground needs; the windows are in ``metadata["truth"]``.
 * ``Imu`` at ``imu_rate_hz``: body-frame gyro (0, 0, omega) and specific force
   (dv/dt over the sample interval, v omega, +g) with white noise and bias random walk
   (``slamkit.models.imu``); the initial biases are in the metadata.
@@ -103,6 +109,15 @@ class GridScenario:
     #: discs shuttling across the route (``slamkit.sim.moving_obstacles``) that the lidar sees;
     #: the robot does not avoid them (dynamic clutter for estimation, not a planning test)
     moving_obstacles: int = 0
+    #: relative error of the wheel radius the robot believes: the true radius is
+    #: robot.wheel_radius_m (1 + wheel_radius_error), the ticks come from it (see module doc)
+    wheel_radius_error: float = 0.0
+    #: stated slip windows (start, end) in seconds, and the number and length of random ones
+    slip_windows_s: tuple[tuple[float, float], ...] = ()
+    slip_episodes: int = 0
+    slip_duration_s: float = 2.0
+    #: during slip each wheel (left, right) turns (1 + ratio) times the rolling rate
+    slip_ratio_lr: tuple[float, float] = (0.10, 0.05)
 
     def __post_init__(self) -> None:
         if self.world not in ("office", "warehouse", "file"):
@@ -114,6 +129,38 @@ class GridScenario:
                 raise ConfigError(f"GridScenario.{name} must be > 0, got {getattr(self, name)}")
         if self.num_goals < 1:
             raise ConfigError(f"GridScenario.num_goals must be >= 1, got {self.num_goals}")
+        if not self.wheel_radius_error > -1.0:
+            raise ConfigError(f"GridScenario.wheel_radius_error must be > -1, got {self.wheel_radius_error}")
+        if any(not 0.0 <= a < b for a, b in self.slip_windows_s):
+            raise ConfigError(f"GridScenario.slip_windows_s: each window needs 0 <= start < end, "
+                              f"got {self.slip_windows_s}")
+        if self.slip_episodes < 0 or not self.slip_duration_s > 0 or min(self.slip_ratio_lr) < 0:
+            raise ConfigError("GridScenario: slip_episodes >= 0, slip_duration_s > 0 and slip_ratio_lr >= 0 "
+                              f"needed, got {self.slip_episodes}, {self.slip_duration_s}, {self.slip_ratio_lr}")
+
+
+def slip_windows(config: GridScenario, end_s: float, rng: np.random.Generator) -> np.ndarray:
+    """(K, 2) slip windows (start, end) in seconds: the stated ones, then ``slip_episodes`` of
+    ``slip_duration_s`` with starts uniform over the run (drawn from ``rng``)."""
+    starts = rng.uniform(0.0, max(end_s - config.slip_duration_s, 0.0), config.slip_episodes)
+    drawn = np.column_stack([starts, starts + config.slip_duration_s])
+    return np.vstack([np.asarray(config.slip_windows_s, dtype=float).reshape(-1, 2), drawn])
+
+
+def wheel_angles_rad(arc_m: np.ndarray, heading_rad: np.ndarray, stamps_s: np.ndarray, robot: DiffDrive,
+                     radius_error: float, windows_s: np.ndarray, slip_ratio_lr) -> np.ndarray:
+    """(N, 2) cumulative (left, right) wheel angles at ``stamps_s`` of a robot whose true wheel
+    radius is ``robot.wheel_radius_m`` (1 + ``radius_error``), each interval whose midpoint lies in
+    a slip window turned (1 + ``slip_ratio_lr``) times further than rolling needs."""
+    r, l = robot.wheel_radius_m * (1.0 + radius_error), robot.half_axle_m
+    angles = np.column_stack([(arc_m - l * heading_rad) / r, (arc_m + l * heading_rad) / r])
+    if len(windows_s) == 0 or len(stamps_s) < 2:
+        return angles
+    mid = 0.5 * (stamps_s[1:] + stamps_s[:-1])
+    slipping = ((mid[:, None] >= windows_s[:, 0]) & (mid[:, None] < windows_s[:, 1])).any(axis=1)
+    rate = np.diff(angles, axis=0)
+    rate[slipping] *= 1.0 + np.asarray(slip_ratio_lr, dtype=float)
+    return np.vstack([angles[:1], angles[0] + np.cumsum(rate, axis=0)])
 
 
 def make_world(config: GridScenario, rng: np.random.Generator) -> OccupancyGrid:
@@ -194,7 +241,8 @@ def _stamps(rate_hz: float, end_s: float) -> np.ndarray:
 def simulate_grid_sequence(config: GridScenario, rng: np.random.Generator,
                            grid: OccupancyGrid | None = None) -> tuple[Sequence, OccupancyGrid]:
     """One seeded tour of ``config`` (or of ``grid`` when given). Returns the sequence and the map."""
-    world_rng, route_rng, odo_rng, enc_rng, imu_rng, lidar_rng, gps_rng, obs_rng = rng.spawn(8)
+    # a ninth stream (slip) leaves the first eight, and so every older sequence, unchanged
+    world_rng, route_rng, odo_rng, enc_rng, imu_rng, lidar_rng, gps_rng, obs_rng, slip_rng = rng.spawn(9)
     if grid is None:
         grid = make_world(config, world_rng)
     waypoints = route(grid, route_rng, config.num_goals, config.clearance_m)
@@ -244,13 +292,20 @@ def simulate_grid_sequence(config: GridScenario, rng: np.random.Generator,
         t = np.concatenate([[0.0], _stamps(enc.rate_hz, end_s)])
         s, th = arc_and_heading(t)
         r, l = config.robot.wheel_radius_m, config.robot.half_axle_m
-        angles = np.column_stack([(s - l * th) / r, (s + l * th) / r])  # left, right
+        windows = slip_windows(config, end_s, slip_rng)
+        angles = wheel_angles_rad(s, th, t, config.robot, config.wheel_radius_error, windows,
+                                  config.slip_ratio_lr)  # left, right
         inc = enc.interval_ticks(enc_rng, angles)
         for ti, (dl, dr) in zip(t[1:], inc):
             events.append((float(ti), 1, WheelEncoders(float(ti), int(dl), int(dr))))
         metadata.update(encoder_rate_hz=enc.rate_hz, encoder_ticks_per_rev=enc.ticks_per_rev,
                         encoder_ticks="increments since the previous reading",
                         wheel_radius_m=r, half_axle_m=l)
+        if config.wheel_radius_error or len(windows):
+            # what the robot does not know: estimators must not read this
+            metadata["truth"] = {"wheel_radius_m": r * (1.0 + config.wheel_radius_error),
+                                 "slip_windows_s": windows.tolist(),
+                                 "slip_ratio_lr": list(config.slip_ratio_lr)}
 
     if config.imu_rate_hz and len(drive.controls):
         dti = 1.0 / config.imu_rate_hz
@@ -317,5 +372,5 @@ def simulate_grid_sequence(config: GridScenario, rng: np.random.Generator,
     gt = Trajectory.from_se2(drive.stamps_s, drive.world_xytheta_body)
     seq = Sequence(name=config.name, events=tuple(e for _, _, e in events), ground_truth=gt,
                    world_p_landmarks=None, initial_world_xytheta_body=drive.world_xytheta_body[0].copy(),
-                   metadata=metadata)
+                   metadata=metadata, occupancy_grid=grid)
     return seq, grid

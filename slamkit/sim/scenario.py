@@ -116,10 +116,27 @@ def scenario_from_dict(data: Mapping[str, Any], source: str = "<scenario>", doc:
     raise ConfigError(f"{source}: kind: expected 'landmark' or 'grid', got {kind!r}")
 
 
-def load_scenario(path: str | Path) -> Scenario:
+def _merged(base: Mapping[str, Any], overrides: Mapping[str, Any]) -> dict[str, Any]:
+    """``base`` with ``overrides`` applied; nested mappings are merged key by key."""
+    out = dict(base)
+    for key, value in overrides.items():
+        if isinstance(value, Mapping) and isinstance(out.get(key), Mapping):
+            out[key] = _merged(out[key], value)
+        else:
+            out[key] = value
+    return out
+
+
+def load_scenario(path: str | Path, overrides: Mapping[str, Any] | None = None) -> Scenario:
+    """The scenario of a YAML file; ``overrides`` (field -> value, nested configs as mappings
+    merged into the file's) are applied before validation, so they are checked alike (an
+    unknown or bad override names the file)."""
     path = Path(path)
     doc = load_yaml(path, "scenario")
-    scenario = scenario_from_dict(doc.data if doc.data is not None else {}, str(path), doc)
+    data = doc.data if doc.data is not None else {}
+    if overrides:
+        data, doc = _merged(data, overrides), None
+    scenario = scenario_from_dict(data, str(path), doc)
     if isinstance(scenario, GridScenario) and scenario.map_file is not None:
         # a relative map path is relative to the scenario file, not to the working directory
         map_path = Path(scenario.map_file)

@@ -85,6 +85,33 @@ def test_config_errors_name_the_field() -> None:
     assert [c.label for c in parse_estimators({"estimators": ["ekf", {"pf": {"n_particles": 10}}]})] == ["ekf", "pf"]
 
 
+def test_scenario_files_with_overrides_are_checked_before_running() -> None:
+    from slamkit.experiments.config_models import check_pipeline
+
+    office = str(ROOT / "pipelines" / "scenarios" / "office_tour.yaml")
+    base = {"pipeline": "filter_vs_smoother", "estimators": {"fusion_ekf": {"ekf": {"lidar_noise": "measured"}}}}
+    check_pipeline({**base, "scenarios": [{"scenario": office, "params": {"wheel_radius_error": 0.03}}]})
+    with pytest.raises(ConfigError, match=r"scenarios\.0: .*office_tour\.yaml.*wheel_radius_eror: unknown key"):
+        check_pipeline({**base, "scenarios": [{"scenario": office, "params": {"wheel_radius_eror": 0.03}}]})
+    with pytest.raises(ConfigError, match=r"scenarios\.0: scenario .*nowhere\.yaml does not exist"):
+        check_pipeline({**base, "scenarios": [{"scenario": "nowhere.yaml"}]})
+    with pytest.raises(ConfigError, match="needs exactly one of 'preset', 'dataset' or 'scenario'"):
+        check_pipeline({**base, "scenarios": [{"scenario": office, "preset": "mild"}]})
+    with pytest.raises(ConfigError, match="lidar_noise"):
+        check_pipeline({**base, "scenarios": ["mild"], "estimators": {"fusion_ekf": {"ekf": {"lidar_noise": 3}}}})
+    (spec,) = parse_scenarios({"scenarios": [{"scenario": office, "params": {"slip_episodes": 1}}]})
+    assert (spec.name, spec.simulated, spec.params) == ("office_tour", True, {"slip_episodes": 1})
+
+
+def test_shipped_fusion_config_is_valid(monkeypatch) -> None:
+    from slamkit.experiments.pipeline import load_config
+
+    monkeypatch.chdir(ROOT)
+    config = load_config(ROOT / "pipelines" / "filter_vs_smoother_fusion.yaml")
+    assert [s.name for s in parse_scenarios(config)] == ["office_tour", "warehouse_tour", "office_radius_only"]
+    assert {c.type for c in parse_estimators(config)} == {"dead_reckoning", "fusion_ekf", "fusion_isam2"}
+
+
 def test_shipped_pipeline_config_is_valid() -> None:
     config = yaml.safe_load((ROOT / "pipelines" / "filter_vs_smoother.yaml").read_text())
     assert config["pipeline"] == "filter_vs_smoother"

@@ -159,3 +159,44 @@ def test_every_sensor_stamp_that_falls_on_a_control_stamp_equals_it_exactly(offi
         assert all(t in gt_stamps for t in stamps), kind  # 10 Hz and 1 Hz divide 20 Hz
     imu = [e.stamp_s for e in seq.of_type(Imu)]
     assert sum(t in gt_stamps for t in imu) == len(seq.of_type(Odometry))  # every 10th IMU sample
+
+
+def test_radius_error_and_slip_change_the_ticks_and_nothing_else():
+    # what the robot believes (metadata) against the truth: ticks from a 3% larger radius, and
+    # inside a stated slip window each wheel turns (1 + ratio) times further
+    base = GridScenario(**{**SMALL, "duration_s": 10.0})
+    wrong = GridScenario(**{**SMALL, "duration_s": 10.0}, wheel_radius_error=0.03,
+                         slip_windows_s=((4.0, 6.0),), slip_ratio_lr=(0.2, 0.1))
+    seq0, _ = simulate_grid_sequence(base, np.random.default_rng(5))
+    seq1, _ = simulate_grid_sequence(wrong, np.random.default_rng(5))
+    assert seq1.metadata["wheel_radius_m"] == seq0.metadata["wheel_radius_m"] == 0.1
+    assert seq1.metadata["truth"] == {"wheel_radius_m": pytest.approx(0.103), "slip_windows_s": [[4.0, 6.0]],
+                                      "slip_ratio_lr": [0.2, 0.1]}
+    assert "truth" not in seq0.metadata
+    t = np.array([e.stamp_s for e in seq0.of_type(WheelEncoders)])
+    ticks0 = np.array([[e.ticks_left, e.ticks_right] for e in seq0.of_type(WheelEncoders)])
+    ticks1 = np.array([[e.ticks_left, e.ticks_right] for e in seq1.of_type(WheelEncoders)])
+    out = t <= 4.0
+    # cumulative counts: quantisation errors do not accumulate, so the ratio is exact to a tick
+    assert np.abs(ticks1[out].sum(0) - ticks0[out].sum(0) / 1.03).max() <= 1.0
+    inside = (t > 4.0) & (t <= 6.0)
+    c0, c1 = np.cumsum(ticks0, axis=0), np.cumsum(ticks1, axis=0)
+    gained = (c1[inside][-1] - c1[~(t > 4.0)][-1]) / ((c0[inside][-1] - c0[~(t > 4.0)][-1]) / 1.03)
+    assert gained == pytest.approx([1.2, 1.1], abs=2e-3)
+    # every other sensor (and the ground truth) is untouched by the wheels' problems
+    for kind in (Odometry, Imu, Scan, Gps):
+        a, b = seq0.of_type(kind), seq1.of_type(kind)
+        assert len(a) == len(b) and all(repr(x) == repr(y) for x, y in zip(a, b))
+    assert np.array_equal(seq0.ground_truth.xytheta(), seq1.ground_truth.xytheta())
+    with pytest.raises(ConfigError, match="slip_windows_s"):
+        GridScenario(slip_windows_s=((3.0, 2.0),))
+
+
+def test_random_slip_episodes_are_seeded():
+    cfg = GridScenario(**{**SMALL, "duration_s": 10.0}, slip_episodes=2, slip_duration_s=1.5)
+    a, _ = simulate_grid_sequence(cfg, np.random.default_rng(4))
+    b, _ = simulate_grid_sequence(cfg, np.random.default_rng(4))
+    w = np.array(a.metadata["truth"]["slip_windows_s"])
+    assert w.shape == (2, 2) and np.allclose(w[:, 1] - w[:, 0], 1.5)
+    assert np.all(w[:, 0] >= 0) and np.all(w[:, 1] <= a.ground_truth.stamps_s[-1] + 1e-9)
+    assert a.metadata["truth"] == b.metadata["truth"]

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, Mapping
 
 from slamkit.errors import ConfigError
@@ -23,18 +24,24 @@ NAME = "filter_vs_smoother"
 LANDMARK_PRESETS = ("mild", "strong")
 INERTIAL_PRESETS = ("car3d", "car3d_tactical")
 PRESETS = LANDMARK_PRESETS + INERTIAL_PRESETS
+#: what a scenario entry names (exactly one)
+SOURCES = ("preset", "dataset", "scenario")
 
 
 @dataclass(frozen=True)
 class ScenarioSpec:
+    """One of: a simulated ``preset`` (landmark world or inertial drive), a registry ``dataset``,
+    or a ``scenario`` file (a scenario YAML, e.g. a grid world; ``params`` override its fields)."""
+
     name: str
     preset: str | None = None
     dataset: str | None = None
     params: Mapping[str, Any] = field(default_factory=dict)
+    scenario: str | None = None
 
     @property
     def simulated(self) -> bool:
-        return self.preset is not None
+        return self.preset is not None or self.scenario is not None
 
 
 @dataclass(frozen=True)
@@ -52,18 +59,19 @@ def parse_scenarios(config: Mapping[str, Any]) -> list[ScenarioSpec]:
     for k, item in enumerate(raw):
         if isinstance(item, str):
             item = {"preset": item} if item in PRESETS else {"dataset": item}
-        if not isinstance(item, Mapping) or (("preset" in item) == ("dataset" in item)):
-            raise ConfigError(f"filter_vs_smoother: scenarios[{k}] needs exactly one of 'preset' or "
-                              f"'dataset', got {item!r}")
-        unknown = set(item) - {"preset", "dataset", "name", "params"}
+        if not isinstance(item, Mapping) or sum(key in item for key in SOURCES) != 1:
+            raise ConfigError(f"filter_vs_smoother: scenarios[{k}] needs exactly one of 'preset', "
+                              f"'dataset' or 'scenario', got {item!r}")
+        unknown = set(item) - {*SOURCES, "name", "params"}
         if unknown:
             raise ConfigError(f"filter_vs_smoother: scenarios[{k}] has unknown key(s) {sorted(unknown)}")
         if "preset" in item and item["preset"] not in PRESETS:
             raise ConfigError(f"filter_vs_smoother: scenarios[{k}].preset must be one of {', '.join(PRESETS)}, "
                               f"got {item['preset']!r}")
-        name = path_component(str(item.get("name") or item.get("preset") or item.get("dataset")),
-                              f"filter_vs_smoother: scenarios[{k}] name")
-        out.append(ScenarioSpec(name, item.get("preset"), item.get("dataset"), dict(item.get("params") or {})))
+        default_name = item.get("preset") or item.get("dataset") or Path(str(item.get("scenario"))).stem
+        name = path_component(str(item.get("name") or default_name), f"filter_vs_smoother: scenarios[{k}] name")
+        out.append(ScenarioSpec(name, item.get("preset"), item.get("dataset"), dict(item.get("params") or {}),
+                                item.get("scenario")))
     names = [s.name for s in out]
     if len(set(names)) != len(names):
         raise ConfigError(f"filter_vs_smoother: scenario names must be unique, got {names} (set 'name')")

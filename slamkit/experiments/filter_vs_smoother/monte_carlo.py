@@ -34,6 +34,10 @@ from slamkit.paths import file_in
 
 def build_sequence(scenario: ScenarioSpec, seed: int) -> Sequence:
     """The sequence of one scenario and seed (datasets ignore the seed)."""
+    if scenario.scenario is not None:
+        from slamkit.sim.scenario import load_scenario, simulate
+
+        return simulate(load_scenario(scenario.scenario, {"name": scenario.name, **scenario.params}), seed).sequence
     if scenario.preset in INERTIAL_PRESETS:
         from slamkit.sim.inertial_world import PRESETS as INERTIAL, simulate_inertial_sequence
 

@@ -28,7 +28,8 @@ def report_markdown(config: Mapping[str, Any], summary: list[dict[str, Any]], co
              "smoothers: final marginals); latencies per `step` call.\n\n")
     lines = []
     for s in scenarios:
-        what = f"simulated preset `{s.preset}`" if s.simulated else f"dataset `{s.dataset}`"
+        what = (f"simulated preset `{s.preset}`" if s.preset else f"scenario `{s.scenario}`" if s.scenario
+                else f"dataset `{s.dataset}`")
         params = ", ".join(f"{k}={v}" for k, v in s.params.items())
         lines.append(f"- **{s.name}**: {what}{' (' + params + ')' if params else ''}, {seeds[s.name]} run(s), "
                      f"reference: {references.get(s.name, 'none')}")
@@ -93,6 +94,10 @@ def plot_all(plots: Path, payload: FilterVsSmootherPayload, summary: list[dict[s
             fig = plot_errors(outcome, plt)
             fig.savefig(file_in(plots, f"error_{outcome.name}", ".png", "scenario name"), dpi=100)
             plt.close(fig)
+        if any(_lidar_updates(run) is not None for run in outcome.runs.values()):
+            fig = plot_error_norms(outcome, plt)
+            fig.savefig(file_in(plots, f"error_norm_{outcome.name}", ".png", "scenario name"), dpi=100)
+            plt.close(fig)
         if outcome.anees:
             fig = plot_nees(outcome, plt)
             fig.savefig(file_in(plots, f"nees_{outcome.name}", ".png", "scenario name"), dpi=100)
@@ -127,6 +132,69 @@ def plot_errors(outcome: ScenarioOutcome, plt):
     for col in range(3):
         axes[-1, col].set_xlabel("time (s)")
     fig.suptitle(f"{outcome.name}: error and ±3σ bounds (first run)", fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def _lidar_updates(run) -> np.ndarray | None:
+    """The stamps of a run's lidar updates (filters that report ``lidar_update_stamps_s``)."""
+    if run is None or run.estimate is None:
+        return None
+    stamps = run.estimate.extras.get("lidar_update_stamps_s")
+    return None if stamps is None else np.asarray(stamps, dtype=float)
+
+
+def plot_error_norms(outcome: ScenarioOutcome, plt):
+    """Position and heading error over time of every estimator (log scale, first run), the lidar
+    updates of each marked as ticks under the curves and the simulator's slip windows shaded."""
+    names = list(outcome.series)
+    fig = plt.figure(figsize=(11, 9))
+    grid = fig.add_gridspec(3, 1, height_ratios=[1, 1, 0.9])
+    axes = [fig.add_subplot(grid[0])]
+    axes.append(fig.add_subplot(grid[1], sharex=axes[0]))
+    zoom = fig.add_subplot(grid[2])
+    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    windows = (outcome.sequence.metadata.get("truth") or {}).get("slip_windows_s", [])
+    for k, name in enumerate(names):
+        s, color = outcome.series[name], colors[k % len(colors)]
+        pos = np.maximum(np.linalg.norm(s.error[:, :2], axis=1), 1e-5)
+        head = np.maximum(np.degrees(np.abs(s.error[:, 2])), 1e-4)
+        axes[0].plot(s.stamps_s, pos * 100.0, lw=0.8, color=color, label=name)
+        axes[1].plot(s.stamps_s, head, lw=0.8, color=color, label=name)
+        stamps = _lidar_updates(outcome.runs.get(name))
+        if stamps is not None and len(stamps):
+            for ax, floor in ((axes[0], 1e-3), (axes[1], 1e-4)):
+                ax.plot(stamps, np.full(len(stamps), floor * 1.5 ** (k + 1)), "|", ms=5, color=color,
+                        alpha=0.6, label=f"{name}: lidar updates" if ax is axes[0] else None)
+    for ax in axes:
+        for a, b in windows:
+            ax.axvspan(a, b, color="tab:red", alpha=0.1, lw=0)
+        ax.set_yscale("log")
+    axes[0].set_ylabel("position error (cm)")
+    axes[1].set_ylabel("heading error (deg)")
+    axes[1].set_xlabel("time (s)")
+    # a 3 s close-up (from the first slip window, else from 10 s) of the estimators with lidar
+    # updates, each update a vertical line
+    start = float(min(a for a, _ in windows)) if len(windows) else 10.0
+    for k, name in enumerate(names):
+        s, stamps = outcome.series[name], _lidar_updates(outcome.runs.get(name))
+        if stamps is None or not len(stamps):
+            continue
+        inside = (s.stamps_s >= start) & (s.stamps_s <= start + 3.0)
+        color = colors[k % len(colors)]
+        zoom.plot(s.stamps_s[inside], 100.0 * np.linalg.norm(s.error[inside, :2], axis=1), ".-", lw=0.8, ms=3,
+                  color=color, label=name)
+        for t in stamps[(stamps >= start) & (stamps <= start + 3.0)]:
+            zoom.axvline(t, color=color, lw=0.4, alpha=0.5)
+    for a, b in windows:
+        zoom.axvspan(a, b, color="tab:red", alpha=0.1, lw=0)
+    zoom.set_xlim(start, start + 3.0)
+    zoom.set_ylabel("position error (cm)")
+    zoom.set_xlabel("time (s), close-up: vertical lines are lidar updates")
+    zoom.legend(fontsize=7, loc="upper left", ncol=3)
+    axes[0].legend(fontsize=7, loc="upper left", ncol=2)
+    title = f"{outcome.name}: error over time (first run), lidar updates as ticks"
+    fig.suptitle(title + (", slip windows shaded" if windows else ""), fontsize=10)
     fig.tight_layout()
     return fig
 
