@@ -27,6 +27,15 @@ ROBUST_KINDS = ("none", "huber", "cauchy")
 
 # ---- named noise helpers -------------------------------------------------------------------
 
+def smoother_config(owner: str, config_class: type, config):
+    """``config``, or ``config_class()`` when None; a ConfigError naming ``owner`` when it is a
+    config of another kind (the smoother classes share constructors through ``config_class``)."""
+    config = config_class() if config is None else config
+    if not isinstance(config, config_class):
+        raise ConfigError(f"{owner} is configured by {config_class.__name__}, not {type(config).__name__}")
+    return config
+
+
 def gaussian_from_information(information: np.ndarray) -> gtsam.noiseModel.Base:
     """Gaussian noise model with the given information matrix (in GTSAM tangent order).
 

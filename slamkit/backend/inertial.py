@@ -39,6 +39,7 @@ from slamkit.data.estimate import Estimate, Prior
 from slamkit.data.inertial import InertialEventLoop, InertialSetup, setup_of
 from slamkit.data.sequence import Sequence
 from slamkit.data.trajectory import Trajectory
+from slamkit.backend.graph import smoother_config
 from slamkit.errors import ConfigError, EstimationError
 from slamkit.geometry import so3
 from slamkit.models.imu import ImuNoise
@@ -143,17 +144,14 @@ class _InertialSmootherBase(InertialEventLoop):
     config_class: type[InertialSmootherConfig] = InertialSmootherConfig
 
     def __init__(self, setup: InertialSetup, config: InertialSmootherConfig | None = None) -> None:
-        config = self.config_class() if config is None else config
-        if not isinstance(config, self.config_class):
-            raise ConfigError(f"{self.name} is configured by {self.config_class.__name__}, "
-                              f"not {type(config).__name__}")
+        config = smoother_config(self.name, self.config_class, config)
         self.setup = setup
         self.config = config
         self._ready = False
 
     @classmethod
     def from_sequence(cls, sequence: Sequence, config: InertialSmootherConfig | None = None):
-        config = cls.config_class() if config is None else config
+        config = smoother_config(cls.name, cls.config_class, config)
         return cls(setup_of(sequence, imu_noise=config.imu_noise, gps_sigma_m=config.gps_sigma_m), config)
 
     # -- protocol --------------------------------------------------------------------------------

@@ -62,6 +62,7 @@ from slamkit.data.noise import NoiseParams, prior_of
 from slamkit.data.sequence import Event, Odometry, RangeBearing, Sequence, check_event
 from slamkit.data.trajectory import Trajectory
 from slamkit.geometry import se2
+from slamkit.backend.graph import smoother_config
 from slamkit.errors import ConfigError, EstimationError
 from slamkit.models import diff_drive
 
@@ -181,10 +182,7 @@ class _LandmarkSmootherBase:
     config_class: type[LandmarkSmootherConfig] = LandmarkSmootherConfig
 
     def __init__(self, config: LandmarkSmootherConfig | None = None) -> None:
-        config = self.config_class() if config is None else config
-        if not isinstance(config, self.config_class):
-            raise ConfigError(f"{self.name} is configured by {self.config_class.__name__}, "
-                              f"not {type(config).__name__}")
+        config = smoother_config(self.name, self.config_class, config)
         self.config = config
         self._ready = False
         #: the noise a batch solve() takes from the sequence's metadata when the config has none
