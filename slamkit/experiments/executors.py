@@ -116,14 +116,15 @@ class RayExecutor:
         self._ray = ray
         self._owns_connection = not ray.is_initialized()
         if self._owns_connection:
-            ray.init(address=address, include_dashboard=False, log_to_driver=False,
-                     runtime_env={"env_vars": dict(ONE_THREAD_ENV)})
+            ray.init(address=address, include_dashboard=False, log_to_driver=False)
         self._pending: dict[Any, Any] = {}
         self._remote: dict[Callable, Any] = {}
 
     def submit(self, fn: Callable[[Any], Any], arg: Any) -> None:
         if fn not in self._remote:
-            self._remote[fn] = self._ray.remote(num_cpus=1, max_retries=0)(fn)
+            # env_vars merge into the job's runtime environment (a user's PYTHONPATH stays)
+            self._remote[fn] = self._ray.remote(num_cpus=1, max_retries=0,
+                                                runtime_env={"env_vars": dict(ONE_THREAD_ENV)})(fn)
         self._pending[self._remote[fn].remote(arg)] = arg
 
     def as_completed(self) -> Iterator[tuple[Any, Any]]:
