@@ -453,7 +453,8 @@ def aggregate(sweep: Sweep, outcomes: Mapping[str, CellOutcome], out: Path) -> t
         status = outcome.status if outcome is not None else "not run"
         cells.append({"key": cell.key, "axes": dict(cell.axes), "status": status,
                       "error": outcome.error if outcome is not None else None,
-                      "wall_s": outcome.wall_s if outcome is not None else None})
+                      "wall_s": outcome.wall_s if outcome is not None else None,
+                      "worker_max_rss_mb": outcome.worker_max_rss_mb if outcome is not None else None})
         for run in (outcome.runs if outcome is not None else []):
             runs.append({**run, "cell": cell.key, "axes": dict(cell.axes)})
             records.append(RunRecord(run["dataset"], run["estimator"], run.get("metrics") or {},
