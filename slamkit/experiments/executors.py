@@ -7,7 +7,7 @@ Two implementations, one contract (``submit(fn, arg)``, then ``as_completed()`` 
   started with the BLAS/OpenMP thread variables of :data:`ONE_THREAD_ENV` set to 1, so N workers
   use N cores and not N x cores (the variables must be in the environment before the worker
   imports numpy, which is why they are set around the pool's life rather than in an
-  initializer);
+  initializer); a worker whose coordinator dies (``kill -9``) exits within half a second;
 * :class:`RayExecutor` -- Ray tasks (``num_cpus=1`` each) on the Ray instance the process is
   connected to, or the one at ``address`` (``auto``: the cluster this machine belongs to; a
   ``HOST:PORT``; None: a new local instance). ``ray`` is imported only when this executor is
@@ -57,6 +57,20 @@ def _failure(exc: BaseException) -> TaskFailure:
     return TaskFailure(type(exc).__name__, str(exc).splitlines()[0] if str(exc) else "")
 
 
+def exit_with_parent(parent_pid: int, period_s: float = 0.5) -> None:
+    """Worker initializer: end this worker when the coordinator is gone (killed with -9, its
+    workers would otherwise wait on the task queue for ever, each holding its cell's lock)."""
+    import threading
+    import time
+
+    def watch() -> None:
+        while os.getppid() == parent_pid:
+            time.sleep(period_s)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
+
+
 class LocalExecutor:
     """A ``spawn`` process pool of ``workers`` processes with BLAS pinned to one thread each."""
 
@@ -70,7 +84,8 @@ class LocalExecutor:
         # variables set for the executor's life and restore the caller's values on close
         self._saved_env = {k: os.environ.get(k) for k in ONE_THREAD_ENV}
         os.environ.update(ONE_THREAD_ENV)
-        self._pool = ProcessPoolExecutor(self.workers, mp_context=multiprocessing.get_context("spawn"))
+        self._pool = ProcessPoolExecutor(self.workers, mp_context=multiprocessing.get_context("spawn"),
+                                         initializer=exit_with_parent, initargs=(os.getpid(),))
         self._pending: dict[Future, Any] = {}
 
     def submit(self, fn: Callable[[Any], Any], arg: Any) -> None:

@@ -206,7 +206,7 @@ def test_the_local_pool_pins_blas_threads_in_its_workers_and_yields_each_task_on
 # --- kill -9 and resume -----------------------------------------------------------------------------
 
 def test_a_sweep_killed_part_way_resumes_with_no_cell_lost_or_run_twice(tmp_path: Path) -> None:
-    """SIGKILL to the sweep's whole process group (coordinator and workers) while cells run, then
+    """SIGKILL to the sweep's coordinator while cells run: its workers exit by themselves; then
     --resume: every cell is complete, every cell that was complete at the kill ran exactly once,
     and only cells in flight at the kill (at most one per worker) ran twice."""
     log = tmp_path / "runs.log"
@@ -224,8 +224,14 @@ def test_a_sweep_killed_part_way_resumes_with_no_cell_lost_or_run_twice(tmp_path
             break
         time.sleep(0.05)
     assert proc.poll() is None, f"the sweep ended before the kill: {proc.stderr.read().decode()}"
-    os.killpg(proc.pid, signal.SIGKILL)
+    os.kill(proc.pid, signal.SIGKILL)
     proc.wait()
+    worker_pids = {int(line.split()[1]) for line in log.read_text().splitlines()}
+    assert len(worker_pids) == workers
+    deadline = time.monotonic() + 30
+    while time.monotonic() < deadline and any(_alive(pid) for pid in worker_pids):
+        time.sleep(0.05)
+    assert not any(_alive(pid) for pid in worker_pids), "a worker outlived its killed coordinator"
     cells = load_sweep(sweep).cells
     complete_at_kill = {c.key for c in cells if cell_state(out / "cells" / c.key) == "done"}
     assert 0 < len(complete_at_kill) < n_cells
@@ -243,6 +249,14 @@ def test_a_sweep_killed_part_way_resumes_with_no_cell_lost_or_run_twice(tmp_path
     assert all(cell_state(out / "cells" / c.key) == "done" for c in cells)
     # no leftovers of the killed cells remain visible: hidden partials were cleaned by their rerun
     assert sorted(p.name for p in (out / "cells").iterdir() if not p.name.startswith(".")) == sorted(counts)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    return True
 
 
 # --- command line ----------------------------------------------------------------------------------
