@@ -279,3 +279,11 @@ def test_importing_the_sweep_layer_does_not_import_ray() -> None:
     code = "import sys, slamkit.experiments.sweep, slamkit.cli; print('ray' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "False"
+
+
+def test_the_shipped_sweep_validates_into_its_cells() -> None:
+    sweep = load_sweep(ROOT / "pipelines" / "sweeps" / "ekf_noise.yaml")
+    assert len(sweep.cells) == 3 * 2 * 20 and sweep.axis_names == [
+        "estimators.ekf.sigma_range_m", "scenarios.0.params.duration_s", "seed"]
+    assert sweep.cells[-1].config["estimators"] == {"ekf": {"sigma_range_m": 0.2}}
+    assert sweep.cells[-1].config["scenarios"][0]["params"] == {"duration_s": 20.0}
