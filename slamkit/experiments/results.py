@@ -113,10 +113,11 @@ def markdown_table(header: list[str], rows: list[list[Any]]) -> str:
     return "\n".join(lines)
 
 
-def summary_markdown(summary: list[dict[str, Any]]) -> str:
-    """The summary as a table: one row per dataset x estimator, one column per metric."""
+def summary_markdown(summary: list[dict[str, Any]], lead: list[str] = ["dataset", "estimator"]) -> str:
+    """The summary as a table: one row per value of the ``lead`` fields (default dataset x
+    estimator), one column per metric, each cell mean ± half-width of the 95% CI."""
     metrics: list[str] = []
-    cells: dict[tuple[str, str], dict[str, str]] = {}
+    cells: dict[tuple, dict[str, str]] = {}
     for s in summary:
         if s["metric"] not in metrics:
             metrics.append(s["metric"])
@@ -124,9 +125,11 @@ def summary_markdown(summary: list[dict[str, Any]]) -> str:
         text = "" if mean is None else f"{mean:.4g}"
         if n > 1 and lo is not None and hi is not None:
             text += f" ± {(hi - lo) / 2:.2g}"
-        cells.setdefault((s["dataset"], s["estimator"]), {})[s["metric"]] = text
-    rows = [[d, e] + [c.get(m, "") for m in metrics] for (d, e), c in cells.items()]
-    return markdown_table(["dataset", "estimator"] + metrics, rows)
+        key = tuple(v if isinstance(v, str) else json.dumps(_jsonable(v), separators=(",", ":"))
+                    for v in (s[k] for k in lead))
+        cells.setdefault(key, {})[s["metric"]] = text
+    rows = [list(key) + [c.get(m, "") for m in metrics] for key, c in cells.items()]
+    return markdown_table(list(lead) + metrics, rows)
 
 
 #: the file that proves a folder is a slamkit results folder (written first, into the partial)

@@ -55,12 +55,12 @@ from pydantic import BaseModel, Field, StringConstraints, field_validator
 import slamkit
 from slamkit.config import STRICT, YamlDocument, load_yaml, validate
 from slamkit.errors import ConfigError, OutputError
-from slamkit.experiments.config_models import Seeds, check_pipeline, seed_list
+from slamkit.experiments.config_models import PlainName, Seeds, check_pipeline, seed_list
 from slamkit.experiments.executors import Executor, TaskFailure, make_executor
 from slamkit.experiments.results import (MARKER, ResultsFolder, RunRecord, _jsonable, acquire_folder_lock,
                                          check_output_folder, is_results_folder, markdown_table,
-                                         release_folder_lock, summarise)
-from slamkit.paths import file_in, path_component, temporary_sibling
+                                         release_folder_lock, summarise, summary_markdown)
+from slamkit.paths import file_in, temporary_sibling
 
 #: ``results.json``'s ``pipeline`` and the marker's, for a sweep folder
 SWEEP = "sweep"
@@ -77,22 +77,12 @@ class SweepModel(BaseModel):
     """The typed shape of a sweep file (see the module docstring)."""
 
     model_config = STRICT
-    name: str | None = None
+    name: PlainName | None = None
     pipeline: Union[str, dict[str, Any]]
     mode: Literal["grid", "zip"] = "grid"
     seeds: Seeds | None = None
     axes: dict[DottedPath, Values] = {}
     plugins: list[ModuleName] = []
-
-    @field_validator("name")
-    @classmethod
-    def _plain_name(cls, v: str | None) -> str | None:
-        if v is not None:
-            try:
-                path_component(v, "name")
-            except ConfigError as exc:
-                raise ValueError(str(exc)) from None
-        return v
 
     @field_validator("axes")
     @classmethod
@@ -475,20 +465,6 @@ def aggregate(sweep: Sweep, outcomes: Mapping[str, CellOutcome], out: Path) -> t
     return results, report_markdown(sweep, cells, summary, overall, plots)
 
 
-def _table(rows: list[dict[str, Any]], lead: list[str]) -> str:
-    metrics: list[str] = []
-    table: dict[tuple, dict[str, str]] = {}
-    for s in rows:
-        if s["metric"] not in metrics:
-            metrics.append(s["metric"])
-        mean, (lo, hi), n = s["mean"], s["ci95"], s["n"]
-        text = "" if mean is None else f"{mean:.4g}"
-        if n > 1 and lo is not None and hi is not None:
-            text += f" ± {(hi - lo) / 2:.2g}"
-        table.setdefault(tuple(_short(s[k]) for k in lead), {})[s["metric"]] = text
-    return markdown_table(lead + metrics, [list(k) + [c.get(m, "") for m in metrics] for k, c in table.items()])
-
-
 def report_markdown(sweep: Sweep, cells: list[dict[str, Any]], summary: list[dict[str, Any]],
                     overall: list[dict[str, Any]], plots: list[str]) -> str:
     done = sum(c["status"] == "done" for c in cells)
@@ -499,9 +475,9 @@ def report_markdown(sweep: Sweep, cells: list[dict[str, Any]], summary: list[dic
              f"{len(cells) - done - len(failed)} not run. Values are mean ± half-width of the 95% "
              "confidence interval over the runs with that value.", ""]
     for axis in sweep.model.axes:
-        lines += [f"## {axis}", "", _table([s for s in summary if s["axis"] == axis],
-                                           ["value", "dataset", "estimator"]), ""]
-    lines += ["## All cells", "", _table(overall, ["dataset", "estimator"]), ""]
+        lines += [f"## {axis}", "", summary_markdown([s for s in summary if s["axis"] == axis],
+                                                     ["value", "dataset", "estimator"]), ""]
+    lines += ["## All cells", "", summary_markdown(overall), ""]
     if failed:
         lines += ["## Failed cells", "", markdown_table(
             ["cell", "axes", "error"],
