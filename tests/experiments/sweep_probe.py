@@ -41,5 +41,10 @@ def worker_env(_: object) -> dict[str, str | None]:
     return {k: os.environ.get(k) for k in ONE_THREAD_ENV}
 
 
-if NAME not in PIPELINES:
-    register_pipeline(Pipeline(NAME, run))
+def ensure_registered() -> None:
+    """Register the probe in this process (again, after a test module unregistered it)."""
+    if NAME not in PIPELINES:
+        register_pipeline(Pipeline(NAME, run))
+
+
+ensure_registered()  # on import: what a worker does with the plugin

@@ -33,8 +33,9 @@ T2 = 4.302652729911275
 
 @pytest.fixture(scope="module", autouse=True)
 def _probe_registered():
-    import sweep_probe  # noqa: F401 - registers the pipeline in this process
+    import sweep_probe
 
+    sweep_probe.ensure_registered()
     yield
     if "sweep_probe" in PIPELINES:
         PIPELINES.unregister("sweep_probe")

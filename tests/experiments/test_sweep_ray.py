@@ -20,7 +20,9 @@ HERE = Path(__file__).resolve().parent
 def ray_instance():
     import ray
 
-    import sweep_probe  # noqa: F401 - the probe pipeline, registered in this process too
+    import sweep_probe
+
+    sweep_probe.ensure_registered()  # the probe pipeline in this process too
 
     # the workers find the probe plugin through the job's runtime environment
     ray.init(num_cpus=2, include_dashboard=False, _node_ip_address="127.0.0.1", log_to_driver=False,
