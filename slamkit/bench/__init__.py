@@ -26,6 +26,7 @@ SUITES: dict[str, str] = {
     "control": "slamkit.bench.control:run",
     "scan-matching": "slamkit.bench.scan_matching:run",
     "inertial": "slamkit.bench.inertial:run",
+    "sweep": "slamkit.bench.sweep:run",
 }
 
 

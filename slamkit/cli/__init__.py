@@ -12,6 +12,7 @@ from slamkit.cli import optimize as _optimize  # noqa: F401
 from slamkit.cli import plan as _plan  # noqa: F401
 from slamkit.cli import run as _run  # noqa: F401
 from slamkit.cli import simulate as _simulate  # noqa: F401
+from slamkit.cli import sweep as _sweep  # noqa: F401
 
 
 def main() -> None:

@@ -13,13 +13,22 @@ from __future__ import annotations
 from typing import Annotated, Any, Literal, Union
 
 import pydantic
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field
 
 from slamkit.config import STRICT, YamlDocument, model_of, validate
 from slamkit.errors import ConfigError
 from slamkit.naming import suggestion
 from slamkit.paths import path_component
 
+def _plain_name(v: str) -> str:
+    try:
+        return path_component(v, "name")
+    except ConfigError as exc:
+        raise ValueError(str(exc)) from None
+
+
+#: a name that becomes a folder or file name (one plain path component, see slamkit.paths)
+PlainName = Annotated[str, AfterValidator(_plain_name)]
 Count = Annotated[int, Field(ge=1, le=100_000)]
 Seed = Annotated[int, Field(ge=0, le=2**32 - 1)]
 
@@ -59,21 +68,12 @@ class PipelineConfig(BaseModel):
 
     model_config = STRICT
     pipeline: str
-    name: str | None = None
+    name: PlainName | None = None
     record: bool = True
 
     def check_options(self, config: dict[str, Any], doc: YamlDocument | None, source: str) -> None:
         """Validate the algorithm options this config nests (``config`` is the raw mapping)."""
 
-    @field_validator("name")
-    @classmethod
-    def _plain_name(cls, v: str | None) -> str | None:
-        if v is not None:
-            try:
-                path_component(v, "name")
-            except ConfigError as exc:
-                raise ValueError(str(exc)) from None
-        return v
 
 
 class _OpenPipeline(PipelineConfig):

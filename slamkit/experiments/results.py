@@ -17,7 +17,7 @@ import sys
 import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterable, Mapping
+from typing import Any, Callable, Iterable, Mapping
 
 import numpy as np
 import yaml
@@ -74,17 +74,30 @@ def mean_ci95(values: Iterable[float]) -> tuple[float, tuple[float, float], int]
     return mean, (mean - half, mean + half), n
 
 
-def summarise(runs: Iterable[RunRecord]) -> list[dict[str, Any]]:
-    """One summary row per (dataset, estimator, metric) over seeds, in first-seen order."""
-    groups: dict[tuple[str, str, str], list[float]] = {}
+def _by_dataset_estimator(r: RunRecord) -> dict[str, Any]:
+    return {"dataset": r.dataset, "estimator": r.estimator}
+
+
+def summarise(runs: Iterable[RunRecord],
+              by: Callable[[RunRecord], Mapping[str, Any]] = _by_dataset_estimator
+              ) -> list[dict[str, Any]]:
+    """One summary row per group x metric over the runs of the group, in first-seen order.
+
+    A group is what ``by(run)`` returns (default: dataset and estimator, so the rows are over
+    seeds); its fields lead the row, which goes on with ``metric``, ``mean``, ``ci95``, ``n``."""
+    groups: dict[tuple, list[float]] = {}
+    fields: dict[tuple, Mapping[str, Any]] = {}
     for r in runs:
+        group = by(r)
+        key = tuple((k, json.dumps(_jsonable(v), sort_keys=True)) for k, v in group.items())
+        fields.setdefault(key, group)
         for metric, value in r.metrics.items():
             if isinstance(value, (int, float, np.floating, np.integer)) and not isinstance(value, bool):
-                groups.setdefault((r.dataset, r.estimator, metric), []).append(float(value))
+                groups.setdefault(key + (metric,), []).append(float(value))
     out = []
-    for (dataset, estimator, metric), values in groups.items():
+    for key, values in groups.items():
         mean, ci, n = mean_ci95(values)
-        out.append({"dataset": dataset, "estimator": estimator, "metric": metric,
+        out.append({**_jsonable(dict(fields[key[:-1]])), "metric": key[-1],
                     "mean": _jsonable(mean), "ci95": [_jsonable(ci[0]), _jsonable(ci[1])], "n": n})
     return out
 
@@ -100,10 +113,11 @@ def markdown_table(header: list[str], rows: list[list[Any]]) -> str:
     return "\n".join(lines)
 
 
-def summary_markdown(summary: list[dict[str, Any]]) -> str:
-    """The summary as a table: one row per dataset x estimator, one column per metric."""
+def summary_markdown(summary: list[dict[str, Any]], lead: list[str] = ["dataset", "estimator"]) -> str:
+    """The summary as a table: one row per value of the ``lead`` fields (default dataset x
+    estimator), one column per metric, each cell mean ± half-width of the 95% CI."""
     metrics: list[str] = []
-    cells: dict[tuple[str, str], dict[str, str]] = {}
+    cells: dict[tuple, dict[str, str]] = {}
     for s in summary:
         if s["metric"] not in metrics:
             metrics.append(s["metric"])
@@ -111,9 +125,11 @@ def summary_markdown(summary: list[dict[str, Any]]) -> str:
         text = "" if mean is None else f"{mean:.4g}"
         if n > 1 and lo is not None and hi is not None:
             text += f" ± {(hi - lo) / 2:.2g}"
-        cells.setdefault((s["dataset"], s["estimator"]), {})[s["metric"]] = text
-    rows = [[d, e] + [c.get(m, "") for m in metrics] for (d, e), c in cells.items()]
-    return markdown_table(["dataset", "estimator"] + metrics, rows)
+        key = tuple(v if isinstance(v, str) else json.dumps(_jsonable(v), separators=(",", ":"))
+                    for v in (s[k] for k in lead))
+        cells.setdefault(key, {})[s["metric"]] = text
+    rows = [list(key) + [c.get(m, "") for m in metrics] for key, c in cells.items()]
+    return markdown_table(list(lead) + metrics, rows)
 
 
 #: the file that proves a folder is a slamkit results folder (written first, into the partial)
@@ -173,6 +189,40 @@ def check_output_folder(out: str | Path) -> Path:
                       "slamkit only replaces folders it wrote: remove it or choose another --out")
 
 
+def _lock_path(final: Path) -> Path:
+    return final.parent / f".{final.name}.lock"
+
+
+def acquire_folder_lock(final: Path) -> int:
+    """Hold ``.<name>.lock`` (``flock``) beside the output folder ``final``; the descriptor is
+    released by :func:`release_folder_lock`. A second writer gets an OutputError at once."""
+    import fcntl
+
+    lock = _lock_path(final)
+    while True:
+        fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o666)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            os.close(fd)
+            raise OutputError(f"another slamkit run is writing {final} (it holds {lock}); wait "
+                              "for it to finish or choose another --out") from None
+        # the holder before us may have unlinked the lock file after we opened it: make
+        # sure we locked the file that is at the path now
+        try:
+            same = os.fstat(fd).st_ino == os.stat(lock).st_ino
+        except FileNotFoundError:
+            same = False
+        if same:
+            return fd
+        os.close(fd)
+
+
+def release_folder_lock(final: Path, fd: int) -> None:
+    _lock_path(final).unlink(missing_ok=True)
+    os.close(fd)
+
+
 class ResultsFolder:
     """Assemble a run folder under a temporary name; ``commit`` swaps it into place.
 
@@ -211,37 +261,13 @@ class ResultsFolder:
 
     # -- bookkeeping ---------------------------------------------------------------------------
 
-    @property
-    def _lock_path(self) -> Path:
-        return self.final.parent / f".{self.final.name}.lock"
-
     def _acquire_lock(self) -> int:
-        import fcntl
-
-        while True:
-            fd = os.open(self._lock_path, os.O_RDWR | os.O_CREAT, 0o666)
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except BlockingIOError:
-                os.close(fd)
-                raise OutputError(f"another slamkit run is writing {self.final} (it holds "
-                                  f"{self._lock_path}); wait for it to finish or choose another "
-                                  "--out") from None
-            # the holder before us may have unlinked the lock file after we opened it: make
-            # sure we locked the file that is at the path now
-            try:
-                same = os.fstat(fd).st_ino == os.stat(self._lock_path).st_ino
-            except FileNotFoundError:
-                same = False
-            if same:
-                return fd
-            os.close(fd)
+        return acquire_folder_lock(self.final)
 
     def _release_lock(self) -> None:
         if self._lock_fd is None:
             return
-        self._lock_path.unlink(missing_ok=True)
-        os.close(self._lock_fd)
+        release_folder_lock(self.final, self._lock_fd)
         self._lock_fd = None
 
     def _leftovers(self, kind: str) -> list[Path]:

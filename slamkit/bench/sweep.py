@@ -1,0 +1,102 @@
+"""``slamkit bench sweep``: what running a sweep's cells on an executor costs (issue 17).
+
+* ``sweep_filter_cells_2_workers``: a sweep of short ``filter_vs_smoother`` runs (one EKF on a 10 s
+  simulated landmark world, one seed per cell; each cell a whole pipeline run with its plots and
+  trajectories) on 2 local workers against the same sweep on 1 worker; ``ratio`` is the speed-up,
+  ``efficiency`` = speed-up / 2 (goal >= 80%). Memory: the largest worker RSS.
+  ``utilisation``: the fraction of the workers' time spent inside cells.
+* ``sweep_noop_cell_local_ms`` against Ray: the wall time per cell of the sweep machinery alone
+  (a pipeline that does nothing: validation, the cell folder's atomic commit, the round trip to
+  the worker, aggregation) on the local pool (2 workers) and on a local Ray instance (2 CPUs),
+  both with their workers already started.
+
+The machine is shared (other processes load the cores), so the numbers are what this run saw.
+"""
+
+from __future__ import annotations
+
+import json
+import tempfile
+import time
+from pathlib import Path
+
+from slamkit.bench.cases import BenchCase, compare
+
+#: the module that registers the no-op pipeline (a sweep plugin: imported in every worker)
+NOOP_PLUGIN = "slamkit.bench._noop_pipeline"
+
+
+def _timed_sweep(path: Path, out: Path, **kwargs) -> tuple[float, dict]:
+    from slamkit.experiments.sweep import run_sweep
+
+    t0 = time.perf_counter()
+    result = run_sweep(path, out, progress=False, **kwargs)
+    return time.perf_counter() - t0, result.results
+
+
+def _filter_sweep(tmp: Path, cells: int) -> Path:
+    # JSON is YAML: this layer writes its sweep files without a YAML library
+    (tmp / "fvs.yaml").write_text(json.dumps({
+        "pipeline": "filter_vs_smoother", "workers": 1, "record": False, "seeds": 1,
+        "scenarios": [{"preset": "mild", "params": {"duration_s": 10.0}}], "estimators": {"ekf": {}}}))
+    path = tmp / "filters.yaml"
+    path.write_text(json.dumps({"pipeline": "fvs.yaml", "seeds": cells}))
+    return path
+
+
+def _noop_sweep(tmp: Path, cells: int) -> Path:
+    path = tmp / f"noop{cells}.yaml"
+    path.write_text(json.dumps({"pipeline": {"pipeline": "bench_noop"}, "plugins": [NOOP_PLUGIN],
+                                    "axes": {"x": list(range(cells))}}))
+    return path
+
+
+def _per_cell_ms(tmp: Path, tag: str, executor, warm: int, cells: int) -> float:
+    """Wall time per cell of a sweep of ``cells`` no-op cells on ``executor`` once its workers
+    have started (a first sweep of ``warm`` cells starts them)."""
+    _timed_sweep(_noop_sweep(tmp, warm), tmp / f"{tag}_warm", executor=executor)
+    t, _ = _timed_sweep(_noop_sweep(tmp, cells), tmp / f"{tag}_timed", executor=executor)
+    return 1e3 * t / cells
+
+
+def _utilisation(results: dict, workers: int, wall_s: float) -> float:
+    """The fraction of the workers' time spent inside cells (1: the sweep layer costs nothing)."""
+    return sum(c["wall_s"] or 0.0 for c in results["cells"]) / (workers * wall_s)
+
+
+def run(quick: bool = False) -> list[BenchCase]:
+    from slamkit.experiments.executors import LocalExecutor
+
+    import importlib
+
+    importlib.import_module(NOOP_PLUGIN)
+    cells = 40 if quick else 200
+    warm, noop_cells = (10, 40) if quick else (20, 200)
+    cases = []
+    with tempfile.TemporaryDirectory() as name:
+        tmp = Path(name)
+        sweep = _filter_sweep(tmp, cells)
+        t1, r1 = _timed_sweep(sweep, tmp / "w1", workers=1)
+        t2, r2 = _timed_sweep(sweep, tmp / "w2", workers=2)
+        rss = max(c["worker_max_rss_mb"] or 0.0 for c in r2["cells"])
+        cases.append(compare("sweep_filter_cells_2_workers", t2, "s", "the same sweep on 1 worker", t1,
+                             goal=">= 1.6 (efficiency >= 80%)", cells=cells, efficiency=t1 / (2 * t2),
+                             utilisation_1_worker=_utilisation(r1, 1, t1),
+                             utilisation_2_workers=_utilisation(r2, 2, t2), worker_max_rss_mb=rss))
+        with LocalExecutor(2) as ex:
+            local_ms = _per_cell_ms(tmp, "local", ex, warm, noop_cells)
+        try:
+            import ray
+        except ImportError:
+            cases.append(BenchCase("sweep_noop_cell_local_ms", local_ms, "ms"))
+            return cases
+        ray.init(num_cpus=2, include_dashboard=False, _node_ip_address="127.0.0.1", log_to_driver=False)
+        try:
+            from slamkit.experiments.executors import RayExecutor
+
+            with RayExecutor() as ex:
+                ray_ms = _per_cell_ms(tmp, "ray", ex, warm, noop_cells)
+        finally:
+            ray.shutdown()
+        cases.append(compare("sweep_noop_cell_local_ms", local_ms, "ms", "Ray, local instance, 2 CPUs", ray_ms))
+    return cases

@@ -1,0 +1,35 @@
+"""``slamkit sweep SWEEP.yaml --out DIR [--workers N] [--executor local|ray --address A] [--resume]``."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+from rich.console import Console
+
+from slamkit.cli.app import app
+
+
+@app.command("sweep")
+def sweep_command(
+    sweep: Path = typer.Argument(..., help="sweep file (YAML): a pipeline config and the axes to vary"),
+    out: Path = typer.Option(..., "--out", help="sweep folder: cells/<key>/ per cell, results.json, report.md, plots/"),
+    workers: int = typer.Option(None, "--workers", min=1, max=256,
+                                help="local worker processes (default min(2, cpus)); Ray uses its cluster's CPUs"),
+    executor: str = typer.Option("local", "--executor", help="local (a process pool) or ray"),
+    address: str = typer.Option(None, "--address",
+                                help="Ray cluster: auto (the one this machine belongs to) or HOST:PORT; "
+                                     "default a new local Ray instance"),
+    resume: bool = typer.Option(False, "--resume", help="continue the sweep in --out: run only unfinished cells"),
+    retry_failed: bool = typer.Option(False, "--retry-failed", help="with --resume, run failed cells again"),
+    quiet: bool = typer.Option(False, "--quiet", help="no progress bar or report"),
+) -> None:
+    """Run a pipeline over a grid of config values, seeds and datasets; resumable after any kill."""
+    from slamkit.experiments.sweep import run_sweep
+
+    result = run_sweep(sweep, out, workers=workers, executor=executor, address=address, resume=resume,
+                       retry_failed=retry_failed, progress=not quiet)
+    if not quiet:
+        typer.echo(result.report_md)
+        Console().print(f"{result.ran} cells run ({result.failed} failed); results written to "
+                        f"[bold]{result.out_dir}[/bold]")

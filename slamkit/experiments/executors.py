@@ -1,0 +1,180 @@
+"""Where sweep cells run: an :class:`Executor` takes tasks and yields their outcomes as they finish.
+
+Two implementations, one contract (``submit(fn, arg)``, then ``as_completed()`` yields
+``(arg, outcome)`` in finishing order, each submitted task exactly once):
+
+* :class:`LocalExecutor` -- a pool of ``workers`` local processes (``spawn``). Each worker is
+  started with the BLAS/OpenMP thread variables of :data:`ONE_THREAD_ENV` set to 1, so N workers
+  use N cores and not N x cores (the variables must be in the environment before the worker
+  imports numpy, which is why they are set around the pool's life rather than in an
+  initializer); a worker whose coordinator dies (``kill -9``) exits within half a second;
+* :class:`RayExecutor` -- Ray tasks (``num_cpus=1`` each) on the Ray instance the process is
+  connected to, or the one at ``address`` (``auto``: the cluster this machine belongs to; a
+  ``HOST:PORT``; None: a new local instance). ``ray`` is imported only when this executor is
+  built (an optional extra, ``pip install slamkit[ray]``; importing it costs about a second).
+
+A task that raises becomes a :class:`TaskFailure` outcome (its type and message), so one bad
+cell never stops the others; a worker that dies (killed, out of memory) fails its task the same
+way.
+"""
+
+from __future__ import annotations
+
+import os
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from dataclasses import dataclass
+from typing import Any, Callable, Iterator, Protocol
+
+from slamkit.errors import ConfigError
+
+#: the thread-count variables of OpenBLAS, MKL, OpenMP, BLIS, Apple Accelerate and numexpr
+ONE_THREAD_ENV = {name: "1" for name in (
+    "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "BLIS_NUM_THREADS",
+    "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS")}
+
+
+@dataclass(frozen=True)
+class TaskFailure:
+    """A task that raised, or whose worker died: the exception's type and message."""
+
+    error_type: str
+    message: str
+
+
+class Executor(Protocol):
+    """Runs ``fn(arg)`` tasks somewhere and hands back their outcomes as they finish."""
+
+    def submit(self, fn: Callable[[Any], Any], arg: Any) -> None: ...
+
+    def as_completed(self) -> Iterator[tuple[Any, Any]]:
+        """``(arg, fn(arg) or TaskFailure)`` for every task submitted, in finishing order."""
+        ...
+
+    def close(self) -> None: ...
+
+
+def _failure(exc: BaseException) -> TaskFailure:
+    return TaskFailure(type(exc).__name__, str(exc).splitlines()[0] if str(exc) else "")
+
+
+def exit_with_parent(parent_pid: int, period_s: float = 0.5) -> None:
+    """Worker initializer: end this worker when the coordinator is gone (killed with -9, its
+    workers would otherwise wait on the task queue for ever, each holding its cell's lock)."""
+    import threading
+    import time
+
+    def watch() -> None:
+        while os.getppid() == parent_pid:
+            time.sleep(period_s)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
+
+
+class LocalExecutor:
+    """A ``spawn`` process pool of ``workers`` processes with BLAS pinned to one thread each."""
+
+    def __init__(self, workers: int | None = None):
+        self.workers = int(workers or min(2, os.cpu_count() or 1))
+        if self.workers < 1:
+            raise ConfigError(f"--workers must be >= 1, got {self.workers}")
+        import multiprocessing
+
+        # the workers inherit the environment when they start (lazily, on submit): keep the
+        # variables set for the executor's life and restore the caller's values on close
+        self._saved_env = {k: os.environ.get(k) for k in ONE_THREAD_ENV}
+        os.environ.update(ONE_THREAD_ENV)
+        self._pool = ProcessPoolExecutor(self.workers, mp_context=multiprocessing.get_context("spawn"),
+                                         initializer=exit_with_parent, initargs=(os.getpid(),))
+        self._pending: dict[Future, Any] = {}
+
+    def submit(self, fn: Callable[[Any], Any], arg: Any) -> None:
+        self._pending[self._pool.submit(fn, arg)] = arg
+
+    def as_completed(self) -> Iterator[tuple[Any, Any]]:
+        while self._pending:
+            done, _ = wait(list(self._pending), return_when=FIRST_COMPLETED)
+            for future in done:
+                arg = self._pending.pop(future)
+                exc = future.exception()
+                yield arg, (_failure(exc) if exc is not None else future.result())
+
+    def close(self) -> None:
+        for future in self._pending:
+            future.cancel()
+        self._pool.shutdown(wait=True, cancel_futures=True)
+        for k, v in self._saved_env.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+    def __enter__(self) -> "LocalExecutor":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class RayExecutor:
+    """Ray tasks of one CPU each, with the same one-thread BLAS environment as the local pool.
+
+    Uses the Ray connection the process already has (``ray.init`` called by the user or a test);
+    otherwise connects to ``address`` and disconnects on close. Workers on other machines write
+    the cells to the same ``--out`` path, which must therefore be on a shared file system."""
+
+    def __init__(self, address: str | None = None):
+        try:
+            import ray
+        except ImportError:
+            raise ConfigError("--executor ray needs the 'ray' package: pip install 'slamkit[ray]'") from None
+        self._ray = ray
+        self._owns_connection = not ray.is_initialized()
+        if self._owns_connection:
+            ray.init(address=address, include_dashboard=False, log_to_driver=False)
+        self._pending: dict[Any, Any] = {}
+        self._remote: dict[Callable, Any] = {}
+
+    def submit(self, fn: Callable[[Any], Any], arg: Any) -> None:
+        if fn not in self._remote:
+            # env_vars merge into the job's runtime environment (a user's PYTHONPATH stays)
+            self._remote[fn] = self._ray.remote(num_cpus=1, max_retries=0,
+                                                runtime_env={"env_vars": dict(ONE_THREAD_ENV)})(fn)
+        self._pending[self._remote[fn].remote(arg)] = arg
+
+    def as_completed(self) -> Iterator[tuple[Any, Any]]:
+        ray = self._ray
+        while self._pending:
+            done, _ = ray.wait(list(self._pending), num_returns=1)
+            for ref in done:
+                arg = self._pending.pop(ref)
+                try:
+                    outcome = ray.get(ref)
+                except Exception as exc:  # noqa: BLE001 - a task error or a dead worker fails the task
+                    cause = getattr(exc, "cause", None)
+                    outcome = _failure(cause if isinstance(cause, BaseException) else exc)
+                yield arg, outcome
+
+    def close(self) -> None:
+        for ref in self._pending:
+            self._ray.cancel(ref, force=True)
+        self._pending.clear()
+        if self._owns_connection:
+            self._ray.shutdown()
+
+    def __enter__(self) -> "RayExecutor":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def make_executor(kind: str, workers: int | None = None, address: str | None = None) -> LocalExecutor | RayExecutor:
+    """The executor ``--executor`` names: ``local`` (``workers`` processes) or ``ray``."""
+    if kind == "local":
+        if address is not None:
+            raise ConfigError("--address is for --executor ray; the local pool has no address")
+        return LocalExecutor(workers)
+    if kind == "ray":
+        return RayExecutor(address)
+    raise ConfigError(f"unknown executor {kind!r}; known: local, ray")
