@@ -19,23 +19,23 @@ from __future__ import annotations
 import numpy as np
 
 from slamkit.geometry import se2
-from slamkit.models.diff_drive import dsinc, sinc
+from slamkit.models import diff_drive
 
 
 def chord_increment(distance_m: float, dtheta_rad: float) -> tuple[np.ndarray, np.ndarray]:
     """(u (3,), J (3, 2)): the relative pose of an arc of length ``distance_m`` turning
-    ``dtheta_rad`` (its chord d sinc(dtheta/2) at dtheta/2) and the Jacobian of its right
-    perturbation (u^-1 u(d + dd, dtheta + ddtheta) = Exp(J (dd, ddtheta))): the derivative of
-    u's coordinates with its translation rows rotated into u's own frame by R(dtheta)^T."""
-    h = 0.5 * dtheta_rad
-    c, s = np.cos(h), np.sin(h)
-    k, dk = float(sinc(h)), float(dsinc(h))
-    u = np.array([distance_m * k * c, distance_m * k * s, dtheta_rad])
-    # d(u_xy)/d(d, dtheta): [[k c, d (dk c - k s) / 2], [k s, d (dk s + k c) / 2]]
-    coords = np.array([[k * c, 0.5 * distance_m * (dk * c - k * s)],
-                       [k * s, 0.5 * distance_m * (dk * s + k * c)]])
-    c2, s2 = np.cos(dtheta_rad), np.sin(dtheta_rad)
-    J = np.vstack([np.array([[c2, s2], [-s2, c2]]) @ coords, [0.0, 1.0]])
+    ``dtheta_rad`` (``diff_drive``'s exact-arc motion from the origin with v dt = d, omega dt =
+    dtheta) and the Jacobian of its right perturbation (u^-1 u(d + dd, dtheta + ddtheta) =
+    Exp(J (dd, ddtheta))): the motion model's control Jacobian with its translation rows rotated
+    into u's own frame by R(dtheta)^T."""
+    control = np.array([distance_m, dtheta_rad], dtype=float)
+    u = np.asarray(diff_drive.motion(np.zeros(3), control, 1.0), dtype=float)
+    # the heading of an increment is not wrapped: a preintegrated turn may exceed pi
+    u[2] = dtheta_rad
+    _, L = diff_drive.motion_jacobians(np.zeros(3), control, 1.0)
+    c, s = np.cos(dtheta_rad), np.sin(dtheta_rad)
+    J = np.array(L, dtype=float)
+    J[:2] = np.array([[c, s], [-s, c]]) @ J[:2]
     return u, J
 
 
