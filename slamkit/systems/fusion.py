@@ -36,22 +36,8 @@ from slamkit.estimation.fusion_ekf import FusionEKF, FusionEkfConfig, PoseFix, W
 from slamkit.frontend.icp import IcpConfig, IcpTarget, icp, scan_to_points
 from slamkit.geometry import se2
 from slamkit.geometry.angles import wrap_angle
-from slamkit.maps.occupancy_grid import OccupancyGrid
+from slamkit.maps.occupancy_grid import OccupancyGrid, wall_face_points
 from slamkit.models.planar_preintegration import PlanarPreintegration
-
-
-def wall_face_points(grid: OccupancyGrid) -> np.ndarray:
-    """(N, 2) world points at the mid-point of every occupied cell face that borders a free cell
-    (the grid's border counts as free)."""
-    occ = np.pad(grid.occupied, 1, constant_values=False)
-    core = occ[1:-1, 1:-1]
-    out = []
-    for dy, dx in ((0, 1), (0, -1), (1, 0), (-1, 0)):
-        free_nb = ~occ[1 + dy:occ.shape[0] - 1 + dy, 1 + dx:occ.shape[1] - 1 + dx]
-        iy, ix = np.nonzero(core & free_nb)
-        centres = grid.cell_to_world(np.column_stack([ix, iy]))
-        out.append(centres + 0.5 * grid.resolution_m * np.array([dx, dy], dtype=float))
-    return np.concatenate(out)
 
 
 @dataclass(frozen=True)
@@ -295,4 +281,4 @@ class FusionSmoother:
 
 
 __all__ = ["FusionLocalizer", "FusionLocalizerConfig", "FusionSmoother", "FusionSmootherConfig",
-           "MapMatchConfig", "MapMatcher", "wall_face_points"]
+           "MapMatchConfig", "MapMatcher"]

@@ -21,7 +21,8 @@ from slamkit.experiments.estimators import factory
 from slamkit.experiments.runner import run_estimators, score
 from slamkit.geometry import se2
 from slamkit.sim.scenario import load_scenario, simulate
-from slamkit.systems.fusion import MapMatcher, wall_face_points
+from slamkit.maps.occupancy_grid import wall_face_points
+from slamkit.systems.fusion import MapMatcher
 
 ROOT = Path(__file__).resolve().parents[2]
 OFFICE = ROOT / "pipelines" / "scenarios" / "office_tour.yaml"
