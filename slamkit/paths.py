@@ -8,8 +8,10 @@ config can write outside its results folder (``../../x``), replace a hidden book
 
 from __future__ import annotations
 
+import contextlib
 import os
 from pathlib import Path
+from typing import Iterator
 
 from slamkit.errors import ConfigError
 
@@ -75,6 +77,19 @@ def temporary_sibling(path: Path) -> Path:
     import uuid
 
     return path.with_name(f".{path.name}.partial-{uuid.uuid4().hex[:8]}")
+
+
+@contextlib.contextmanager
+def atomic_file(path: Path) -> Iterator[Path]:
+    """Write a file under a temporary sibling name (the context's value) and rename it to
+    ``path`` when the block completes, so ``path`` holds either its old content or the whole new
+    file; on an error the partial file is removed."""
+    tmp = temporary_sibling(path)
+    try:
+        yield tmp
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
 
 
 def publish_umask_mode(path: Path) -> None:

@@ -43,7 +43,6 @@ import hashlib
 import importlib
 import itertools
 import json
-import os
 import time
 import traceback
 from dataclasses import dataclass, field
@@ -60,7 +59,7 @@ from slamkit.experiments.executors import Executor, TaskFailure, make_executor
 from slamkit.experiments.results import (MARKER, ResultsFolder, RunRecord, _jsonable, acquire_folder_lock,
                                          check_output_folder, is_results_folder, markdown_table,
                                          release_folder_lock, summarise, summary_markdown)
-from slamkit.paths import file_in, temporary_sibling
+from slamkit.paths import atomic_file, file_in
 
 #: ``results.json``'s ``pipeline`` and the marker's, for a sweep folder
 SWEEP = "sweep"
@@ -350,15 +349,11 @@ def _write_marker(out: Path, complete: bool) -> None:
 
 
 def _write_atomic(path: Path, data: str | bytes) -> None:
-    tmp = temporary_sibling(path)
-    try:
+    with atomic_file(path) as tmp:
         if isinstance(data, str):
             tmp.write_text(data)
         else:
             tmp.write_bytes(data)
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
 
 
 def run_sweep(path: str | Path, out: str | Path, workers: int | None = None, executor: str | Executor = "local",
@@ -525,9 +520,8 @@ def plot_axes(summary: list[dict[str, Any]], plots_dir: Path) -> list[str]:
         ax.legend(fontsize=7)
         fig.tight_layout()
         path = file_in(plots_dir, f"{metric}_vs_{axis}", ".png", "metric and axis name")
-        tmp = temporary_sibling(path)
-        fig.savefig(tmp, dpi=90, format="png")
+        with atomic_file(path) as tmp:
+            fig.savefig(tmp, dpi=90, format="png")
         plt.close(fig)
-        os.replace(tmp, path)
         names.append(path.name)
     return names

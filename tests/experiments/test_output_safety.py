@@ -271,3 +271,19 @@ def test_concurrent_runs_into_one_folder_never_crash(tmp_path) -> None:
         assert set(stdout.split()) <= {b"ok", b"refused"} and len(stdout.split()) == 15
     assert json.loads((tmp_path / "r" / MARKER).read_text())["complete"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["r"]
+
+
+def test_atomic_file_keeps_the_old_content_until_the_new_file_is_whole(tmp_path) -> None:
+    from slamkit.paths import atomic_file
+
+    target = tmp_path / "results.json"
+    target.write_text("old")
+    with pytest.raises(RuntimeError):
+        with atomic_file(target) as tmp:
+            tmp.write_text("half")
+            assert target.read_text() == "old"
+            raise RuntimeError("killed mid-write")
+    assert target.read_text() == "old" and sorted(p.name for p in tmp_path.iterdir()) == ["results.json"]
+    with atomic_file(target) as tmp:
+        tmp.write_text("new")
+    assert target.read_text() == "new" and sorted(p.name for p in tmp_path.iterdir()) == ["results.json"]

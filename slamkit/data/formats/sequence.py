@@ -43,7 +43,6 @@ from __future__ import annotations
 
 import io
 import json
-import os
 import struct
 import zipfile
 import zlib
@@ -56,7 +55,7 @@ from slamkit.data.sequence import (Event, Gps, Imu, Odometry, RangeBearing, Scan
                                    WheelEncoders)
 from slamkit.data.trajectory import Trajectory
 from slamkit.errors import DataError
-from slamkit.paths import check_output_file, temporary_sibling
+from slamkit.paths import atomic_file, check_output_file
 
 FORMAT = "slamkit-sequence"
 VERSION = 1
@@ -215,17 +214,10 @@ def save_sequence(path: str | Path, sequence, compress: bool = False) -> Path:
     method = zipfile.ZIP_DEFLATED if compress else zipfile.ZIP_STORED
     path = check_output_file(path, is_sequence_file, "sequence file")
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = temporary_sibling(path)
-    try:
-        with zipfile.ZipFile(tmp, "w", allowZip64=True) as zf:
-            _write_member(zf, "header.json",
-                          json.dumps(header, sort_keys=True, indent=1).encode(), method)
-            for name, data in members:
-                _write_member(zf, name, data, method)
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+    with atomic_file(path) as tmp, zipfile.ZipFile(tmp, "w", allowZip64=True) as zf:
+        _write_member(zf, "header.json", json.dumps(header, sort_keys=True, indent=1).encode(), method)
+        for name, data in members:
+            _write_member(zf, name, data, method)
     return path
 
 
