@@ -102,6 +102,19 @@ class PoseGraphPipeline(PipelineConfig):
 
 # --- filter_vs_smoother --------------------------------------------------------------------------
 
+class OutsideReference(BaseModel):
+    """A figure measured elsewhere on the same setting (a paper, another tool, an outside check),
+    shown in the report beside slamkit's mean of the same metric."""
+    model_config = STRICT
+    scenario: str
+    metric: str
+    value: Annotated[float, Field(allow_inf_nan=False)]
+    #: who measured it and what it is (e.g. "outside check: dead reckoning")
+    source: str
+    #: slamkit's estimators to put beside it (empty: every estimator of the scenario)
+    estimators: list[str] = []
+
+
 class ScenarioEntry(BaseModel):
     model_config = STRICT
     #: landmark-world presets (slamkit.sim.landmark_world) and inertial ones (slamkit.sim.inertial_world)
@@ -119,6 +132,7 @@ class FilterVsSmootherPipeline(PipelineConfig):
     workers: Annotated[int, Field(ge=1, le=256)] | None = None
     scenarios: Annotated[list[Union[str, ScenarioEntry]], Field(min_length=1)]
     estimators: Union[dict[str, Union[dict[str, Any], None]], Annotated[list[Union[str, dict[str, Any]]], Field(min_length=1)]]
+    outside_references: list[OutsideReference] = []
 
     def check_options(self, config: dict[str, Any], doc: YamlDocument | None, source: str) -> None:
         _check_estimators(config.get("estimators"), doc, source)

@@ -165,3 +165,26 @@ def test_smoothers_beat_ekf_slam_over_twenty_seeds() -> None:
     assert abs(mean["isam2"] - mean["batch"]) <= 0.02 * mean["batch"]
     # Not asserted: per seed the two can differ by more than 2% (seed 16 above: 2.8%); the
     # issue's 2% holds for the mean over seeds.
+
+
+def test_outside_references_stand_beside_the_matching_means() -> None:
+    from slamkit.experiments.config_models import check_pipeline
+    from slamkit.experiments.filter_vs_smoother.report import outside_references_markdown
+
+    summary = [{"dataset": "w", "estimator": "ekf", "metric": "final_position_error_m", "mean": 0.006,
+                "ci95": [0.005, 0.007], "n": 3},
+               {"dataset": "w", "estimator": "dr", "metric": "final_position_error_m", "mean": 1.0,
+                "ci95": [0.9, 1.1], "n": 3},
+               {"dataset": "v", "estimator": "ekf", "metric": "final_position_error_m", "mean": 9.0,
+                "ci95": [8.0, 10.0], "n": 3}]
+    ref = {"scenario": "w", "metric": "final_position_error_m", "value": 0.015, "source": "outside: fused",
+           "estimators": ["ekf"]}
+    text = outside_references_markdown([ref], summary)
+    rows = [line for line in text.splitlines() if line.startswith("| w ")]
+    assert rows == ["| w | final_position_error_m | outside: fused | 0.015 | ekf | 0.006 | [0.005, 0.007] | 0.4 |"]
+    assert outside_references_markdown([{**ref, "scenario": "nowhere"}], summary) == ""
+    base = {"pipeline": "filter_vs_smoother", "scenarios": ["mild"], "estimators": ["ekf"]}
+    check_pipeline({**base, "outside_references": [ref]})
+    with pytest.raises(ConfigError, match="outside_references.0.valu"):
+        check_pipeline({**base, "outside_references": [{**{k: v for k, v in ref.items() if k != "value"},
+                                                        "valu": 0.015}]})

@@ -47,6 +47,7 @@ def report_markdown(config: Mapping[str, Any], summary: list[dict[str, Any]], co
         text += markdown_table(["scenario", "estimator", "runs M", "mean NEES", "95% band", "verdict",
                                 "steps in band", "degenerate steps"], table) + "\n\n"
     text += inertial_markdown(summary)
+    text += outside_references_markdown(config.get("outside_references") or [], summary)
     failed = [(rec.dataset, rec.estimator, rec.seed, rec.params.get("failed"))
               for r in results for rec in r.records if rec.params.get("failed")]
     if failed:
@@ -54,6 +55,26 @@ def report_markdown(config: Mapping[str, Any], summary: list[dict[str, Any]], co
     if notes:
         text += "## Notes\n\n" + "\n".join(f"- {n}" for n in notes[:50]) + "\n"
     return text
+
+
+def outside_references_markdown(references: list[Mapping[str, Any]], summary: list[dict[str, Any]]) -> str:
+    """The config's ``outside_references`` (figures measured elsewhere on the same setting), each
+    beside slamkit's mean and 95% CI of the same scenario and metric."""
+    rows = []
+    for ref in references:
+        for s in summary:
+            if (s["dataset"] == ref["scenario"] and s["metric"] == ref["metric"] and s["mean"] is not None
+                    and (not ref.get("estimators") or s["estimator"] in ref["estimators"])):
+                ci = s.get("ci95") or [None, None]
+                rows.append([ref["scenario"], ref["metric"], ref["source"], ref["value"], s["estimator"], s["mean"],
+                             "" if ci[0] is None else f"[{ci[0]:.4g}, {ci[1]:.4g}]", s["mean"] / ref["value"]
+                             if ref["value"] else None])
+    if not rows:
+        return ""
+    return ("## Beside outside references\n\nFigures measured elsewhere on the same setting (the config's "
+            "`outside_references`), each beside slamkit's mean over the runs; ratio = slamkit / reference.\n\n"
+            + markdown_table(["scenario", "metric", "reference", "value", "slamkit estimator", "slamkit mean",
+                              "95% CI", "ratio"], rows) + "\n\n")
 
 
 #: the inertial metrics (slamkit.metrics.inertial) the report tabulates on their own
