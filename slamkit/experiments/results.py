@@ -17,7 +17,7 @@ import sys
 import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterable, Mapping
+from typing import Any, Callable, Iterable, Literal, Mapping
 
 import numpy as np
 import yaml
@@ -100,6 +100,106 @@ def summarise(runs: Iterable[RunRecord],
         out.append({**_jsonable(dict(fields[key[:-1]])), "metric": key[-1],
                     "mean": _jsonable(mean), "ci95": [_jsonable(ci[0]), _jsonable(ci[1])], "n": n})
     return out
+
+
+#: unit suffixes of error, size and time metrics: a smaller value is better
+_LOWER_IS_BETTER_SUFFIXES = ("_m", "_rad", "_deg", "_ms", "_s", "_mps", "_mps2", "_radps", "_mb")
+#: words of rates of success: a larger value is better
+_HIGHER_IS_BETTER_WORDS = ("success", "recall", "precision", "inlier_ratio", "real_time_factor", "certified")
+
+
+def metric_direction(metric: str) -> Literal["lower", "higher"] | None:
+    """Whether a smaller or a larger value of ``metric`` is better, from its name (errors, times
+    and sizes carry a unit suffix: lower; success rates, recall, precision: higher), or None for
+    metrics with no better side (NEES, counts, fractions of a band)."""
+    if any(w in metric for w in _HIGHER_IS_BETTER_WORDS):
+        return "higher"
+    if metric.endswith(_LOWER_IS_BETTER_SUFFIXES):
+        return "lower"
+    return None
+
+
+def paired_difference(values: Iterable[float], reference: Iterable[float]) -> dict[str, Any]:
+    """The paired difference ``values - reference`` (same data and seed at the same index): its
+    mean with the 95% Student-t interval and the two-sided Wilcoxon signed-rank p-value (exact for
+    small samples, scipy's default). Pairs with a NaN on either side are dropped, zero differences
+    do not enter the test, and all-zero differences give p = 1."""
+    a = np.asarray(list(values), dtype=float)
+    b = np.asarray(list(reference), dtype=float)
+    if a.shape != b.shape:
+        raise ValueError(f"paired samples differ in length: {a.shape} vs {b.shape}")
+    d = (a - b)[np.isfinite(a) & np.isfinite(b)]
+    mean, ci, n = mean_ci95(d)
+    if n == 0 or not np.any(d != 0):
+        p = float("nan") if n == 0 else 1.0
+    else:
+        # zero differences (ties with the reference) carry no sign: dropped, as Wilcoxon proposed
+        p = float(_stats.wilcoxon(d[d != 0]).pvalue)
+    return {"mean_difference": mean, "ci95": list(ci), "wilcoxon_p": p, "pairs": n}
+
+
+def paired_comparisons(runs: Iterable[RunRecord], treatment: Callable[[RunRecord], Any],
+                       context: Callable[[RunRecord], Mapping[str, Any]] = lambda r: {"dataset": r.dataset},
+                       pair: Callable[[RunRecord], Any] = lambda r: r.seed, alpha: float = 0.05,
+                       min_pairs: int = 2) -> list[dict[str, Any]]:
+    """Every treatment against the best one, paired on shared runs, per context x metric.
+
+    Runs are grouped by ``context(run)`` (default: the dataset); inside a group, the runs of a
+    ``treatment(run)`` (an estimator, a swept value) are matched to the best treatment's on
+    ``pair(run)`` (default: the seed, so both saw the same data). The best is the treatment with
+    the best mean over the pairs every treatment has, in the metric's :func:`metric_direction`
+    (metrics without one are skipped; so are groups with fewer than ``min_pairs`` shared runs: one
+    recording is no sample). Each row holds the context's fields, ``metric``,
+    ``treatment``, ``best``, the :func:`paired_difference` of treatment minus best and
+    ``significant`` (p < alpha; with fewer than 6 pairs the exact test cannot reach 0.05)."""
+    table: dict[tuple, dict[Any, dict[Any, float]]] = {}
+    fields: dict[tuple, Mapping[str, Any]] = {}
+    for r in runs:
+        ctx = context(r)
+        key = tuple((k, json.dumps(_jsonable(v), sort_keys=True)) for k, v in ctx.items())
+        fields.setdefault(key, ctx)
+        t = treatment(r)
+        for metric, value in r.metrics.items():
+            if (metric_direction(metric) is None or isinstance(value, bool)
+                    or not isinstance(value, (int, float, np.floating, np.integer))):
+                continue
+            table.setdefault(key + (metric,), {}).setdefault(t, {})[pair(r)] = float(value)
+    out = []
+    for key, by_treatment in table.items():
+        if len(by_treatment) < 2:
+            continue
+        metric = key[-1]
+        shared = set.intersection(*(set(v) for v in by_treatment.values()))
+        if len(shared) < min_pairs:
+            continue
+        order = sorted(shared, key=lambda p: json.dumps(_jsonable(p), sort_keys=True))
+        means = {t: float(np.nanmean([v[p] for p in order])) for t, v in by_treatment.items()}
+        finite = {t: m for t, m in means.items() if math.isfinite(m)}
+        if not finite:
+            continue
+        sign = 1.0 if metric_direction(metric) == "lower" else -1.0
+        best = min(finite, key=lambda t: sign * finite[t])
+        for t, v in by_treatment.items():
+            if t == best:
+                continue
+            diff = paired_difference([v[p] for p in order], [by_treatment[best][p] for p in order])
+            out.append({**_jsonable(dict(fields[key[:-1]])), "metric": metric, "treatment": _jsonable(t),
+                        "best": _jsonable(best), **_jsonable(diff),
+                        "significant": bool(math.isfinite(diff["wilcoxon_p"]) and diff["wilcoxon_p"] < alpha)})
+    return out
+
+
+def paired_markdown(rows: list[dict[str, Any]], lead: list[str], treatment_name: str = "estimator") -> str:
+    """The paired comparisons as a table: per ``lead`` fields and metric, each treatment's
+    difference to the best with its 95% CI, the Wilcoxon p-value and whether it is significant."""
+    table = []
+    for r in rows:
+        lo, hi = r["ci95"]
+        table.append([*(r[k] for k in lead), r["metric"], r["treatment"], r["best"], r["pairs"],
+                      r["mean_difference"], "" if lo is None else f"[{lo:.3g}, {hi:.3g}]",
+                      r["wilcoxon_p"], "**yes**" if r["significant"] else "no"])
+    return markdown_table([*lead, "metric", treatment_name, "best", "pairs", "difference to best", "95% CI",
+                           "Wilcoxon p", "significant"], table)
 
 
 def markdown_table(header: list[str], rows: list[list[Any]]) -> str:

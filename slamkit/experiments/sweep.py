@@ -58,7 +58,8 @@ from slamkit.experiments.config_models import PlainName, Seeds, check_pipeline, 
 from slamkit.experiments.executors import Executor, TaskFailure, make_executor
 from slamkit.experiments.results import (MARKER, ResultsFolder, RunRecord, _jsonable, acquire_folder_lock,
                                          check_output_folder, is_results_folder, markdown_table,
-                                         release_folder_lock, summarise, summary_markdown)
+                                         paired_comparisons, paired_markdown, release_folder_lock, summarise,
+                                         summary_markdown)
 from slamkit.paths import atomic_file, file_in
 
 #: ``results.json``'s ``pipeline`` and the marker's, for a sweep folder
@@ -448,6 +449,13 @@ def aggregate(sweep: Sweep, outcomes: Mapping[str, CellOutcome], out: Path) -> t
     summary = [row for axis in swept for row in summarise(records, by=lambda r, a=axis: {
         "axis": a, "value": r.params[a], "dataset": r.dataset, "estimator": r.estimator})]
     overall = summarise(records)
+    # estimators of one cell saw the same data; values of an axis are paired when the other axes match
+    paired_estimators = paired_comparisons(records, treatment=lambda r: r.estimator, context=lambda r: {
+        "dataset": r.dataset, **{a: r.params[a] for a in _context_axes(swept)}})
+    paired_axes = [row for axis in swept for row in paired_comparisons(
+        records, treatment=lambda r, a=axis: r.params[a], context=lambda r, a=axis: {
+            "axis": a, "dataset": r.dataset, "estimator": r.estimator,
+            **{o: r.params[o] for o in _context_axes(swept, a)}})]
     results = _jsonable({
         "pipeline": SWEEP, "sweep": sweep.name, "base_pipeline": sweep.base.get("pipeline"),
         "slamkit_version": slamkit.__version__,
@@ -455,13 +463,22 @@ def aggregate(sweep: Sweep, outcomes: Mapping[str, CellOutcome], out: Path) -> t
         "axes": {**{a: v for a, v in sweep.model.axes.items()},
                  **({SEED_AXIS: seed_list(sweep.model.seeds)} if sweep.model.seeds is not None else {})},
         "cells": cells, "runs": runs, "summary": summary, "overall": overall,
+        "paired": {"estimators": paired_estimators, "axes": paired_axes},
     })
     plots = plot_axes(summary, out / "plots")
-    return results, report_markdown(sweep, cells, summary, overall, plots)
+    return results, report_markdown(sweep, cells, summary, overall, plots, paired_estimators, paired_axes)
+
+
+def _context_axes(swept: Iterable[str], compared: str | None = None) -> list[str]:
+    """The axes that fix a paired comparison's context besides the run's dataset and estimator
+    (an axis named ``dataset`` is already the run's dataset)."""
+    return [a for a in swept if a != compared and a not in ("axis", "dataset", "estimator")]
 
 
 def report_markdown(sweep: Sweep, cells: list[dict[str, Any]], summary: list[dict[str, Any]],
-                    overall: list[dict[str, Any]], plots: list[str]) -> str:
+                    overall: list[dict[str, Any]], plots: list[str],
+                    paired_estimators: list[dict[str, Any]] | None = None,
+                    paired_axes: list[dict[str, Any]] | None = None) -> str:
     done = sum(c["status"] == "done" for c in cells)
     failed = [c for c in cells if c["status"] == "failed"]
     lines = [f"# Sweep {sweep.name}", "",
@@ -473,6 +490,19 @@ def report_markdown(sweep: Sweep, cells: list[dict[str, Any]], summary: list[dic
         lines += [f"## {axis}", "", summary_markdown([s for s in summary if s["axis"] == axis],
                                                      ["value", "dataset", "estimator"]), ""]
     lines += ["## All cells", "", summary_markdown(overall), ""]
+    paired_intro = ("Paired on the seed (same simulated data): per run the difference to the best (best mean "
+                    "of the metric), its mean with the 95% Student-t interval and the two-sided Wilcoxon "
+                    "signed-rank p-value; significant at p < 0.05.")
+    if paired_axes:
+        lines += ["## Paired: axis values against the best value", "", paired_intro, ""]
+        for axis in sweep.model.axes:
+            rows = [r for r in paired_axes if r["axis"] == axis]
+            if rows:
+                lines += [f"### {axis}", "", paired_markdown(
+                    rows, ["dataset", "estimator", *_context_axes(sweep.model.axes, axis)], "value"), ""]
+    if paired_estimators:
+        lines += ["## Paired: estimators against the best estimator", "", paired_intro, "",
+                  paired_markdown(paired_estimators, ["dataset", *_context_axes(sweep.model.axes)]), ""]
     if failed:
         lines += ["## Failed cells", "", markdown_table(
             ["cell", "axes", "error"],

@@ -11,7 +11,8 @@ import yaml
 from slamkit.errors import ConfigError
 from slamkit.experiments import pipeline as pipeline_mod
 from slamkit.experiments.pipeline import PipelineOutput, run_pipeline
-from slamkit.experiments.results import ResultsFolder, RunRecord, mean_ci95, summarise
+from slamkit.experiments.results import (ResultsFolder, RunRecord, mean_ci95, metric_direction, paired_comparisons,
+                                         paired_difference, paired_markdown, summarise)
 
 
 def test_mean_ci95_worked_example() -> None:
@@ -31,6 +32,57 @@ def test_summary_groups_by_dataset_estimator_metric() -> None:
     # t(0.975, 1) = 12.7062; std = 0.141421; half = 12.7062 * 0.141421 / sqrt(2) = 1.27062
     assert ekf["ci95"][1] - ekf["mean"] == pytest.approx(1.27062, rel=1e-4)
     assert next(s for s in summary if s["estimator"] == "isam2")["n"] == 1
+
+
+def test_paired_difference_worked_example() -> None:
+    # d = a - b = [0.5, -0.1, 0.3, 0.7, 0.2, 0.4]: mean 1/3, sample std sqrt(0.373333 / 5) = 0.273252,
+    # t(0.975, 5) = 2.570582 -> half width 0.286760; |d| ranks 5, 1, 3, 6, 2, 4, the only negative has rank 1, so
+    # W- = 1 and the exact two-sided p = 2 x #{subsets of 1..6 with rank sum <= 1} / 2^6 = 4/64
+    b = [1.0, 2.0, 3.0, 4.0, 5.0, 6.0]
+    a = [x + d for x, d in zip(b, [0.5, -0.1, 0.3, 0.7, 0.2, 0.4])]
+    diff = paired_difference(a, b)
+    assert diff["pairs"] == 6 and diff["mean_difference"] == pytest.approx(1 / 3)
+    assert diff["ci95"] == pytest.approx([1 / 3 - 0.286760, 1 / 3 + 0.286760], abs=1e-6)
+    assert diff["wilcoxon_p"] == pytest.approx(4 / 64)
+
+
+def test_paired_difference_drops_ties_and_nan_pairs() -> None:
+    # two ties and a NaN pair: the test runs on the six positive differences, p = 2 / 2^6
+    a = [1.0, 1.0, float("nan"), 2.0, 3.0, 4.0, 5.0, 6.0, 7.0]
+    b = [1.0, 1.0, 0.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0]
+    diff = paired_difference(a, b)
+    assert diff["pairs"] == 8 and diff["wilcoxon_p"] == pytest.approx(2 / 64)
+    assert paired_difference([1.0, 2.0], [1.0, 2.0])["wilcoxon_p"] == 1.0
+    with pytest.raises(ValueError, match="differ in length"):
+        paired_difference([1.0], [1.0, 2.0])
+
+
+def test_metric_direction_reads_the_unit_or_the_rate_in_the_name() -> None:
+    assert [metric_direction(m) for m in ("ate_rmse_m", "rpe_rot_deg", "step_latency_median_ms", "total_time_s",
+                                          "success_rate", "outlier_recall", "nees_mean", "keyframes")] == [
+        "lower", "lower", "lower", "lower", "higher", "higher", None, None]
+
+
+def test_paired_comparisons_pair_on_the_seed_against_the_best_treatment() -> None:
+    # ekf = isam2 + 0.1 on seeds 0-5; ukf misses seed 5, so only seeds 0-4 are shared by all three
+    runs = []
+    for seed in range(6):
+        runs.append(RunRecord("sim", "isam2", {"ate_rmse_m": 1.0 + seed, "success_rate": 0.5, "nees_mean": 3.0}, seed))
+        runs.append(RunRecord("sim", "ekf", {"ate_rmse_m": 1.1 + seed, "success_rate": 0.9, "nees_mean": 3.0}, seed))
+        if seed < 5:
+            runs.append(RunRecord("sim", "ukf", {"ate_rmse_m": 1.0 + seed}, seed))
+    runs.append(RunRecord("other", "ekf", {"ate_rmse_m": 1.0}, 0))  # one recording: no sample
+    rows = paired_comparisons(runs, treatment=lambda r: r.estimator)
+    assert {r["dataset"] for r in rows} == {"sim"} and "nees_mean" not in {r["metric"] for r in rows}
+    ate = {r["treatment"]: r for r in rows if r["metric"] == "ate_rmse_m"}
+    assert set(ate) == {"ekf", "ukf"} and ate["ekf"]["best"] == "isam2"
+    assert ate["ekf"]["pairs"] == 5 and ate["ekf"]["mean_difference"] == pytest.approx(0.1)
+    assert ate["ekf"]["wilcoxon_p"] == pytest.approx(2 / 32) and not ate["ekf"]["significant"]
+    assert ate["ukf"]["wilcoxon_p"] == 1.0 and ate["ukf"]["mean_difference"] == 0.0
+    success = [r for r in rows if r["metric"] == "success_rate"]
+    assert len(success) == 1 and success[0]["best"] == "ekf" and success[0]["mean_difference"] == pytest.approx(-0.4)
+    table = paired_markdown(rows, ["dataset"])
+    assert "| sim | ate_rmse_m | ekf | isam2 | 5 | 0.1 | [0.1, 0.1] | 0.0625 | no |" in table
 
 
 def _fake_pipeline(config, folder, progress, observer):

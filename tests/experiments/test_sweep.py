@@ -152,6 +152,26 @@ def test_a_sweep_runs_every_cell_records_failures_and_aggregates_per_axis_value(
     assert json.loads((out / "results.json").read_text())["summary"] == res["summary"]
 
 
+def test_axis_values_are_compared_paired_on_the_seed(tmp_path: Path) -> None:
+    # value_m = 2 x + seed / 10: on every seed x = 2 exceeds x = 1 by exactly 2, for each dataset;
+    # six seeds all of one sign give the exact two-sided Wilcoxon p = 2 / 2^6
+    sweep = write_sweep(tmp_path, seeds=6, axes={"x": [1.0, 2.0], "dataset": ["a", "b"]})
+    result = run_sweep(sweep, tmp_path / "out", workers=2, progress=False)
+    axes = result.results["paired"]["axes"]
+    x_rows = [r for r in axes if r["axis"] == "x"]
+    assert sorted(r["dataset"] for r in x_rows) == ["a", "b"]
+    for r in x_rows:
+        assert (r["treatment"], r["best"], r["pairs"]) == (2.0, 1.0, 6)
+        assert r["mean_difference"] == pytest.approx(2.0) and r["ci95"] == pytest.approx([2.0, 2.0])
+        assert r["wilcoxon_p"] == pytest.approx(2 / 64) and r["significant"]
+    # values of the dataset axis run on different data: never paired with each other
+    assert {r["axis"] for r in axes} == {"x"}
+    assert result.results["paired"]["estimators"] == []  # one estimator: nothing to pair
+    report = (result.out_dir / "report.md").read_text()
+    assert "## Paired: axis values against the best value" in report and "### x" in report
+    assert "| a | probe | value_m | 2 | 1 | 6 | 2 | [2, 2] | 0.03125 | **yes** |" in report
+
+
 def test_resume_runs_only_unfinished_cells_and_retry_failed_only_failures(tmp_path: Path) -> None:
     log = tmp_path / "runs.log"
     sweep = write_sweep(tmp_path, pipeline={"pipeline": "sweep_probe", "log": str(log)},

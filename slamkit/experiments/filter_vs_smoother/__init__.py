@@ -61,7 +61,7 @@ from slamkit.experiments.filter_vs_smoother.score import (DEGENERATE_VERDICT_LIM
                                                            nees_verdict, payload_of)
 from slamkit.experiments.observers import PipelineObserver
 from slamkit.experiments.pipeline import Pipeline, PipelineOutput, StepProgress
-from slamkit.experiments.results import ResultsFolder, summarise
+from slamkit.experiments.results import ResultsFolder, paired_comparisons, summarise
 
 __all__ = [
     "DEGENERATE_VERDICT_LIMIT", "EstimatorChoice", "FilterVsSmootherPayload", "NeesCurve", "PIPELINE",
@@ -85,12 +85,13 @@ def assemble(config: Mapping[str, Any], results: list[TaskResult], scenarios: li
     """The pipeline's output from its task results: runs, summary, consistency, report, payload."""
     records = [rec for r in results for rec in r.records]
     summary = summarise(records)
+    paired = paired_comparisons(records, treatment=lambda r: r.estimator)
     rows, curves = consistency_table(results, scenarios, choices)
     payload = payload_of(results, scenarios, choices, curves)
     notes = sorted({n for r in results for n in r.notes})
     references = {r.scenario: r.reference for r in results}
-    report = report_markdown(config, summary, rows, scenarios, references, notes, results)
-    return PipelineOutput(records, report, summary, {"consistency": rows}, payload)
+    report = report_markdown(config, summary, rows, scenarios, references, notes, results, paired)
+    return PipelineOutput(records, report, summary, {"consistency": rows, "paired": paired}, payload)
 
 
 PIPELINE: Pipeline[FilterVsSmootherPayload] = Pipeline(
