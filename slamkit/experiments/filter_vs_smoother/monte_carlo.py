@@ -4,14 +4,15 @@ scoring them and writing their trajectories.
 
 Where the work happens: the first seed of every scenario runs in this process, with the
 pipeline's observer (it is the run the recording shows, so it keeps its sequence and estimates);
-the other seeds run in a pool of ``workers`` local processes (``workers: 1`` runs everything
-here) and come back as finished :class:`TaskResult`s, which no observer sees step by step.
+the other seeds run on the sweep layer's :class:`~slamkit.experiments.executors.LocalExecutor`
+(``workers`` spawned processes with BLAS pinned to one thread each; ``workers: 1`` runs
+everything here) and come back as finished :class:`TaskResult`s, which no observer sees step by
+step.
 """
 
 from __future__ import annotations
 
 import dataclasses
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping
@@ -20,8 +21,9 @@ import numpy as np
 
 from slamkit.data.inertial import is_inertial
 from slamkit.data.sequence import Sequence
-from slamkit.errors import ConfigError
+from slamkit.errors import ConfigError, EstimationError
 from slamkit.experiments.estimators import factory
+from slamkit.experiments.executors import LocalExecutor, TaskFailure
 from slamkit.experiments.filter_vs_smoother.config import (INERTIAL_PRESETS, NAME, EstimatorChoice,
                                                             ScenarioSpec, parse_estimators, parse_scenarios,
                                                             parse_seeds, parse_workers)
@@ -158,13 +160,18 @@ def run_monte_carlo(config: Mapping[str, Any], trajectories_dir: Path | None = N
             results.append(run_task(t))
             advance()
     else:
-        with ProcessPoolExecutor(max_workers=workers) as pool:
-            futures = [pool.submit(run_task, t) for t in pool_tasks]
+        with LocalExecutor(workers) as pool:
+            for t in pool_tasks:
+                pool.submit(run_task, t)
             for t in main_tasks:
                 results.append(run_task(t, observer))
                 advance()
-            for f in futures:
-                results.append(f.result())
+            for t, outcome in pool.as_completed():
+                if isinstance(outcome, TaskFailure):
+                    # an estimator's own failure is recorded inside run_task; this is the task itself
+                    raise EstimationError(f"{t.scenario.name} seed {t.seed}: {outcome.error_type}: "
+                                          f"{outcome.message}")
+                results.append(outcome)
                 advance()
     order = {(t.scenario.name, t.seed): k for k, t in enumerate(tasks)}
     results.sort(key=lambda r: order[(r.scenario, r.seed)])
