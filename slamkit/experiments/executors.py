@@ -10,7 +10,7 @@ Two implementations, one contract (``submit(fn, arg)``, then ``as_completed()`` 
   initializer); a worker whose coordinator dies (``kill -9``) exits within half a second;
 * :class:`RayExecutor` -- Ray tasks (``num_cpus=1`` each) on the Ray instance the process is
   connected to, or the one at ``address`` (``auto``: the cluster this machine belongs to; a
-  ``HOST:PORT``; None: a new local instance). ``ray`` is imported only when this executor is
+  ``HOST:PORT``; None: a new local instance, see :func:`start_local_ray`). ``ray`` is imported only when this executor is
   built (an optional extra, ``pip install slamkit[ray]``; importing it costs about a second).
 
 A task that raises becomes a :class:`TaskFailure` outcome (its type and message), so one bad
@@ -130,8 +130,12 @@ class RayExecutor:
             raise ConfigError("--executor ray needs the 'ray' package: pip install 'slamkit[ray]'") from None
         self._ray = ray
         self._owns_connection = not ray.is_initialized()
+        self._token_set = False
         if self._owns_connection:
-            ray.init(address=address, include_dashboard=False, log_to_driver=False)
+            if address is None:
+                self._token_set = start_local_ray()
+            else:
+                ray.init(address=address, include_dashboard=False, log_to_driver=False)
         self._pending: dict[Any, Any] = {}
         self._remote: dict[Callable, Any] = {}
 
@@ -161,12 +165,45 @@ class RayExecutor:
         self._pending.clear()
         if self._owns_connection:
             self._ray.shutdown()
+        if self._token_set:
+            os.environ.pop(RAY_TOKEN_ENV, None)
 
     def __enter__(self) -> "RayExecutor":
         return self
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+#: Ray's authentication variables: a token, a token file, or the mode (``disabled``, ``token``)
+RAY_TOKEN_ENV = "RAY_AUTH_TOKEN"
+_RAY_AUTH_ENV = (RAY_TOKEN_ENV, "RAY_AUTH_TOKEN_PATH", "RAY_AUTH_MODE")
+
+
+def start_local_ray(**init_kwargs: Any) -> bool:
+    """Start a new local Ray instance (no dashboard, workers' logs not streamed here) with token
+    authentication kept on but its token held in this process's environment.
+
+    Ray >= 2.5x turns token authentication on for a new local instance and, when no token is
+    configured, writes one to ``~/.ray/auth_token``: a file outside the results folder that
+    outlives the run. A fresh random token in ``RAY_AUTH_TOKEN`` (inherited by the instance's
+    processes) gives the same protection and writes nothing. A user's own token or mode
+    (``RAY_AUTH_TOKEN``, ``RAY_AUTH_TOKEN_PATH``, ``RAY_AUTH_MODE``) is left to Ray. Returns
+    whether the token variable was set here (the caller removes it after ``ray.shutdown()``)."""
+    import secrets
+
+    import ray
+
+    token_set = not any(os.environ.get(k) for k in _RAY_AUTH_ENV)
+    if token_set:
+        os.environ[RAY_TOKEN_ENV] = secrets.token_hex(32)
+    try:
+        ray.init(address=None, include_dashboard=False, log_to_driver=False, **init_kwargs)
+    except BaseException:
+        if token_set:
+            os.environ.pop(RAY_TOKEN_ENV, None)
+        raise
+    return token_set
 
 
 def make_executor(kind: str, workers: int | None = None, address: str | None = None) -> LocalExecutor | RayExecutor:

@@ -4,12 +4,15 @@ whose aggregate must equal the local pool's."""
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
 import yaml
 
-from slamkit.experiments.executors import RayExecutor, TaskFailure
+from slamkit.experiments.executors import RAY_TOKEN_ENV, RayExecutor, TaskFailure, start_local_ray
 from slamkit.experiments.pipeline import PIPELINES
 from slamkit.experiments.sweep import run_sweep
 
@@ -25,10 +28,12 @@ def ray_instance():
     sweep_probe.ensure_registered()  # the probe pipeline in this process too
 
     # the workers find the probe plugin through the job's runtime environment
-    ray.init(num_cpus=2, include_dashboard=False, _node_ip_address="127.0.0.1", log_to_driver=False,
-             runtime_env={"env_vars": {"PYTHONPATH": str(HERE)}})
+    token_set = start_local_ray(num_cpus=2, _node_ip_address="127.0.0.1",
+                                runtime_env={"env_vars": {"PYTHONPATH": str(HERE)}})
     yield ray
     ray.shutdown()
+    if token_set:
+        os.environ.pop(RAY_TOKEN_ENV, None)
     if "sweep_probe" in PIPELINES:
         PIPELINES.unregister("sweep_probe")
 
@@ -61,3 +66,23 @@ def test_a_sweep_on_ray_equals_the_same_sweep_on_the_local_pool(ray_instance, tm
         [(c["key"], c["status"]) for c in local.results["cells"]]
     resumed = run_sweep(sweep, tmp_path / "ray", executor="ray", resume=True, progress=False)
     assert resumed.ran == 0 and ray_instance.is_initialized()
+
+
+def test_a_local_instance_started_by_the_executor_writes_nothing_in_the_home_folder(tmp_path: Path) -> None:
+    # Ray's default for a new local instance writes ~/.ray/auth_token; the executor's instance
+    # keeps token authentication with the token in its environment instead (a separate process:
+    # the module's instance is already running in this one)
+    home = tmp_path / "home"
+    home.mkdir()
+    env = {k: v for k, v in os.environ.items() if not k.startswith("RAY_AUTH")}
+    code = ("import os; from slamkit.experiments.executors import RayExecutor, RAY_TOKEN_ENV\n"
+            "import sweep_probe\n"
+            "with RayExecutor() as ex:\n"
+            "    ex.submit(sweep_probe.square, 7)\n"
+            "    outcomes = dict(ex.as_completed())\n"
+            "print(outcomes[7], RAY_TOKEN_ENV in os.environ)\n")
+    done = subprocess.run([sys.executable, "-c", code], env={**env, "HOME": str(home), "PYTHONPATH": str(HERE)},
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.split()[-2:] == ["49", "False"]
+    assert list(home.iterdir()) == []
