@@ -13,7 +13,7 @@ from slamkit.cli.app import app
 @app.command("sweep")
 def sweep_command(
     sweep: Path = typer.Argument(..., help="sweep file (YAML): a pipeline config and the axes to vary"),
-    out: Path = typer.Option(..., "--out", help="sweep folder: cells/<key>/ per cell, results.json, report.md, plots/"),
+    out: Path = typer.Option(..., "--out", help="sweep folder: cells/<key[:2]>/<key>/ per cell, results.json, report.md, plots/"),
     workers: int = typer.Option(None, "--workers", min=1, max=256,
                                 help="local worker processes (default min(2, cpus)); Ray uses its cluster's CPUs"),
     executor: str = typer.Option("local", "--executor", help="local (a process pool) or ray"),

@@ -17,7 +17,10 @@ the seed axis sets ``seeds: [s]``. Every cell's resolved config is validated wit
 model before anything runs (an error names the axis values and the field).
 
 Each cell is one pipeline run (:func:`slamkit.experiments.pipeline.run_pipeline`) into
-``<out>/cells/<key>``, where ``key`` is a hash of the cell's resolved config: the cell folder
+``<out>/cells/<key[:2]>/<key>`` (:func:`cell_path`), where ``key`` is a hash of the cell's resolved
+config (the two-digit shard keeps each folder small: a results folder looks for its own
+leftovers among its siblings, which in one flat folder of 10,000 cells made every cell scan all
+the others); the cell folder
 is written atomically by :class:`~slamkit.experiments.results.ResultsFolder`, so a sweep killed
 at any moment (``kill -9``) holds complete cells and hidden partial leftovers only, and
 ``--resume`` runs exactly the cells whose folder is not complete. A cell that raises is stored
@@ -128,6 +131,11 @@ def config_key(config: Mapping[str, Any]) -> str:
     """The key a cell is stored under: 16 hex digits of the SHA-256 of its canonical JSON."""
     text = json.dumps(_jsonable(dict(config)), sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def cell_path(cells_dir: Path, key: str) -> Path:
+    """Where the cell ``key`` is stored: ``cells_dir/<first two hex digits>/<key>``."""
+    return cells_dir / key[:2] / key
 
 
 def set_path(config: dict[str, Any], path: str, value: Any) -> None:
@@ -378,14 +386,17 @@ def run_sweep(path: str | Path, out: str | Path, workers: int | None = None, exe
         outcomes: dict[str, CellOutcome] = {}
         todo: list[Cell] = []
         for cell in sweep.cells:
-            stored = stored_outcome(cell.key, cells_dir / cell.key)
+            stored = stored_outcome(cell.key, cell_path(cells_dir, cell.key))
             if stored is None or (retry_failed and stored.status == "failed"):
                 todo.append(cell)
             else:
                 outcomes[cell.key] = stored
         ran = failed = 0
         if todo:
-            tasks = [CellTask(c.key, c.config, str(cells_dir / c.key), tuple(sweep.model.plugins)) for c in todo]
+            for shard in {cell_path(cells_dir, c.key).parent for c in todo}:
+                shard.mkdir(exist_ok=True)
+            tasks = [CellTask(c.key, c.config, str(cell_path(cells_dir, c.key)), tuple(sweep.model.plugins))
+                     for c in todo]
             for outcome in _execute(tasks, executor, workers, address, len(sweep.cells), len(outcomes), progress):
                 outcomes[outcome.key] = outcome
                 ran += 1

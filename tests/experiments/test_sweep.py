@@ -22,7 +22,7 @@ from slamkit.errors import ConfigError, OutputError
 from slamkit.experiments.executors import LocalExecutor
 from slamkit.experiments.pipeline import PIPELINES
 from slamkit.experiments.results import MARKER
-from slamkit.experiments.sweep import cell_state, config_key, load_sweep, run_sweep, set_path
+from slamkit.experiments.sweep import cell_path, cell_state, config_key, load_sweep, run_sweep, set_path
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
@@ -144,9 +144,9 @@ def test_a_sweep_runs_every_cell_records_failures_and_aggregates_per_axis_value(
     report = (out / "report.md").read_text()
     assert "12 cells (grid over x, fail, seed): 6 done, 6 failed, 0 not run" in report
     assert "| 1.0 | probe | probe | 2.1 ± 0.25 |" in report and "## Failed cells" in report
-    cells = list((out / "cells").iterdir())
-    assert len(cells) == 12
-    error = json.loads((out / "cells" / failed[0]["key"] / "error.json").read_text())
+    cells = list((out / "cells").glob("*/*"))
+    assert len(cells) == 12 and all(p.parent.name == p.name[:2] for p in cells)
+    error = json.loads((cell_path(out / "cells", failed[0]["key"]) / "error.json").read_text())
     assert error["error_type"] == "RuntimeError" and "Traceback" in error["traceback"]
     assert json.loads((out / MARKER).read_text())["complete"] is True
     assert json.loads((out / "results.json").read_text())["summary"] == res["summary"]
@@ -254,7 +254,7 @@ def test_a_sweep_killed_part_way_resumes_with_no_cell_lost_or_run_twice(tmp_path
         time.sleep(0.05)
     assert not any(_alive(pid) for pid in worker_pids), "a worker outlived its killed coordinator"
     cells = load_sweep(sweep).cells
-    complete_at_kill = {c.key for c in cells if cell_state(out / "cells" / c.key) == "done"}
+    complete_at_kill = {c.key for c in cells if cell_state(cell_path(out / "cells", c.key)) == "done"}
     assert 0 < len(complete_at_kill) < n_cells
     assert not (out / "results.json").exists()
     assert json.loads((out / MARKER).read_text())["complete"] is False
@@ -267,9 +267,9 @@ def test_a_sweep_killed_part_way_resumes_with_no_cell_lost_or_run_twice(tmp_path
     assert min(counts.values()) == 1 and max(counts.values()) <= 2
     assert sum(n == 2 for n in counts.values()) <= workers
     assert len(result.results["runs"]) == n_cells
-    assert all(cell_state(out / "cells" / c.key) == "done" for c in cells)
+    assert all(cell_state(cell_path(out / "cells", c.key)) == "done" for c in cells)
     # no leftovers of the killed cells remain visible: hidden partials were cleaned by their rerun
-    assert sorted(p.name for p in (out / "cells").iterdir() if not p.name.startswith(".")) == sorted(counts)
+    assert sorted(p.name for p in (out / "cells").glob("*/*") if not p.name.startswith(".")) == sorted(counts)
 
 
 def _alive(pid: int) -> bool:
