@@ -9,6 +9,11 @@
   (a pipeline that does nothing: validation, the cell folder's atomic commit, the round trip to
   the worker, aggregation) on the local pool (2 workers) and on a local Ray instance (2 CPUs),
   both with their workers already started.
+* ``sweep_coordinator_rss_mb_per_1000_cells``: the coordinator's peak RSS (its own process, not the
+  workers') for no-op sweeps of increasing size, each in a fresh process; the value is the slope
+  of peak RSS against cells (least squares), the per-size peaks are in the case's fields. What
+  grows is what the sweep must hold: each cell's resolved config and key, and each finished
+  cell's small summary (its runs' metrics).
 
 The machine is shared (other processes load the cores), so the numbers are what this run saw.
 """
@@ -16,9 +21,14 @@ The machine is shared (other processes load the cores), so the numbers are what 
 from __future__ import annotations
 
 import json
+import os
+import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
+
+import numpy as np
 
 from slamkit.bench.cases import BenchCase, compare
 
@@ -64,6 +74,21 @@ def _utilisation(results: dict, workers: int, wall_s: float) -> float:
     return sum(c["wall_s"] or 0.0 for c in results["cells"]) / (workers * wall_s)
 
 
+def _coordinator_peak_rss_mb(tmp: Path, cells: int) -> float:
+    """Peak RSS (MB) of a fresh coordinator process running a no-op sweep of ``cells`` cells on 2
+    local workers (ru_maxrss of the process itself: the workers are its children)."""
+    path = _noop_sweep(tmp, cells)
+    code = ("import resource, sys, importlib\n"
+            f"importlib.import_module({NOOP_PLUGIN!r})\n"
+            "from slamkit.experiments.sweep import run_sweep\n"
+            "if __name__ == '__main__':\n"
+            "    run_sweep(sys.argv[1], sys.argv[2], workers=2, progress=False)\n"
+            "    print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0)\n")
+    done = subprocess.run([sys.executable, "-c", code, str(path), str(tmp / f"rss{cells}")],
+                          capture_output=True, text=True, check=True)
+    return float(done.stdout.split()[-1])
+
+
 def run(quick: bool = False) -> list[BenchCase]:
     from slamkit.experiments.executors import LocalExecutor
 
@@ -85,18 +110,25 @@ def run(quick: bool = False) -> list[BenchCase]:
                              utilisation_2_workers=_utilisation(r2, 2, t2), worker_max_rss_mb=rss))
         with LocalExecutor(2) as ex:
             local_ms = _per_cell_ms(tmp, "local", ex, warm, noop_cells)
+        sizes = (100, 300, 1000) if quick else (100, 1000, 3000, 10000)
+        peaks = [_coordinator_peak_rss_mb(tmp, n) for n in sizes]
+        slope = 1000.0 * float(np.polyfit(sizes, peaks, 1)[0])
+        cases.append(BenchCase("sweep_coordinator_rss_mb_per_1000_cells", slope, "MB",
+                               extra={f"peak_rss_mb_{n}_cells": p for n, p in zip(sizes, peaks)}))
         try:
             import ray
         except ImportError:
             cases.append(BenchCase("sweep_noop_cell_local_ms", local_ms, "ms"))
             return cases
-        ray.init(num_cpus=2, include_dashboard=False, _node_ip_address="127.0.0.1", log_to_driver=False)
-        try:
-            from slamkit.experiments.executors import RayExecutor
+        from slamkit.experiments.executors import RAY_TOKEN_ENV, RayExecutor, start_local_ray
 
+        token_set = start_local_ray(num_cpus=2, _node_ip_address="127.0.0.1")
+        try:
             with RayExecutor() as ex:
                 ray_ms = _per_cell_ms(tmp, "ray", ex, warm, noop_cells)
         finally:
             ray.shutdown()
+            if token_set:
+                os.environ.pop(RAY_TOKEN_ENV, None)
         cases.append(compare("sweep_noop_cell_local_ms", local_ms, "ms", "Ray, local instance, 2 CPUs", ray_ms))
     return cases
