@@ -30,7 +30,8 @@ class OrbConfig:
     scale_factor: float = 1.2
     levels: int = 8
     fast_threshold: int = 20
-    #: cells of a grid over the image; each detects num_features / cells (spreads features)
+    #: cells of a grid over the image; each detects num_features / cells on its own crop, which
+    #: spreads the features over the image (far-field corners otherwise take most of them)
     grid_cols: int = 1
     grid_rows: int = 1
 
@@ -76,26 +77,34 @@ def detect_orb(image, config: OrbConfig = OrbConfig(), mask=None) -> Features:
     cells = config.grid_cols * config.grid_rows
     orb = cv2.ORB_create(nfeatures=max(1, config.num_features // cells), scaleFactor=config.scale_factor,
                          nlevels=config.levels, fastThreshold=config.fast_threshold)
-    keypoints: list = []
-    descriptors: list = []
+    parts: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
     us = np.linspace(0, W, config.grid_cols + 1).astype(int)
     vs = np.linspace(0, H, config.grid_rows + 1).astype(int)
+    m = _EDGE_MARGIN_PX if cells > 1 else 0
     for i in range(config.grid_rows):
         for j in range(config.grid_cols):
-            m = np.zeros((H, W), np.uint8)
-            m[vs[i]:vs[i + 1], us[j]:us[j + 1]] = 255
+            # each cell is detected on its own crop (plus the descriptor's margin) and keeps the
+            # keypoints inside the cell: the cost stays that of one whole-image detection
+            u0, u1 = max(0, us[j] - m), min(W, us[j + 1] + m)
+            v0, v1 = max(0, vs[i] - m), min(H, vs[i + 1] + m)
+            crop_mask = None
             if mask is not None:
-                m &= np.where(np.asarray(mask, bool), 255, 0).astype(np.uint8)
-            kp, des = orb.detectAndCompute(img, m)
-            if des is not None:
-                keypoints += list(kp)
-                descriptors.append(des)
-    if not keypoints:
+                crop_mask = np.where(np.asarray(mask, bool)[v0:v1, u0:u1], 255, 0).astype(np.uint8)
+            kp, des = orb.detectAndCompute(np.ascontiguousarray(img[v0:v1, u0:u1]), crop_mask)
+            if des is None or not kp:
+                continue
+            uv = np.array([k.pt for k in kp], dtype=float) + (u0, v0)
+            inside = (uv[:, 0] >= us[j]) & (uv[:, 0] < us[j + 1]) & (uv[:, 1] >= vs[i]) & (uv[:, 1] < vs[i + 1])
+            octave = np.array([k.octave for k in kp], dtype=int)
+            response = np.array([k.response for k in kp], dtype=float)
+            parts.append((uv[inside], des[inside], octave[inside], response[inside]))
+    if not parts:
         return Features(np.empty((0, 2)), np.empty((0, 32), np.uint8), np.empty(0, int), np.empty(0))
-    return Features(np.array([k.pt for k in keypoints], dtype=float), np.concatenate(descriptors),
-                    np.array([k.octave for k in keypoints], dtype=int),
-                    np.array([k.response for k in keypoints], dtype=float))
+    return Features(*(np.concatenate(column) for column in zip(*parts)))
 
+
+#: ORB's edgeThreshold / patch size (31 px): the margin a grid cell's crop gets on every side
+_EDGE_MARGIN_PX = 31
 
 _POPCOUNT = np.array([bin(i).count("1") for i in range(256)], dtype=np.uint16)
 
@@ -132,8 +141,12 @@ def match_descriptors(desc_a: np.ndarray, desc_b: np.ndarray, ratio: float = 0.8
         return np.empty((0, 2), dtype=int)
     first, best, second = _two_nearest(desc_a, desc_b)
     keep = (best < ratio * second) & (best <= max_distance)
-    if cross_check:
-        back, _, _ = _two_nearest(desc_b, desc_a)
-        keep &= back[first] == np.arange(len(desc_a))
+    if cross_check and keep.any():
+        # only the descriptors of b that some match points at need their own nearest in a
+        targets = np.unique(first[keep])
+        back, _, _ = _two_nearest(np.asarray(desc_b)[targets], desc_a)
+        nearest_in_a = np.full(len(desc_b), -1)
+        nearest_in_a[targets] = back
+        keep &= nearest_in_a[first] == np.arange(len(desc_a))
     ia = np.flatnonzero(keep)
     return np.stack([ia, first[ia]], axis=1)

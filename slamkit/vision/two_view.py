@@ -81,7 +81,7 @@ def eight_point(x1, x2) -> np.ndarray:
     T1, T2 = normaliser(x1), normaliser(x2)
     n1 = (_homogeneous(x1) @ T1.T)[:, :2]
     n2 = (_homogeneous(x2) @ T2.T)[:, :2]
-    _, _, Vt = np.linalg.svd(_epipolar_rows(n1, n2))
+    _, _, Vt = np.linalg.svd(_epipolar_rows(n1, n2), full_matrices=False)
     F = T2.T @ Vt[-1].reshape(3, 3) @ T1
     return _nearest_essential(F)
 
@@ -125,7 +125,8 @@ def five_point(x1, x2) -> list[np.ndarray]:
     """The (up to 10) essential matrices consistent with 5 correspondences (more points: the
     null space in the least-squares sense)."""
     x1, x2 = _check_pairs(x1, x2, 5)
-    _, _, Vt = np.linalg.svd(_epipolar_rows(x1, x2), full_matrices=True)
+    rows = _epipolar_rows(x1, x2)
+    _, _, Vt = np.linalg.svd(rows, full_matrices=len(rows) < 9)
     basis = Vt[-4:].reshape(4, 3, 3)  # E = x E1 + y E2 + z E3 + E4
     E = np.zeros((3, 3, 20))
     for b, mono in zip(basis, [(1, 0, 0), (0, 1, 0), (0, 0, 1), (0, 0, 0)]):
