@@ -7,8 +7,9 @@
   perturbation camera_T_world <- exp(xi) camera_T_world, xi = (rho, phi) (translation first, as
   ``slamkit.geometry.se3``): d camera_p / d xi = [I, -hat(camera_p)].
 * RANSAC over minimal 6-point samples with the adaptive iteration count of
-  :func:`slamkit.vision.two_view.ransac_iterations`, then refinement on the inliers (twice, with
-  the inlier set recomputed in between).
+  :func:`slamkit.vision.two_view.ransac_iterations` (hypotheses solved and scored in blocks of
+  32 as one batched linear-algebra call; the count is checked between blocks), then refinement
+  on the inliers (twice, with the inlier set recomputed in between).
 
 Poses are ``camera_T_world`` (4x4): camera_p = R world_p + t, as OpenCV's solvePnP (rvec, tvec).
 """
@@ -26,6 +27,40 @@ from slamkit.vision.two_view import ransac_iterations
 __all__ = ["pnp_dlt", "refine_pose", "reprojection_errors", "PnpResult", "pnp_ransac"]
 
 _SAMPLE = 6
+#: RANSAC hypotheses generated and scored at once
+_BLOCK = 32
+
+
+def _dlt_batch(X: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """(B, 4, 4) camera_T_world from B point sets (B, n, 3) and their images (B, n, 2)."""
+    c = X.mean(axis=1, keepdims=True)
+    scale = np.sqrt(((X - c) ** 2).sum(axis=2)).mean(axis=1)
+    scale = np.where(scale > 0, scale, 1.0)
+    Xn = (X - c) / scale[:, None, None]  # conditioning; undone below
+    Xh = np.concatenate([Xn, np.ones(Xn.shape[:2] + (1,))], axis=2)
+    B, n = X.shape[:2]
+    A = np.zeros((B, 2 * n, 12))
+    A[:, 0::2, 0:4] = Xh
+    A[:, 0::2, 8:12] = -x[:, :, 0:1] * Xh
+    A[:, 1::2, 4:8] = Xh
+    A[:, 1::2, 8:12] = -x[:, :, 1:2] * Xh
+    if 2 * n < 12:
+        A = np.concatenate([A, np.zeros((B, 12 - 2 * n, 12))], axis=1)
+    _, _, Vt = np.linalg.svd(A)
+    P = Vt[:, -1].reshape(B, 3, 4)
+    U, sv, Wt = np.linalg.svd(P[:, :, :3])
+    R = U @ Wt
+    k = sv.mean(axis=1)
+    # P was found up to sign: det(P[:, :3]) < 0 means a negative scale
+    flip = np.where(np.linalg.det(R) < 0, -1.0, 1.0)
+    R = R * flip[:, None, None]
+    t = P[:, :, 3] / (k * flip)[:, None]
+    # camera_p ~ R (X - c) / scale + t, and the projection ignores the overall scale
+    T = np.zeros((B, 4, 4))
+    T[:, :3, :3] = R
+    T[:, :3, 3] = scale[:, None] * t - np.einsum("bij,bj->bi", R, c[:, 0])
+    T[:, 3, 3] = 1.0
+    return T
 
 
 def pnp_dlt(world_p, x) -> np.ndarray:
@@ -34,25 +69,16 @@ def pnp_dlt(world_p, x) -> np.ndarray:
     x = np.asarray(x, dtype=float).reshape(-1, 2)
     if len(X) < _SAMPLE or len(X) != len(x):
         raise ConfigError(f"pnp_dlt needs >= {_SAMPLE} matching points, got {len(X)} and {len(x)}")
-    c = X.mean(axis=0)
-    scale = np.sqrt(((X - c) ** 2).sum(axis=1)).mean() or 1.0
-    Xn = (X - c) / scale  # conditioning; undone below
-    Xh = np.hstack([Xn, np.ones((len(X), 1))])
-    A = np.zeros((2 * len(X), 12))
-    A[0::2, 0:4] = Xh
-    A[0::2, 8:12] = -x[:, 0:1] * Xh
-    A[1::2, 4:8] = Xh
-    A[1::2, 8:12] = -x[:, 1:2] * Xh
-    _, _, Vt = np.linalg.svd(A)
-    P = Vt[-1].reshape(3, 4)
-    U, s, Wt = np.linalg.svd(P[:, :3])
-    R = U @ Wt
-    k = s.mean()
-    if np.linalg.det(R) < 0:  # P was found up to sign: det(P[:, :3]) < 0 means a negative scale
-        R, k = -R, -k
-    t = P[:, 3] / k
-    # camera_p ~ R (X - c) / scale + t, and the projection ignores the overall scale
-    return se3.from_rotation_translation(R, scale * t - R @ c)
+    return _dlt_batch(X[None], x[None])[0]
+
+
+def _errors_batch(T: np.ndarray, X: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """(B, N) reprojection errors of B hypotheses (inf behind the camera)."""
+    p = np.einsum("bij,nj->bni", T[:, :3, :3], X) + T[:, None, :3, 3]
+    z = p[..., 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        err = np.hypot(p[..., 0] / z - x[:, 0], p[..., 1] / z - x[:, 1])
+    return np.where(z > 1e-9, err, np.inf)
 
 
 def reprojection_errors(camera_T_world, world_p, x) -> np.ndarray:
@@ -115,17 +141,21 @@ def pnp_ransac(world_p, x, threshold: float, confidence: float = 0.999, max_iter
     best_T, best_in, best_count = None, np.zeros(n, dtype=bool), -1
     needed, it = max_iterations, 0
     while it < needed:
-        it += 1
-        idx = rng.choice(n, _SAMPLE, replace=False)
-        try:
-            T = pnp_dlt(X[idx], x[idx])
-        except np.linalg.LinAlgError:
+        # hypotheses in blocks (one batched DLT and scoring), the adaptive count checked between
+        block = min(_BLOCK, needed - it)
+        it += block
+        idx = np.argsort(rng.random((block, n)), axis=1)[:, :_SAMPLE]
+        T = _dlt_batch(X[idx], x[idx])
+        ok = np.isfinite(T).all(axis=(1, 2))
+        if not ok.any():
             continue
-        inl = reprojection_errors(T, X, x) < threshold
-        count = int(inl.sum())
-        if count > best_count:
-            best_T, best_in, best_count = T, inl, count
-            needed = min(needed, ransac_iterations(count / n, _SAMPLE, confidence, max_iterations))
+        T = T[ok]
+        inl = _errors_batch(T, X, x) < threshold
+        counts = inl.sum(axis=1)
+        k = int(np.argmax(counts))
+        if counts[k] > best_count:
+            best_T, best_in, best_count = T[k], inl[k], int(counts[k])
+            needed = max(it, min(needed, ransac_iterations(best_count / n, _SAMPLE, confidence, max_iterations)))
     if best_T is None or best_count < _SAMPLE:
         raise ConfigError(f"PnP RANSAC found no pose with >= {_SAMPLE} inliers among {n} points")
     T, inl = best_T, best_in
