@@ -29,7 +29,7 @@ from slamkit.data.formats.image import read_image
 from slamkit.experiments.visual_odometry import VoPayload, VoRun
 from slamkit.geometry import se3, so3
 from slamkit.metrics.alignment import align
-from slamkit.viz.recording import open_recording
+from slamkit.viz.recording import OutputRecorder, open_recording
 
 COLOR_GROUND_TRUTH = (40, 200, 80)
 COLOR_ESTIMATE = (30, 120, 255)
@@ -120,22 +120,11 @@ def record_visual_odometry(payload: VoPayload, path: str | Path | None = None, s
     return None if path is None else Path(path)
 
 
-class VisualOdometryObserver:
+class VisualOdometryObserver(OutputRecorder):
     """Records the ``visual_odometry`` pipeline from its output (``payload``: VoPayload)."""
 
     payload_type = VoPayload
-    wants_steps = False
-    step_every = 1
-
-    def __init__(self, path, spawn: bool = False):
-        self.path, self.spawn = path, spawn
-
-    def on_step(self, snapshot) -> None:
-        pass
 
     def on_output(self, output) -> None:
         if output.payload is not None and output.payload.runs:
             record_visual_odometry(output.payload, self.path, self.spawn)
-
-    def close(self) -> None:
-        pass
