@@ -39,6 +39,7 @@ from slamkit.metrics.rpe import rpe
 from slamkit.models.camera import PinholeCamera
 from slamkit.paths import file_in
 from slamkit.systems.visual_odometry import FrameResult, VisualOdometry, VisualOdometryConfig, VoEstimate
+from slamkit.vision.klt import KltConfig
 from slamkit.vision.orb import OrbConfig
 
 #: KITTI odometry frames are 0.1 s apart
@@ -144,10 +145,10 @@ def score(run: VoRun) -> dict[str, float]:
 
 
 def config_from(values: Mapping[str, Any] | None) -> VisualOdometryConfig:
-    """``VisualOdometryConfig`` from a plain mapping (nested ``orb`` and ``ba``), already
+    """``VisualOdometryConfig`` from a plain mapping (nested ``orb``, ``klt`` and ``ba``), already
     validated by the pipeline's model."""
     values = dict(values or {})
-    nested = {"orb": OrbConfig, "ba": BundleAdjustmentConfig}
+    nested = {"orb": OrbConfig, "ba": BundleAdjustmentConfig, "klt": KltConfig}
     known = {f.name for f in fields(VisualOdometryConfig)}
     unknown = sorted(set(values) - known)
     if unknown:

@@ -6,7 +6,9 @@ of PTAM and ORB-SLAM, Mur-Artal et al., IEEE T-RO 31(5), 2015):
 
 1. Features: ORB keypoints and descriptors on every frame (``slamkit.vision.orb``), matched to
    the previous frame's by brute-force Hamming with the ratio test and cross-check (the
-   putative matches).
+   putative matches). The second front-end (``frontend: klt``) tracks Shi-Tomasi corners with
+   pyramidal Lucas-Kanade (``slamkit.vision.klt``) and tops them up with new corners away from
+   the tracked ones; a track is a putative match.
 2. Outlier rejection: the essential matrix by Nister's 5-point RANSAC
    (``slamkit.vision.two_view``) on the putative matches; its inliers are the frame's inliers.
 3. Initialisation (frame 1): (R, t) of the essential matrix with the cheirality check,
@@ -34,7 +36,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import Literal, Protocol
 
 import numpy as np
 
@@ -42,6 +44,8 @@ from slamkit.backend.bundle_adjustment import BundleAdjustmentConfig, bundle_adj
 from slamkit.errors import ConfigError
 from slamkit.geometry import se3
 from slamkit.models.camera import PinholeCamera
+from slamkit.vision.image import good_features_to_track
+from slamkit.vision.klt import KltConfig, track_klt
 from slamkit.vision.orb import Features, OrbConfig, detect_orb, match_descriptors
 from slamkit.vision.pnp import pnp_ransac, reprojection_errors
 from slamkit.vision.two_view import ransac_essential, recover_pose, triangulate
@@ -51,8 +55,14 @@ __all__ = ["VisualOdometryConfig", "FrameResult", "VisualOdometry", "VisualOdome
 
 @dataclass(frozen=True)
 class VisualOdometryConfig:
+    #: ``orb`` (descriptor matching frame to frame) or ``klt`` (Shi-Tomasi corners tracked by
+    #: pyramidal Lucas-Kanade, topped up when they thin out)
+    frontend: Literal["orb", "klt"] = "orb"
     orb: OrbConfig = OrbConfig(num_features=3000, grid_cols=8, grid_rows=2, fast_threshold=10)
     match_ratio: float = 0.8
+    klt: KltConfig = KltConfig(window=15, iterations=20)
+    klt_max_corners: int = 1000
+    klt_min_distance_px: float = 10.0
     ransac_threshold_px: float = 1.0
     ransac_confidence: float = 0.999
     pnp_threshold_px: float = 2.0
@@ -70,6 +80,10 @@ class VisualOdometryConfig:
             raise ConfigError("VisualOdometryConfig thresholds must be positive")
         if self.window != 0 and self.window < 3:
             raise ConfigError(f"VisualOdometryConfig.window must be 0 (off) or >= 3, got {self.window}")
+        if self.frontend not in ("orb", "klt"):
+            raise ConfigError(f"VisualOdometryConfig.frontend must be 'orb' or 'klt', got {self.frontend!r}")
+        if self.klt_max_corners < 8 or not self.klt_min_distance_px >= 0:
+            raise ConfigError("VisualOdometryConfig needs klt_max_corners >= 8 and klt_min_distance_px >= 0")
         if self.min_pnp_points < 6:
             raise ConfigError("VisualOdometryConfig.min_pnp_points must be >= 6")
 
@@ -121,6 +135,7 @@ class _Frame:
     features: Features
     x: np.ndarray                  # normalised coordinates of the keypoints
     point_id: np.ndarray           # map point of each keypoint, -1 for none
+    image: np.ndarray | None = None  # the newest frame's image (KLT front-end)
 
 
 class VisualOdometry:
@@ -182,14 +197,21 @@ class VisualOdometry:
         t0 = time.perf_counter()
         cfg = self.config
         k = len(self._frames)
-        feats = detect_orb(image, cfg.orb)
-        cur = _Frame(float(stamp_s), feats, self._normalised(feats.uv), -np.ones(len(feats), dtype=int))
+        prev = self._frames[k - 1] if k else None
+        if cfg.frontend == "orb":
+            feats = detect_orb(image, cfg.orb)
+            matches = (np.empty((0, 2), int) if prev is None else
+                       match_descriptors(prev.features.descriptors, feats.descriptors, ratio=cfg.match_ratio))
+        else:
+            feats, matches = self._klt_frontend(prev, image)
+        cur = _Frame(float(stamp_s), feats, self._normalised(feats.uv), -np.ones(len(feats), dtype=int),
+                     np.asarray(image, dtype=float) if cfg.frontend == "klt" else None)
         self._frames.append(cur)
+        if prev is not None:
+            prev.image = None  # only the newest image is kept (the KLT front-end tracks from it)
         if k == 0:
             self._poses.append(np.eye(4))
-            return self._finish(k, cur, np.empty((0, 2), int), np.empty(0, bool), 0, 0, "first", t0, 0.0)
-        prev = self._frames[k - 1]
-        matches = match_descriptors(prev.features.descriptors, feats.descriptors, ratio=cfg.match_ratio)
+            return self._finish(k, cur, matches, np.empty(0, bool), 0, 0, "first", t0, 0.0)
         if len(matches) < 8:
             self._poses.append(self._constant_speed(k))
             return self._finish(k, cur, matches, np.zeros(len(matches), bool), 0, 0, "essential_fallback", t0, 0.0)
@@ -236,6 +258,28 @@ class VisualOdometry:
             self._bundle_adjust(k)
         return self._finish(k, cur, matches, inl, tracked, new, method, t0, (time.perf_counter() - t1) * 1e3,
                             frontend_ms)
+
+    def _klt_frontend(self, prev: _Frame | None, image) -> tuple[Features, np.ndarray]:
+        """Track the previous keypoints with pyramidal LK (``slamkit.vision.klt``), then top the
+        set up with Shi-Tomasi corners away from the tracked ones: (features, matches)."""
+        cfg = self.config
+        tracked = np.empty((0, 2))
+        matches = np.empty((0, 2), int)
+        if prev is not None and len(prev.features):
+            p1, ok = track_klt(prev.image, image, prev.features.uv, cfg.klt)
+            tracked = p1[ok]
+            matches = np.stack([np.flatnonzero(ok), np.arange(len(tracked))], axis=1)
+        room = cfg.klt_max_corners - len(tracked)
+        new = np.empty((0, 2))
+        if room > 0:
+            mask = np.ones(np.shape(image), dtype=bool)
+            r = int(cfg.klt_min_distance_px)
+            for u, v in np.rint(tracked).astype(int):
+                mask[max(0, v - r):v + r + 1, max(0, u - r):u + r + 1] = False
+            new = good_features_to_track(image, room, 0.01, cfg.klt_min_distance_px, mask=mask)
+        uv = np.vstack([tracked, new])
+        n = len(uv)
+        return Features(uv, np.zeros((n, 32), np.uint8), np.zeros(n, int), np.zeros(n)), matches
 
     def _constant_speed(self, k: int) -> np.ndarray:
         if k < 2:

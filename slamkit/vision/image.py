@@ -217,11 +217,24 @@ def pyramid(image, levels: int) -> list[np.ndarray]:
 def bilinear(image, u, v, fill: float | None = 0.0) -> np.ndarray:
     """Image sampled at real pixel positions (u, v) (any equal shapes) by bilinear
     interpolation; ``fill`` outside the image (None: the nearest edge pixel)."""
+    a = _as_image(image)
+    H, W = a.shape
+    if H < 2 or W < 2:
+        raise ConfigError(f"bilinear sampling needs an image of at least 2 x 2 pixels, got {W} x {H}")
     u = np.asarray(u, dtype=float)
     v = np.asarray(v, dtype=float)
-    mode, cval = ("nearest", 0.0) if fill is None else ("constant", fill)
-    return ndimage.map_coordinates(_as_image(image), [v.ravel(), u.ravel()], order=1, mode=mode,
-                                   cval=cval).reshape(u.shape)
+    uc, vc = np.clip(np.nan_to_num(u), 0, W - 1), np.clip(np.nan_to_num(v), 0, H - 1)
+    u0 = np.minimum(np.floor(uc), W - 2)
+    v0 = np.minimum(np.floor(vc), H - 2)
+    du, dv = uc - u0, vc - v0
+    i = v0.astype(np.intp) * W + u0.astype(np.intp)
+    flat = a.ravel()
+    top = flat[i] * (1.0 - du) + flat[i + 1] * du
+    bottom = flat[i + W] * (1.0 - du) + flat[i + W + 1] * du
+    out = top * (1.0 - dv) + bottom * dv
+    if fill is not None:
+        out = np.where((u < 0) | (u > W - 1) | (v < 0) | (v > H - 1) | ~np.isfinite(u) | ~np.isfinite(v), fill, out)
+    return out
 
 
 def undistortion_map(camera: PinholeCamera, new_K=None, shape: tuple[int, int] | None = None

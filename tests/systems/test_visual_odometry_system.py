@@ -61,10 +61,31 @@ def test_streaming_vo_reports_the_per_frame_numbers_and_ba_lowers_the_error(kitt
     assert err_ba.translation_m.rmse < 0.5 * err_plain.translation_m.rmse
 
 
+def test_klt_front_end_tracks_corners_into_the_same_back_end(kitti):
+    """The second front-end: Shi-Tomasi corners tracked by the numpy pyramidal LK (measured on
+    5 frames: ATE 0.005 m after Sim(3), 79 % of tracks are essential-matrix inliers; ORB on the
+    same frames: 0.004 m, 89 %)."""
+    camera, images, gt = kitti
+    vo = VisualOdometry(camera, VisualOdometryConfig(frontend="klt", window=5))
+    results = [vo.step(0.1 * k, img) for k, img in enumerate(images[:5])]
+    assert [r.method for r in results] == ["first", "essential", "pnp", "pnp", "pnp"]
+    for r in results[1:]:
+        assert r.num_matches > 500 and r.num_inliers > 0.6 * r.num_matches
+        assert r.num_keypoints <= 1000
+        # a KLT match links a tracked corner to its new position: the current index is its rank
+        np.testing.assert_array_equal(r.matches[:, 1], np.arange(r.num_matches))
+    est = vo.estimate()
+    stamps = np.arange(5) * 0.1
+    err = ate(Trajectory.from_matrices(stamps, gt[:5]), Trajectory.from_matrices(stamps, est.world_T_camera), "sim3")
+    assert err.translation_m.rmse < 0.03
+
+
 def test_config_is_checked():
     with pytest.raises(ConfigError):
         VisualOdometryConfig(window=2)
     with pytest.raises(ConfigError):
         VisualOdometryConfig(match_ratio=1.5)
+    with pytest.raises(ConfigError):
+        VisualOdometryConfig(frontend="sift")
     with pytest.raises(ConfigError):
         VisualOdometry(PinholeCamera(700, 700, 600, 180), config={"window": 3})
