@@ -22,7 +22,7 @@ from gtsam.symbol_shorthand import L, X
 from slamkit.backend.graph import ROBUST_KINDS, RobustKind, isotropic, robust
 from slamkit.errors import ConfigError
 
-__all__ = ["BundleAdjustmentConfig", "BundleAdjustmentResult", "bundle_adjust"]
+__all__ = ["BundleAdjustmentConfig", "BundleAdjustmentResult", "bundle_adjust", "stereo_bundle_adjust"]
 
 
 @dataclass(frozen=True)
@@ -99,3 +99,47 @@ def bundle_adjust(world_T_camera: np.ndarray, world_p: np.ndarray, frame_index: 
         out_points[p] = result.atPoint3(L(int(p)))
     return BundleAdjustmentResult(out_poses, out_points, float(initial_error), float(graph.error(result)),
                                   int(optimizer.iterations()), int(graph.size()), used)
+
+
+def stereo_bundle_adjust(world_T_camera: np.ndarray, obs_frame: np.ndarray, obs_landmark: np.ndarray,
+                         uL_uR_v: np.ndarray, camera_p: np.ndarray,
+                         intrinsics: tuple[float, float, float, float, float, float],
+                         fixed=(0,), config: BundleAdjustmentConfig = BundleAdjustmentConfig()
+                         ) -> BundleAdjustmentResult:
+    """Stereo bundle adjustment (``GenericStereoFactor3D``: left column, right column, row, each
+    with ``pixel_sigma``, robust kernel as ``config``): (F, 4, 4) poses refined from
+    observations of landmark ``obs_landmark[m]`` in frame ``obs_frame[m]`` (0-based rows of
+    ``world_T_camera``); a landmark starts at ``camera_p`` of its first observation;
+    ``intrinsics`` = (fx, fy, skew, cx, cy, baseline_m). Returns the points in the order of
+    ``np.unique(obs_landmark)``."""
+    poses = np.asarray(world_T_camera, dtype=float)
+    fi = np.asarray(obs_frame, dtype=int)
+    landmarks, li = np.unique(np.asarray(obs_landmark, dtype=int), return_inverse=True)
+    z = np.asarray(uL_uR_v, dtype=float).reshape(-1, 3)
+    cp = np.asarray(camera_p, dtype=float).reshape(-1, 3)
+    if not (len(fi) == len(li) == len(z) == len(cp)):
+        raise ConfigError("stereo_bundle_adjust: observation arrays need equal lengths")
+    K = gtsam.Cal3_S2Stereo(*(float(v) for v in intrinsics))
+    noise = robust(isotropic(3, config.pixel_sigma), config.robust, config.robust_k)
+    graph = gtsam.NonlinearFactorGraph()
+    for f, p, m in zip(fi, li, z):
+        graph.add(gtsam.GenericStereoFactor3D(gtsam.StereoPoint2(*m), noise, X(int(f)), L(int(p)), K))
+    prior = isotropic(6, config.fixed_sigma)
+    for f in sorted(set(int(f) for f in fixed)):
+        graph.add(gtsam.PriorFactorPose3(X(f), gtsam.Pose3(poses[f]), prior))
+    values = gtsam.Values()
+    for f in range(len(poses)):
+        values.insert(X(f), gtsam.Pose3(poses[f]))
+    first = np.unique(li, return_index=True)[1]
+    world_p = np.einsum("mij,mj->mi", poses[fi[first], :3, :3], cp[first]) + poses[fi[first], :3, 3]
+    for p in range(len(landmarks)):
+        values.insert(L(p), world_p[p])
+    params = gtsam.LevenbergMarquardtParams()
+    params.setMaxIterations(config.max_iterations)
+    optimizer = gtsam.LevenbergMarquardtOptimizer(graph, values, params)
+    initial_error = graph.error(values)
+    result = optimizer.optimize()
+    out_poses = np.stack([result.atPose3(X(f)).matrix() for f in range(len(poses))])
+    out_points = np.stack([result.atPoint3(L(p)) for p in range(len(landmarks))])
+    return BundleAdjustmentResult(out_poses, out_points, float(initial_error), float(graph.error(result)),
+                                  int(optimizer.iterations()), int(graph.size()), np.ones(len(landmarks), bool))
