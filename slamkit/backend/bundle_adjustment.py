@@ -7,7 +7,9 @@ Cauchy kernel in whitened units), keys ``X(frame)`` for ``world_T_camera`` (came
 x right, y down, as :class:`slamkit.models.camera.PinholeCamera`) and ``L(point)``; the poses
 listed in ``fixed`` get a prior of ``fixed_sigma`` (two fixed poses fix the gauge of a monocular
 window, scale included). Points with fewer than two observations carry no information on their
-depth and are left out (returned unchanged). Build -> initialise -> optimise (LM), the GTSAM
+depth and are left out (returned unchanged). ``stereo_bundle_adjust`` does the same with
+``GenericStereoFactor3D`` (left and right column and the row of a rectified stereo pair), where
+one observation fixes a point. Build -> initialise -> optimise (LM), the GTSAM
 order; observations behind a camera during the iterations are not fatal (no cheirality throw).
 """
 
@@ -53,6 +55,16 @@ class BundleAdjustmentResult:
     used_points: np.ndarray      #: (P,) bool: points that were optimised
 
 
+def _solve(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, config: BundleAdjustmentConfig
+           ) -> tuple[float, gtsam.Values, int]:
+    """Levenberg-Marquardt: (initial error, result, iterations)."""
+    params = gtsam.LevenbergMarquardtParams()
+    params.setMaxIterations(config.max_iterations)
+    optimizer = gtsam.LevenbergMarquardtOptimizer(graph, values, params)
+    initial_error = float(graph.error(values))
+    return initial_error, optimizer.optimize(), int(optimizer.iterations())
+
+
 def bundle_adjust(world_T_camera: np.ndarray, world_p: np.ndarray, frame_index: np.ndarray,
                   point_index: np.ndarray, uv: np.ndarray, intrinsics: tuple[float, float, float, float],
                   fixed=(), config: BundleAdjustmentConfig = BundleAdjustmentConfig()) -> BundleAdjustmentResult:
@@ -86,19 +98,15 @@ def bundle_adjust(world_T_camera: np.ndarray, world_p: np.ndarray, frame_index: 
         values.insert(X(int(f)), gtsam.Pose3(poses[f]))
     for p in np.flatnonzero(used):
         values.insert(L(int(p)), points[p])
-    params = gtsam.LevenbergMarquardtParams()
-    params.setMaxIterations(config.max_iterations)
-    optimizer = gtsam.LevenbergMarquardtOptimizer(graph, values, params)
-    initial_error = graph.error(values)
-    result = optimizer.optimize()
+    initial_error, result, iterations = _solve(graph, values, config)
     out_poses = poses.copy()
     out_points = points.copy()
     for f in sorted(set(seen_frames.tolist()) | set(fixed)):
         out_poses[f] = result.atPose3(X(int(f))).matrix()
     for p in np.flatnonzero(used):
         out_points[p] = result.atPoint3(L(int(p)))
-    return BundleAdjustmentResult(out_poses, out_points, float(initial_error), float(graph.error(result)),
-                                  int(optimizer.iterations()), int(graph.size()), used)
+    return BundleAdjustmentResult(out_poses, out_points, initial_error, float(graph.error(result)),
+                                  iterations, int(graph.size()), used)
 
 
 def stereo_bundle_adjust(world_T_camera: np.ndarray, obs_frame: np.ndarray, obs_landmark: np.ndarray,
@@ -134,12 +142,8 @@ def stereo_bundle_adjust(world_T_camera: np.ndarray, obs_frame: np.ndarray, obs_
     world_p = np.einsum("mij,mj->mi", poses[fi[first], :3, :3], cp[first]) + poses[fi[first], :3, 3]
     for p in range(len(landmarks)):
         values.insert(L(p), world_p[p])
-    params = gtsam.LevenbergMarquardtParams()
-    params.setMaxIterations(config.max_iterations)
-    optimizer = gtsam.LevenbergMarquardtOptimizer(graph, values, params)
-    initial_error = graph.error(values)
-    result = optimizer.optimize()
+    initial_error, result, iterations = _solve(graph, values, config)
     out_poses = np.stack([result.atPose3(X(f)).matrix() for f in range(len(poses))])
     out_points = np.stack([result.atPoint3(L(p)) for p in range(len(landmarks))])
-    return BundleAdjustmentResult(out_poses, out_points, float(initial_error), float(graph.error(result)),
-                                  int(optimizer.iterations()), int(graph.size()), np.ones(len(landmarks), bool))
+    return BundleAdjustmentResult(out_poses, out_points, initial_error, float(graph.error(result)),
+                                  iterations, int(graph.size()), np.ones(len(landmarks), bool))
