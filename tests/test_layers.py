@@ -22,17 +22,19 @@ ALLOWED = {
     "frontend": {"geometry", "models", "maps", "data"},
     "planning": {"geometry", "maps"},
     "control": {"geometry", "models", "maps"},
+    # image basics, features (ORB via OpenCV), two-view geometry, triangulation, PnP
+    "vision": {"geometry", "models"},
     # running robot components (lidar SLAM ...): everything above but metrics, experiments, viz
     "systems": {"geometry", "models", "maps", "sim", "data", "estimation", "backend", "frontend",
                 "planning", "control", "vision"},
     "metrics": {"geometry", "data"},
     "experiments": {"geometry", "models", "maps", "sim", "data", "estimation", "backend",
-                    "frontend", "planning", "control", "systems", "metrics"},
+                    "frontend", "planning", "control", "vision", "systems", "metrics"},
     # benchmarks time slamkit against same-run references (raw GTSAM, casadi.Opti, peers)
     "bench": {"geometry", "models", "maps", "sim", "data", "estimation", "backend", "frontend",
-              "planning", "control", "systems", "metrics", "experiments"},
+              "planning", "control", "vision", "systems", "metrics", "experiments"},
     "viz": {"geometry", "models", "maps", "sim", "data", "estimation", "backend", "frontend",
-            "planning", "control", "systems", "metrics", "experiments"},
+            "planning", "control", "vision", "systems", "metrics", "experiments"},
     "cli": None,  # may import everything
 }
 BASE_MODULES = {"errors", "timing", "config", "paths", "naming", "_native", "_text", "__init__"}
@@ -48,6 +50,7 @@ CONFINED = {
     # config validation lives at the edge (slamkit.config, the pipelines, the sim's file loaders)
     "pydantic": {"experiments", "sim"},
     "PIL": {"data"},  # image files are a file format (slamkit.data.formats.image)
+    "cv2": {"vision"},  # and within vision only the ORB module (test below)
 }
 
 
@@ -79,6 +82,12 @@ def test_imports_follow_layers(path: Path) -> None:
             assert parts[1] in allowed, f"{path}:{lineno} ({layer}) imports {name}"
         elif top in CONFINED:
             assert layer in CONFINED[top], f"{path}:{lineno} ({layer}) imports {top}"
+
+
+def test_only_the_orb_module_imports_cv2() -> None:
+    importers = {str(p.relative_to(PACKAGE)) for p in _files()
+                 if any(name.split(".")[0] == "cv2" for _, name in _imports(p))}
+    assert importers <= {"vision/orb.py"}, importers
 
 
 def test_layer_table_covers_every_package() -> None:

@@ -27,6 +27,7 @@ SUITES: dict[str, str] = {
     "scan-matching": "slamkit.bench.scan_matching:run",
     "inertial": "slamkit.bench.inertial:run",
     "sweep": "slamkit.bench.sweep:run",
+    "vision": "slamkit.bench.vision:run",
 }
 
 

@@ -179,6 +179,9 @@ SHARED_FILES: dict[str, tuple[int, str, str, str, str, str]] = {
 #: code index had none -- then the source is the unpinned 'develop' branch and only the sha256 pins
 #: the content)
 WHEEL_FILES: dict[str, tuple[int, str, str | None]] = {
+    "VO_calibration00s.txt": (50, "3ddfb990bab2b301b86c332582ea6425a17a4ef2664957062c8089bf997012e6", None),
+    "VO_camera_poses00s.txt": (15_053, "062c876b63746eb748b069628fbe9144533d904dcec79fe05874db1ffd85dcff", None),
+    "VO_stereo_factors00s.txt": (3_030_190, "e66b9ce0cc4bee456961164a1c9a5e59b229675ef4610f2cc4932391c5a4fd1d", None),
     "w20000.txt": (1_867_785, "9690b10bc2c7f2cebfb1969dd1643b5813aa3db50b40d98685c36c4eeae69c57", "c24a2c9845993f43e70032d1cdcb76befd9c5069"),
     "sphere2500.txt": (618_297, "4b9418a300e6ec3ec0a4223e13b0febb068d18f9a008ebb59c1b9f262626e552", "e39dd5901ce34c9c4a31a178fc4848ec6036ff15"),
     "sphere2500_groundtruth.txt": (633_111, "b9cfd29c951586bf9afc09bb8f88bf67b7436e6c988a3e208e126e7d77b4520a", "198279f4ff47fad3a8861c664a5bf6185c51e401"),
@@ -602,6 +605,15 @@ ENTRIES: dict[str, dict] = {
         ground_truth=("vision/kitti_vo_a/poses.txt", "kitti"),
         notes="Images in vision/kitti_vo_a/image_l/000000.png .. 000050.png beside poses.txt "
               "(51 files, checksummed together in MANIFEST.md); frames 0.1 s apart; 59.9 m driven."),
+    "kitti00-stereo-features": dict(
+        kind="stereo_features", format="gtsam_vo",
+        files=["gtsam_data/VO_stereo_factors00s.txt", "gtsam_data/VO_camera_poses00s.txt",
+               "gtsam_data/VO_calibration00s.txt"],
+        title="Real stereo features of the first 77 frames of KITTI odometry 00 (gtsam's StereoVOExample data)",
+        licence=LIC_GTSAM, counts=dict(poses=77, stereo_measurements=52544),
+        notes="Pose id i is KITTI 00 frame i (id 0 = the origin); each line of the factors "
+              "file is 'pose landmark uL uR v X Y Z' with (X, Y, Z) the landmark in that camera's frame. "
+              "Read by slamkit.data.formats.gtsam_vo; scored against kitti00-gt beside kitti00-orbslam."),
     "kitti00-gt": dict(
         kind="trajectory", format="kitti",
         files=["reference_trajectories/KITTI_00_gt.txt", "reference_trajectories/KITTI_00_gt_times.txt"],

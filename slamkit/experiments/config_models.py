@@ -221,6 +221,35 @@ class LidarSlamPipeline(PipelineConfig):
                     doc, source, ("worlds", k))
 
 
+# --- visual_odometry -----------------------------------------------------------------------------
+
+class ImageSequenceModel(BaseModel):
+    """A camera sequence in the KITTI odometry layout (``times`` optional: frame index x 0.1 s)."""
+
+    model_config = STRICT
+    name: PlainName
+    images: str
+    calib: str
+    poses: str | None = None
+    times: str | None = None
+
+
+class VisualOdometryPipeline(PipelineConfig):
+    pipeline: Literal["visual_odometry"]
+    #: registry names (``kitti-vo-a``) or {name, images, calib, poses, times}
+    sequences: Annotated[list[Union[str, ImageSequenceModel]], Field(min_length=1)]
+    #: fields of slamkit.systems.visual_odometry.VisualOdometryConfig (nested ``orb``, ``ba``)
+    vo: dict[str, Any] = {}
+    #: also run without bundle adjustment (window 0), so its effect is measured in the same run
+    compare_without_ba: bool = True
+    max_frames: Annotated[int, Field(ge=2, le=1_000_000)] | None = None
+
+    def check_options(self, config: dict[str, Any], doc: YamlDocument | None, source: str) -> None:
+        from slamkit.systems.visual_odometry import VisualOdometryConfig
+
+        _nested(model_of(VisualOdometryConfig), self.vo, doc, source, ("vo",))
+
+
 def _nested(model: type, data: Any, doc: YamlDocument | None, source: str, prefix: tuple) -> None:
     validate(model, data if data is not None else {}, doc, source, prefix)
 

@@ -121,3 +121,25 @@ class Recording:
 def open_recording(application_id: str, path: str | Path | None = None, spawn: bool = False,
                    blueprint: rrb.Blueprint | None = None) -> Recording:
     return Recording(application_id, path=path, spawn=spawn, blueprint=blueprint)
+
+
+class OutputRecorder:
+    """Base of the recorders that draw a pipeline from its finished output only (no live steps):
+    ``RecorderClass(path, spawn=False)``; a subclass sets ``payload_type`` and implements
+    ``on_output``."""
+
+    payload_type: object = None
+    wants_steps = False  # everything it draws is in the pipeline's output
+    step_every = 1
+
+    def __init__(self, path, spawn: bool = False):
+        self.path, self.spawn = path, spawn
+
+    def on_step(self, snapshot) -> None:
+        pass
+
+    def on_output(self, output) -> None:
+        raise NotImplementedError
+
+    def close(self) -> None:
+        pass

@@ -69,6 +69,21 @@ def read_image(path: str | Path, max_pixels: int = MAX_IMAGE_PIXELS) -> np.ndarr
     return grey
 
 
+#: file suffixes :func:`list_images` picks up
+IMAGE_SUFFIXES = (".png", ".pgm")
+
+
+def list_images(folder: str | Path) -> list[Path]:
+    """The image files of a folder (PNG or PGM), in name order (KITTI's 000000.png ...)."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise DataError("no such image folder", folder)
+    files = sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES and p.is_file())
+    if not files:
+        raise DataError(f"no {' or '.join(IMAGE_SUFFIXES)} files in the image folder", folder)
+    return files
+
+
 def _grey(image) -> np.ndarray:
     mode = image.mode
     if mode in ("P", "PA"):

@@ -59,3 +59,29 @@ def format_kitti(trajectory: Trajectory) -> str:
 def write_kitti(path: str | Path, trajectory: Trajectory) -> Path:
     """Write ``trajectory`` as KITTI poses (stamps are dropped), atomically."""
     return atomic_write_text(path, format_kitti(trajectory))
+
+
+def read_kitti_calib(path: str | Path) -> dict[str, np.ndarray]:
+    """KITTI odometry ``calib.txt``: ``NAME: 12 numbers`` per line (``P0:`` ...; the name may be
+    missing, then ``P0``, ``P1`` ... by line), each a 3x4 row-major projection matrix."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise DataError("no such calibration file", path) from None
+    out: dict[str, np.ndarray] = {}
+    for number, line in enumerate(text.splitlines(), start=1):
+        if not line.strip():
+            continue
+        name, _, rest = line.partition(":") if ":" in line else (f"P{len(out)}", "", line)
+        try:
+            values = np.array([float(v) for v in rest.split()])
+        except ValueError:
+            raise DataError("a calibration line holds a non-number", path, number) from None
+        if values.size != KITTI_FIELDS or not np.isfinite(values).all():
+            raise DataError(f"a projection matrix needs {KITTI_FIELDS} finite numbers, got {values.size}",
+                            path, number)
+        out[name.strip()] = values.reshape(3, 4)
+    if not out:
+        raise DataError("no projection matrix in the calibration file", path)
+    return out

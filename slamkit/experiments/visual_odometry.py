@@ -1,0 +1,248 @@
+"""Monocular visual odometry as an experiment: the ``visual_odometry`` pipeline.
+
+A sequence is a registry name (``kitti-vo-a``) or ``{name, images: DIR, calib: FILE, poses:
+FILE, times: FILE}`` in the KITTI odometry layout (``calib.txt`` P0 = the left camera's 3x4
+projection, ``poses.txt`` camera-to-world ground truth, stamps = frame index x 0.1 s unless
+``times`` are given). The system (:class:`slamkit.systems.visual_odometry.VisualOdometry`) is fed
+the frames; this module scores it and writes ``trajectories/<name>.tum`` (the BA run;
+``<name>_no_ba.tum`` for the run without bundle adjustment when ``compare_without_ba``).
+
+Metrics per run: ``ate_sim3_m`` (Umeyama with scale: monocular scale is unobservable, so this
+is the figure that means something), ``ate_se3_m`` (without scale: only meaningful where the
+scale is known, reported for completeness), ``rpe_trans_m`` and ``rpe_rot_deg`` (frame to frame
+after the Sim(3) alignment), ``inlier_ratio`` (essential-matrix inliers / putative matches, mean
+over frames), ``time_per_frame_ms`` (front-end + BA, median) and the course's per-frame numbers
+as means (``keypoints_mean``, ``matches_mean``, ``inliers_mean``, ``tracked_points_mean``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields, replace
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from slamkit.backend.bundle_adjustment import BundleAdjustmentConfig
+from slamkit.data import registry
+from slamkit.data.formats.image import list_images, read_image
+from slamkit.data.formats.kitti import read_kitti, read_kitti_calib
+from slamkit.data.formats.tum import write_tum
+from slamkit.data.trajectory import Trajectory
+from slamkit.errors import ConfigError, DataError
+from slamkit.experiments.config_models import VisualOdometryPipeline
+from slamkit.experiments.observers import PipelineObserver
+from slamkit.experiments.pipeline import Pipeline, PipelineOutput, StepProgress
+from slamkit.experiments.results import ResultsFolder, RunRecord, markdown_table
+from slamkit.metrics.ate import ate
+from slamkit.metrics.rpe import rpe
+from slamkit.models.camera import PinholeCamera
+from slamkit.paths import file_in
+from slamkit.systems.visual_odometry import FrameResult, VisualOdometry, VisualOdometryConfig, VoEstimate
+from slamkit.vision.klt import KltConfig
+from slamkit.vision.orb import OrbConfig
+
+#: KITTI odometry frames are 0.1 s apart
+KITTI_FRAME_PERIOD_S = 0.1
+
+
+@dataclass(frozen=True)
+class ImageSequence:
+    """A resolved camera sequence: image files, the camera, stamps and ground truth (or None)."""
+
+    name: str
+    images: tuple[Path, ...]
+    camera: PinholeCamera
+    stamps_s: np.ndarray
+    ground_truth: Trajectory | None = None
+
+
+def load_image_sequence(spec: str | Mapping[str, Any], max_frames: int | None = None) -> ImageSequence:
+    """A registry name or ``{name, images, calib, poses, times}`` (KITTI layout)."""
+    if isinstance(spec, str):
+        entry = registry.get(spec)
+        poses = registry.path_of(entry.name, "poses.txt")
+        calib = registry.path_of(entry.name, "calib.txt")
+        spec = {"name": entry.name, "images": poses.parent / "image_l", "calib": calib, "poses": poses}
+    name = str(spec.get("name") or Path(spec["images"]).parent.name)
+    files = list_images(spec["images"])
+    if max_frames is not None:
+        files = files[:max_frames]
+    P0 = read_kitti_calib(spec["calib"])
+    P = P0.get("P0", next(iter(P0.values())))
+    height, width = read_image(files[0]).shape
+    camera = PinholeCamera.from_K(P[:, :3], width=width, height=height)
+    gt = None
+    if spec.get("poses"):
+        gt = read_kitti(spec["poses"], spec.get("times"))
+        if len(gt) < len(files):
+            raise DataError(f"{len(gt)} poses for {len(files)} images", spec["poses"])
+        gt = gt.subset(np.arange(len(files)))
+    if spec.get("times"):
+        stamps = gt.stamps_s if gt is not None else read_kitti(spec["poses"], spec["times"]).stamps_s
+    else:
+        stamps = np.arange(len(files)) * KITTI_FRAME_PERIOD_S
+    if gt is not None:
+        gt = Trajectory.from_matrices(stamps, gt.matrices())
+    return ImageSequence(name, tuple(files), camera, np.asarray(stamps, float), gt)
+
+
+@dataclass(frozen=True)
+class VoRun:
+    """One VO run on one sequence: the system's output, its per-frame results and its scores."""
+
+    sequence: ImageSequence
+    label: str
+    config: VisualOdometryConfig
+    frames: tuple[FrameResult, ...]
+    estimate: VoEstimate
+    metrics: dict[str, float] = field(default_factory=dict)
+
+    def trajectory(self) -> Trajectory:
+        return Trajectory.from_matrices(self.estimate.stamps_s, self.estimate.world_T_camera)
+
+
+def run_vo(sequence: ImageSequence, config: VisualOdometryConfig = VisualOdometryConfig(), label: str = "vo",
+           on_frame=None) -> VoRun:
+    """Feed every frame of ``sequence`` to a fresh system and score it."""
+    system = VisualOdometry(sequence.camera, config)
+    frames = []
+    for stamp, path in zip(sequence.stamps_s, sequence.images):
+        frames.append(system.step(float(stamp), read_image(path)))
+        if on_frame is not None:
+            on_frame(frames[-1])
+    run = VoRun(sequence, label, config, tuple(frames), system.estimate())
+    return replace(run, metrics=score(run))
+
+
+def score(run: VoRun) -> dict[str, float]:
+    frames = run.frames
+    with_matches = [f for f in frames if f.num_matches]
+    metrics: dict[str, float] = {
+        "inlier_ratio": float(np.mean([f.num_inliers / f.num_matches for f in with_matches])) if with_matches else 0.0,
+        "time_per_frame_ms": float(np.median([f.frontend_ms + f.ba_ms for f in frames])),
+        "frontend_ms_median": float(np.median([f.frontend_ms for f in frames])),
+        "keypoints_mean": float(np.mean([f.num_keypoints for f in frames])),
+        "matches_mean": float(np.mean([f.num_matches for f in with_matches])) if with_matches else 0.0,
+        "inliers_mean": float(np.mean([f.num_inliers for f in with_matches])) if with_matches else 0.0,
+        "tracked_points_mean": float(np.mean([f.tracked_points for f in frames[2:]])) if len(frames) > 2 else 0.0,
+        "num_frames": float(len(frames)),
+        "map_points": float(len(run.estimate.world_p)),
+    }
+    gt = run.sequence.ground_truth
+    if gt is not None and len(frames) >= 3:
+        est = run.trajectory()
+        sim3 = ate(gt, est, "sim3")
+        metrics["ate_sim3_m"] = float(sim3.translation_m.rmse)
+        metrics["sim3_scale"] = float(sim3.alignment.scale)
+        metrics["ate_se3_m"] = float(ate(gt, est, "se3").translation_m.rmse)
+        rel = rpe(gt, est, 1, "frames", align_mode="sim3")
+        metrics["rpe_trans_m"] = float(rel.translation_m.rmse)
+        metrics["rpe_rot_deg"] = float(rel.rotation_deg.rmse)
+        metrics["distance_m"] = float(gt.path_length_m())
+        metrics["ate_sim3_percent_of_distance"] = 100.0 * metrics["ate_sim3_m"] / max(metrics["distance_m"], 1e-9)
+    return metrics
+
+
+def config_from(values: Mapping[str, Any] | None) -> VisualOdometryConfig:
+    """``VisualOdometryConfig`` from a plain mapping (nested ``orb``, ``klt`` and ``ba``), already
+    validated by the pipeline's model."""
+    values = dict(values or {})
+    nested = {"orb": OrbConfig, "ba": BundleAdjustmentConfig, "klt": KltConfig}
+    known = {f.name for f in fields(VisualOdometryConfig)}
+    unknown = sorted(set(values) - known)
+    if unknown:
+        raise ConfigError(f"visual_odometry.vo: unknown key(s) {unknown}; known: {sorted(known)}")
+    kwargs = {k: (nested[k](**v) if k in nested else v) for k, v in values.items()}
+    return VisualOdometryConfig(**kwargs)
+
+
+@dataclass(frozen=True)
+class VoPayload:
+    """What the recorder draws: every run (images are read again from ``sequence.images``)."""
+
+    runs: tuple[VoRun, ...]
+    max_recorded_frames: int = 60
+
+
+def run(config: Mapping[str, Any], folder: ResultsFolder, progress: StepProgress,
+        observer: PipelineObserver) -> PipelineOutput[VoPayload]:
+    """Pipeline ``visual_odometry``: every sequence with bundle adjustment (and without, when
+    ``compare_without_ba``), scored against its ground truth."""
+    vo_config = config_from(config.get("vo"))
+    max_frames = config.get("max_frames")
+    variants = [("mono_vo_ba", vo_config)]
+    if config.get("compare_without_ba", True) and vo_config.window:
+        variants.append(("mono_vo", replace(vo_config, window=0)))
+    sequences = [load_image_sequence(s, max_frames) for s in config["sequences"]]
+    runs: list[VoRun] = []
+    records: list[RunRecord] = []
+    for seq in sequences:
+        for label, cfg in variants:
+            advance = progress.task(f"{seq.name} {label}", len(seq.images))
+            result = run_vo(seq, cfg, label, on_frame=lambda _f: advance())
+            runs.append(result)
+            records.append(RunRecord(seq.name, label, result.metrics, params={"window": cfg.window}))
+            stem = seq.name if label == "mono_vo_ba" else f"{seq.name}_no_ba"
+            write_tum(file_in(folder.trajectories, stem, ".tum", "sequence name"), result.trajectory())
+    _plot(folder.plots, runs)
+    return PipelineOutput(records, _report(config, runs), payload=VoPayload(tuple(runs)))
+
+
+_REPORT_METRICS = ("ate_sim3_m", "ate_sim3_percent_of_distance", "ate_se3_m", "rpe_trans_m", "rpe_rot_deg",
+                   "inlier_ratio", "keypoints_mean", "matches_mean", "inliers_mean", "tracked_points_mean",
+                   "time_per_frame_ms")
+
+
+def _report(config: Mapping[str, Any], runs: list[VoRun]) -> str:
+    text = f"# Monocular visual odometry: {config.get('name', 'visual_odometry')}\n\n"
+    text += ("Monocular scale is unobservable: the trajectory is in the unit of the first baseline, so "
+             "ATE is reported after a Sim(3) alignment (`ate_sim3_m`); `ate_se3_m` (no scale) is only "
+             "meaningful where the scale is known. `mono_vo_ba` runs the sliding-window bundle adjustment, "
+             "`mono_vo` the same front-end without it.\n\n")
+    header = ["sequence", "run", *_REPORT_METRICS]
+    rows = [[r.sequence.name, r.label, *[r.metrics.get(m) for m in _REPORT_METRICS]] for r in runs]
+    text += markdown_table(header, rows) + "\n\n## Per frame (first run)\n\n"
+    if runs:
+        first = runs[0]
+        frame_rows = [[f.index, f.method, f.num_keypoints, f.num_matches, f.num_inliers, f.tracked_points,
+                       f.new_points, f.frontend_ms, f.ba_ms] for f in first.frames]
+        text += markdown_table(["frame", "method", "keypoints", "matches", "inliers", "tracked (PnP)", "new points",
+                                "front-end ms", "BA ms"], frame_rows) + "\n"
+    return text
+
+
+def _plot(plots: Path, runs: list[VoRun]) -> None:
+    if not runs:
+        return
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from slamkit.metrics.alignment import align
+
+    for name in dict.fromkeys(r.sequence.name for r in runs):
+        mine = [r for r in runs if r.sequence.name == name]
+        gt = mine[0].sequence.ground_truth
+        fig, ax = plt.subplots(figsize=(6, 6))
+        if gt is not None:
+            ax.plot(gt.world_t_body[:, 0], gt.world_t_body[:, 2], color="tab:green", label="ground truth")
+        for r in mine:
+            est = r.trajectory()
+            if gt is not None:
+                est = align(est, gt, "sim3").aligned
+            ax.plot(est.world_t_body[:, 0], est.world_t_body[:, 2], label=f"{r.label} (Sim(3) aligned)")
+        ax.set_xlabel("x (m)")
+        ax.set_ylabel("z (m, forward)")
+        ax.set_aspect("equal")
+        ax.legend(fontsize=8)
+        ax.set_title(name)
+        fig.tight_layout()
+        fig.savefig(file_in(plots, f"trajectory_{name}", ".png", "sequence name"), dpi=110)
+        plt.close(fig)
+
+
+PIPELINE: Pipeline[VoPayload] = Pipeline(
+    "visual_odometry", run, VisualOdometryPipeline, VoPayload,
+    "monocular visual odometry with sliding-window bundle adjustment on image sequences")

@@ -1,0 +1,87 @@
+"""The ``visual_odometry`` pipeline: a sequence given as a folder spec and as a registry name,
+its results folder (metrics with units, trajectories/<name>.tum), its report and its Rerun
+recording (checked with the rerun CLI); the shipped config validates and, under ``slow``, runs
+on all 51 frames of kitti_vo_a."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from slamkit.data.formats.tum import read_tum
+from slamkit.errors import ConfigError
+from slamkit.experiments.pipeline import load_config, run_pipeline
+from slamkit.experiments.visual_odometry import load_image_sequence
+from slamkit.viz.pipelines import observer_for
+
+ROOT_PIPELINES = __import__("pathlib").Path(__file__).resolve().parents[2] / "pipelines"
+METRICS = ("ate_sim3_m", "ate_se3_m", "rpe_trans_m", "rpe_rot_deg", "inlier_ratio", "time_per_frame_ms")
+
+
+@pytest.fixture(scope="module")
+def kitti_root(shared_datasets):
+    return shared_datasets / "vision" / "kitti_vo_a"
+
+
+def test_folder_spec_run_writes_metrics_trajectory_and_recording(tmp_path, kitti_root, verify_rrd, monkeypatch):
+    cfg = {"pipeline": "visual_odometry", "name": "vo_tiny", "max_frames": 6,
+           "sequences": [{"name": "kitti_a", "images": str(kitti_root / "image_l"),
+                          "calib": str(kitti_root / "calib.txt"), "poses": str(kitti_root / "poses.txt")}],
+           "vo": {"window": 5}}
+    res = run_pipeline(cfg, tmp_path / "run", progress=False, observer_factory=observer_for)
+    out = res.out_dir
+    results = json.loads((out / "results.json").read_text())
+    runs = {r["estimator"]: r for r in results["runs"]}
+    assert set(runs) == {"mono_vo_ba", "mono_vo"}
+    for r in runs.values():
+        assert set(METRICS) <= set(r["metrics"])
+        assert r["metrics"]["num_frames"] == 6
+        assert 0.5 < r["metrics"]["inlier_ratio"] <= 1.0
+        assert r["metrics"]["keypoints_mean"] > 1000
+    # 6 frames, ~6 m: measured 0.012 m with BA
+    assert runs["mono_vo_ba"]["metrics"]["ate_sim3_m"] < 0.1
+    traj = read_tum(out / "trajectories" / "kitti_a.tum")
+    assert len(traj) == 6
+    np.testing.assert_allclose(traj.stamps_s, np.arange(6) * 0.1)
+    assert (out / "trajectories" / "kitti_a_no_ba.tum").exists()
+    assert (out / "plots" / "trajectory_kitti_a.png").exists()
+    assert "ate_sim3_m" in (out / "report.md").read_text()
+    paths = verify_rrd(out / "recording.rrd")
+    base = "/kitti_a/mono_vo_ba/world"
+    for entity in ("ground_truth", "estimate", "points", "camera", "camera/image", "camera/image/keypoints",
+                   "camera/image/matches"):
+        assert f"{base}/{entity}" in paths, entity
+
+
+def test_registry_name_resolves_to_the_kitti_folder(kitti_root):
+    seq = load_image_sequence("kitti-vo-a", max_frames=4)
+    assert seq.name == "kitti-vo-a" and len(seq.images) == 4
+    assert seq.camera.fx == pytest.approx(707.0912) and (seq.camera.width, seq.camera.height) == (1226, 370)
+    assert seq.ground_truth is not None and len(seq.ground_truth) == 4
+    full = load_image_sequence({"name": "a", "images": str(kitti_root / "image_l"),
+                                "calib": str(kitti_root / "calib.txt"), "poses": str(kitti_root / "poses.txt")})
+    assert len(full.images) == 51 and full.ground_truth.path_length_m() == pytest.approx(59.9, abs=0.1)
+
+
+def test_shipped_config_validates_and_bad_keys_are_named(tmp_path):
+    cfg = load_config(ROOT_PIPELINES / "visual_odometry.yaml")
+    assert cfg["pipeline"] == "visual_odometry" and cfg["sequences"] == ["kitti-vo-a"]
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("pipeline: visual_odometry\nsequences: [kitti-vo-a]\nvo: {windw: 3}\n")
+    with pytest.raises(ConfigError, match="windw"):
+        load_config(bad)
+    bad.write_text("pipeline: visual_odometry\nsequences: [kitti-vo-a]\nvo: {orb: {num_features: -1}}\n")
+    with pytest.raises(ConfigError):
+        load_config(bad)
+
+
+@pytest.mark.slow
+def test_shipped_pipeline_on_all_51_frames(tmp_path):
+    """The issue's goal: Sim(3) ATE below 1 % of the 59.9 m driven, and BA lowering it
+    (measured: see the report in the final commit message)."""
+    res = run_pipeline(load_config(ROOT_PIPELINES / "visual_odometry.yaml"), tmp_path / "run", progress=False)
+    runs = {r["estimator"]: r["metrics"] for r in res.results["runs"]}
+    assert runs["mono_vo_ba"]["ate_sim3_m"] < 0.6
+    assert runs["mono_vo_ba"]["ate_sim3_m"] < runs["mono_vo"]["ate_sim3_m"]
