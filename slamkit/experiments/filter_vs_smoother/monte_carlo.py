@@ -72,6 +72,10 @@ def build_sequence(scenario: ScenarioSpec, seed: int) -> Sequence:
         from slamkit.data.formats.kitti_imu_gps import load_kitti_imu_gps
 
         return load_kitti_imu_gps(scenario.dataset, label=scenario.name, **dict(scenario.params))
+    if registry.get(scenario.dataset).format == "plaza":
+        from slamkit.data.formats.plaza import load_plaza_sequence
+
+        return load_plaza_sequence(scenario.dataset, **dict(scenario.params))
     from slamkit.data.formats.landmark_datasets import load_landmark_sequence
 
     return load_landmark_sequence(scenario.dataset, **dict(scenario.params))
