@@ -17,9 +17,12 @@ one later ranges confirm (or the best when they differ clearly).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
+
+from slamkit.errors import ConfigError
 
 
 def observe(world_p_body: np.ndarray, world_p_landmark: np.ndarray) -> np.ndarray:
@@ -90,3 +93,89 @@ def trilaterate(world_p_body: np.ndarray, range_m: np.ndarray) -> list[Trilatera
         if not any(np.linalg.norm(refined + centre - c.world_p_landmark) < 1e-2 for c in out):
             out.append(Trilateration(refined + centre, rms))
     return sorted(out, key=lambda c: c.rms_m)
+
+
+@dataclass(frozen=True)
+class DelayedInitConfig:
+    """When a beacon seen only by range is initialised (:class:`BeaconInitialiser`): after at
+    least ``min_ranges`` ranges taken over a baseline of ``min_baseline_m`` (the extent of the
+    ranging positions along their principal axis), when the best trilateration fits the
+    buffered ranges to ``max_rms_m`` RMS and its mirror candidate (if any) fits worse by at
+    least ``min_rms_gap_m``. The buffer keeps the newest ``max_ranges`` ranges."""
+
+    min_ranges: int = 15
+    min_baseline_m: float = 10.0
+    max_rms_m: float = 2.0
+    min_rms_gap_m: float = 0.5
+    max_ranges: int = 300
+
+    def __post_init__(self) -> None:
+        if self.min_ranges < 3 or self.max_ranges < self.min_ranges:
+            raise ConfigError(f"need 3 <= min_ranges <= max_ranges, got {self.min_ranges}, {self.max_ranges}")
+        for name in ("min_baseline_m", "max_rms_m", "min_rms_gap_m"):
+            if not getattr(self, name) >= 0:
+                raise ConfigError(f"DelayedInitConfig.{name} must be >= 0, got {getattr(self, name)}")
+
+
+class BeaconFix(NamedTuple):
+    """An initialised beacon: the chosen trilateration, its covariance (the least-squares
+    fit's, with the larger of the fit's RMS and the assumed range sigma), and the buffered
+    ranges it came from with their positions and the callers' tags."""
+
+    trilateration: Trilateration
+    covariance: np.ndarray
+    world_p_body: np.ndarray
+    range_m: np.ndarray
+    tags: list
+
+
+class BeaconInitialiser:
+    """Delayed initialisation of range-only beacons, the one rule every estimator uses: ranges
+    to a beacon not yet in the map are buffered with the position they were taken from (and a
+    caller's tag, e.g. a pose index); :meth:`add` returns the chosen trilateration and the
+    buffered ranges (a :class:`BeaconFix`) once :class:`DelayedInitConfig` is satisfied, and
+    forgets the beacon."""
+
+    def __init__(self, config: DelayedInitConfig | None = None, sigma_range_m: float = 0.0) -> None:
+        self.config = config or DelayedInitConfig()
+        self.sigma_range_m = float(sigma_range_m)
+        self._buffer: dict[int, list[tuple[np.ndarray, float, object]]] = {}
+
+    def pending(self) -> dict[int, int]:
+        """Buffered ranges per beacon not yet initialised."""
+        return {k: len(v) for k, v in self._buffer.items()}
+
+    def add(self, beacon_id: int, world_p_body: np.ndarray, range_m: float, tag: object = None
+            ) -> BeaconFix | None:
+        c = self.config
+        buf = self._buffer.setdefault(int(beacon_id), [])
+        buf.append((np.asarray(world_p_body, dtype=float).reshape(2).copy(), float(range_m), tag))
+        if len(buf) > c.max_ranges:
+            del buf[0]
+        if len(buf) < c.min_ranges:
+            return None
+        p = np.array([b[0] for b in buf])
+        q = p - p.mean(axis=0)
+        axis = np.linalg.svd(q, full_matrices=False)[2][0]
+        along = q @ axis
+        if along.max() - along.min() < c.min_baseline_m:
+            return None
+        r = np.array([b[1] for b in buf])
+        candidates = trilaterate(p, r)
+        if not candidates or candidates[0].rms_m > c.max_rms_m:
+            return None
+        if len(candidates) > 1 and candidates[1].rms_m - candidates[0].rms_m < c.min_rms_gap_m:
+            return None
+        del self._buffer[int(beacon_id)]
+        best = candidates[0]
+        cov = trilateration_covariance(p, best.world_p_landmark, max(best.rms_m, self.sigma_range_m))
+        return BeaconFix(best, cov, p, r, [b[2] for b in buf])
+
+
+def trilateration_covariance(world_p_body: np.ndarray, world_p_landmark: np.ndarray,
+                             sigma_m: float) -> np.ndarray:
+    """(2, 2) covariance of a least-squares trilateration: sigma^2 (J^T J)^-1 with J (K, 2) the
+    range Jacobians with respect to the beacon at the ranging positions."""
+    _, J = observe_jacobians(np.asarray(world_p_body, dtype=float).reshape(-1, 2),
+                             np.asarray(world_p_landmark, dtype=float).reshape(2))
+    return sigma_m**2 * np.linalg.pinv(J.T @ J)
