@@ -275,6 +275,22 @@ class _LandmarkSmootherBase:
                     "landmark_variables": self._next_landmark_index, **extras},
         )
 
+    def latest_estimate(self) -> Estimate:
+        """The newest pose and the landmarks' current estimates, without covariances or the
+        trajectory (:class:`~slamkit.data.estimate.LatestBelief`: what an observer draws every
+        few events; ``estimate()`` recovers every pose and marginal, O(n) per call)."""
+        if not self._ready:
+            raise EstimationError(f"{self.name}: latest_estimate() called before reset(prior)")
+        k = len(self._stamps) - 1
+        pose = _xytheta(self._current_pose(k))
+        stamp = self._stamps[k] if self._stamps[k] is not None else 0.0
+        landmarks = {}
+        for lid, key in self._landmark_key.items():
+            if self._pending[1].exists(key) or self._alive(key):   # not marginalised out
+                landmarks[lid] = np.asarray(self._current_point(key), dtype=float).reshape(2)
+        return Estimate(trajectory=Trajectory.from_se2(np.array([stamp]), pose.reshape(1, 3)),
+                        world_p_landmarks=landmarks)
+
     # -- event -> factors ------------------------------------------------------------------------
     def _add_odometry(self, event: Odometry, factors, values, stamps) -> None:
         if not (np.isfinite(event.dt_s) and event.dt_s >= 0):
@@ -441,6 +457,9 @@ class BatchLandmarkSLAM(_LandmarkSmootherBase):
 
     # the chained odometry drifts: a range is gated against the batch solution instead
     _gate_ranges_online = False
+
+    def _solver_point(self, key: int):
+        return self._initial.atPoint2(key)
 
     def _optimize(self, graph: gtsam.NonlinearFactorGraph, initial: gtsam.Values
                   ) -> tuple[gtsam.Values, int]:
