@@ -337,7 +337,8 @@ class _LandmarkSmootherBase:
         """Range-only beacons (known ids; the filters' rules): a beacon not yet in the graph
         buffers its ranges in :class:`BeaconInitialiser` with the pose index they attach to; once
         trilaterated it enters as L(j) at the chosen candidate with a ``RangeFactor2D`` for every
-        buffered range (whose pose is still a variable). Later ranges pass the range gate
+        buffered range whose pose is still a variable (a fixed-lag smoother may have marginalised
+        the oldest: those ranges enter as a prior with the trilateration's covariance). Later ranges pass the range gate
         against the current pose and beacon estimates (:meth:`_gate_ranges_online`; the batch
         solver gates against its own solution instead) before their factor is added."""
         ids = np.asarray(event.landmark_ids, dtype=np.int64).reshape(-1)
@@ -360,10 +361,18 @@ class _LandmarkSmootherBase:
                 self._landmark_ids_of_key[key] = lid
                 values.insert(key, gtsam.Point2(*fix.trilateration.world_p_landmark))
                 stamps[key] = float(event.stamp_s)
+                dropped = 0
                 for tag, rr in zip(fix.tags, fix.range_m.tolist()):
                     if tag == k or self._alive(X(tag)):
                         factors.add(gtsam.RangeFactor2D(X(tag), key, rr, self._range_model))
                         self._counts["ranges"] += 1
+                    else:
+                        dropped += 1
+                if dropped:
+                    # ranges from poses a fixed-lag smoother has already marginalised: what they
+                    # said about the beacon enters as the trilateration's covariance instead
+                    factors.add(gtsam.PriorFactorPoint2(key, gtsam.Point2(*fix.trilateration.world_p_landmark),
+                                                        gtsam.noiseModel.Gaussian.Covariance(fix.covariance)))
                 continue
             if self._gate_ranges_online and self.noise.range_rejected(
                     r - range_only.observe(xy, np.asarray(self._current_point(key), dtype=float))):
