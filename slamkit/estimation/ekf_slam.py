@@ -242,6 +242,10 @@ class EKFSLAM(FilterBase):
         ids, ranges = range_rows(event)
         var = self.noise.sigma_range_m**2
         for lid, r in zip(ids.tolist(), ranges.tolist()):
+            if lid < 0:
+                # range-only needs the beacon's identity (no association from a range alone)
+                self._rejected_ranges += 1
+                continue
             slot = self._slot_of.get(lid)
             if slot is None:
                 fix = self._beacons.add(lid, self.x[:2], r)
