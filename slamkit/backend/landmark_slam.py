@@ -59,12 +59,13 @@ from gtsam.symbol_shorthand import L, X
 
 from slamkit.data.estimate import Estimate, Prior
 from slamkit.data.noise import NoiseParams, prior_of
-from slamkit.data.sequence import Event, Odometry, RangeBearing, Sequence, check_event
+from slamkit.data.sequence import Event, Odometry, Range, RangeBearing, Sequence, check_event
 from slamkit.data.trajectory import Trajectory
 from slamkit.geometry import se2
 from slamkit.backend.graph import smoother_config
 from slamkit.errors import ConfigError, EstimationError
-from slamkit.models import diff_drive
+from slamkit.models import diff_drive, range_only
+from slamkit.models.range_only import BeaconInitialiser, DelayedInitConfig
 
 
 # ---- configuration ------------------------------------------------------------------------------
@@ -78,6 +79,8 @@ class LandmarkSmootherConfig:
     noise: NoiseParams | None = None
     odometry_floor_sigma: tuple[float, float, float] = (1e-3, 1e-3, 1e-4)
     compute_covariances: bool = True
+    #: range-only beacons: when one enters the graph (the filters' delayed-initialisation rule)
+    range_init: DelayedInitConfig = DelayedInitConfig()
 
     def __post_init__(self) -> None:
         if len(self.odometry_floor_sigma) != 3 or min(self.odometry_floor_sigma) <= 0:
@@ -109,11 +112,18 @@ class Isam2LandmarkSLAMConfig(LandmarkSmootherConfig):
 
     relinearize_threshold: float = 0.01
     relinearize_skip: int = 1
+    #: ISAM2.update once every this many events (their factors collected in between, new poses
+    #: predicted by odometry from the last estimate), as Kaess's range-only Plaza examples
+    #: update after every 25 ranges: on range-only graphs, where every beacon ties into every
+    #: pose, each update re-solves from the root clique down
+    update_every: int = 1
 
     def __post_init__(self) -> None:
         super().__post_init__()
         if self.relinearize_skip < 1:
             raise ConfigError(f"relinearize_skip must be >= 1, got {self.relinearize_skip}")
+        if self.update_every < 1:
+            raise ConfigError(f"update_every must be >= 1, got {self.update_every}")
 
 
 @dataclass(frozen=True)
@@ -199,13 +209,15 @@ class _LandmarkSmootherBase:
         self.noise = self.config.noise or self._sequence_noise or NoiseParams()
         self._bearing_range_model = gtsam.noiseModel.Diagonal.Sigmas(
             np.array([self.noise.sigma_bearing_rad, self.noise.sigma_range_m]))
+        self._range_model = gtsam.noiseModel.Isotropic.Sigma(1, self.noise.sigma_range_m)
+        self._beacons = BeaconInitialiser(self.config.range_init, self.noise.sigma_range_m)
         self._stamps: list[float | None] = [None]      # X(0)'s stamp is set by the first event
         self._landmark_key: dict[int, int] = {}
         self._landmark_ids_of_key: dict[int, int] = {}
         self._next_landmark_index = 0
         self._latency: list[float] = []
         self._counts = {"odometry": 0, "observations": 0, "unassociated": 0, "ignored_events": 0,
-                        "zero_dt_odometry": 0}
+                        "zero_dt_odometry": 0, "ranges": 0, "rejected_ranges": 0}
         self._latest_pose = gtsam.Pose2(*mean)
         factors = gtsam.NonlinearFactorGraph()
         # the Prior's covariance is world-frame (x, y, theta) like the filters'; GTSAM's Pose2
@@ -217,6 +229,7 @@ class _LandmarkSmootherBase:
         values.insert(X(0), self._latest_pose)
         self._reset_solver()
         self._pending = (factors, values, {X(0): None})
+        self._events_pending = 0
         self._ready = True
 
     def step(self, event: Event) -> None:
@@ -235,11 +248,15 @@ class _LandmarkSmootherBase:
             self._add_odometry(event, factors, values, stamps)
         elif isinstance(event, RangeBearing):
             self._add_observations(event, factors, values, stamps)
+        elif isinstance(event, Range):
+            self._add_ranges(event, factors, values, stamps)
         else:
             self._counts["ignored_events"] += 1
-        if factors.size() or values.size():
+        self._events_pending += 1
+        if (factors.size() or values.size()) and self._events_pending >= self._update_every:
             self._process(factors, values, stamps, stamp)
             self._pending = (gtsam.NonlinearFactorGraph(), gtsam.Values(), {})
+            self._events_pending = 0
         self._latency.append(time.perf_counter() - t0)
 
     def estimate(self) -> Estimate:
@@ -257,6 +274,22 @@ class _LandmarkSmootherBase:
                     "num_landmarks": len(landmarks),
                     "landmark_variables": self._next_landmark_index, **extras},
         )
+
+    def latest_estimate(self) -> Estimate:
+        """The newest pose and the landmarks' current estimates, without covariances or the
+        trajectory (:class:`~slamkit.data.estimate.LatestBelief`: what an observer draws every
+        few events; ``estimate()`` recovers every pose and marginal, O(n) per call)."""
+        if not self._ready:
+            raise EstimationError(f"{self.name}: latest_estimate() called before reset(prior)")
+        k = len(self._stamps) - 1
+        pose = _xytheta(self._current_pose(k))
+        stamp = self._stamps[k] if self._stamps[k] is not None else 0.0
+        landmarks = {}
+        for lid, key in self._landmark_key.items():
+            if self._pending[1].exists(key) or self._alive(key):   # not marginalised out
+                landmarks[lid] = np.asarray(self._current_point(key), dtype=float).reshape(2)
+        return Estimate(trajectory=Trajectory.from_se2(np.array([stamp]), pose.reshape(1, 3)),
+                        world_p_landmarks=landmarks)
 
     # -- event -> factors ------------------------------------------------------------------------
     def _add_odometry(self, event: Odometry, factors, values, stamps) -> None:
@@ -299,6 +332,69 @@ class _LandmarkSmootherBase:
             factors.add(gtsam.BearingRangeFactor2D(X(k), key, gtsam.Rot2.fromAngle(b), r,
                                                    self._bearing_range_model))
             self._counts["observations"] += 1
+
+    def _add_ranges(self, event: Range, factors, values, stamps) -> None:
+        """Range-only beacons (known ids; the filters' rules): a beacon not yet in the graph
+        buffers its ranges in :class:`BeaconInitialiser` with the pose index they attach to; once
+        trilaterated it enters as L(j) at the chosen candidate with a ``RangeFactor2D`` for every
+        buffered range whose pose is still a variable (a fixed-lag smoother may have marginalised
+        the oldest: those ranges enter as a prior with the trilateration's covariance). Later ranges pass the range gate
+        against the current pose and beacon estimates (:meth:`_gate_ranges_online`; the batch
+        solver gates against its own solution instead) before their factor is added."""
+        ids = np.asarray(event.landmark_ids, dtype=np.int64).reshape(-1)
+        ranges = np.asarray(event.range_m, dtype=float).reshape(-1)
+        k = len(self._stamps) - 1
+        pose = self._current_pose(k)
+        xy = np.array([pose.x(), pose.y()])
+        for lid, r in zip(ids.tolist(), ranges.tolist()):
+            if lid < 0:
+                self._counts["unassociated"] += 1
+                continue
+            key = self._landmark_key.get(lid)
+            if key is None or not self._alive(key):
+                fix = self._beacons.add(lid, xy, r, tag=k)
+                if fix is None:
+                    continue
+                key = L(self._next_landmark_index)
+                self._next_landmark_index += 1
+                self._landmark_key[lid] = key
+                self._landmark_ids_of_key[key] = lid
+                values.insert(key, gtsam.Point2(*fix.trilateration.world_p_landmark))
+                stamps[key] = float(event.stamp_s)
+                dropped = 0
+                for tag, rr in zip(fix.tags, fix.range_m.tolist()):
+                    if tag == k or self._alive(X(tag)):
+                        factors.add(gtsam.RangeFactor2D(X(tag), key, rr, self._range_model))
+                        self._counts["ranges"] += 1
+                    else:
+                        dropped += 1
+                if dropped:
+                    # ranges from poses a fixed-lag smoother has already marginalised: what they
+                    # said about the beacon enters as the trilateration's covariance instead
+                    factors.add(gtsam.PriorFactorPoint2(key, gtsam.Point2(*fix.trilateration.world_p_landmark),
+                                                        gtsam.noiseModel.Gaussian.Covariance(fix.covariance)))
+                continue
+            if self._gate_ranges_online and self.noise.range_rejected(
+                    r - range_only.observe(xy, np.asarray(self._current_point(key), dtype=float))):
+                self._counts["rejected_ranges"] += 1
+                continue
+            stamps[key] = float(event.stamp_s)
+            factors.add(gtsam.RangeFactor2D(X(k), key, r, self._range_model))
+            self._counts["ranges"] += 1
+
+    #: online smoothers gate a range against their current estimate when it arrives
+    _gate_ranges_online = True
+    #: events whose factors are collected before the solver is updated (1: every event)
+    _update_every = 1
+
+    def _current_point(self, key: int):
+        """The newest estimate of landmark ``key`` (its initial value while it is pending)."""
+        if self._pending[1].exists(key):
+            return self._pending[1].atPoint2(key)
+        return self._solver_point(key)
+
+    def _solver_point(self, key: int):
+        raise NotImplementedError
 
     # -- subclass hooks ----------------------------------------------------------------------------
     def _reset_solver(self) -> None:
@@ -368,24 +464,55 @@ class BatchLandmarkSLAM(_LandmarkSmootherBase):
             return self._pending[1].atPose2(X(k))
         return self._initial.atPose2(X(k))
 
+    # the chained odometry drifts: a range is gated against the batch solution instead
+    _gate_ranges_online = False
+
+    def _solver_point(self, key: int):
+        return self._initial.atPoint2(key)
+
+    def _optimize(self, graph: gtsam.NonlinearFactorGraph, initial: gtsam.Values
+                  ) -> tuple[gtsam.Values, int]:
+        params = gtsam.LevenbergMarquardtParams()
+        params.setMaxIterations(self.config.max_iterations)
+        params.setRelativeErrorTol(self.config.relative_error_tol)
+        params.setAbsoluteErrorTol(self.config.absolute_error_tol)
+        # GTSAM's default lambda ceiling (1e5) makes LM give up early from a drifted
+        # dead-reckoning start (measured: error 17672 after 3 iterations vs 3822 after 16)
+        params.setlambdaUpperBound(self.config.lambda_upper_bound)
+        optimizer = gtsam.LevenbergMarquardtOptimizer(graph, initial, params)
+        return gtsam.Values(optimizer.optimize()), optimizer.iterations()
+
+    def _gate_ranges(self, solution: gtsam.Values) -> int:
+        """Drop the range factors whose residual at ``solution`` lies outside the range gate
+        (the online estimators' rule, applied to the batch solution); returns how many."""
+        kept, dropped = gtsam.NonlinearFactorGraph(), 0
+        for i in range(self._graph.size()):
+            f = self._graph.at(i)
+            if isinstance(f, gtsam.RangeFactor2D) and self.noise.range_rejected(f.unwhitenedError(solution)[0]):
+                dropped += 1
+                continue
+            kept.add(f)
+        if dropped:
+            self._graph = kept
+        return dropped
+
     def _solve(self) -> gtsam.Values:
         if self._solution is None:
             factors, values, _ = self._pending
             if factors.size():
                 self._process(factors, values, {}, None)
                 self._pending = (gtsam.NonlinearFactorGraph(), gtsam.Values(), {})
-            params = gtsam.LevenbergMarquardtParams()
-            params.setMaxIterations(self.config.max_iterations)
-            params.setRelativeErrorTol(self.config.relative_error_tol)
-            params.setAbsoluteErrorTol(self.config.absolute_error_tol)
-            # GTSAM's default lambda ceiling (1e5) makes LM give up early from a drifted
-            # dead-reckoning start (measured: error 17672 after 3 iterations vs 3822 after 16)
-            params.setlambdaUpperBound(self.config.lambda_upper_bound)
             t0 = time.perf_counter()
-            optimizer = gtsam.LevenbergMarquardtOptimizer(self._graph, self._initial, params)
-            self._solution = gtsam.Values(optimizer.optimize())
+            self._solution, iterations = self._optimize(self._graph, self._initial)
+            if np.isfinite(self.noise.range_gate_m):
+                dropped = self._gate_ranges(self._solution)
+                if dropped:
+                    self._counts["rejected_ranges"] += dropped
+                    self._counts["ranges"] -= dropped
+                    self._solution, more = self._optimize(self._graph, self._solution)
+                    iterations += more
             self._result_info = {"solve_s": time.perf_counter() - t0,
-                                 "iterations": optimizer.iterations(),
+                                 "iterations": iterations,
                                  "initial_error": self._graph.error(self._initial),
                                  "final_error": self._graph.error(self._solution)}
         return self._solution
@@ -425,10 +552,14 @@ class Isam2LandmarkSLAM(_LandmarkSmootherBase):
     def _reset_solver(self) -> None:
         self._isam = gtsam.ISAM2(_isam2_params(self.config))
         self._online: list[np.ndarray] = []
+        self._update_every = self.config.update_every
 
     def _process(self, factors, values, stamps, stamp) -> None:
-        self._isam.update(factors, values)
+        # the poses added since the last update were newest with their odometry prediction
         k = len(self._stamps) - 1
+        for j in range(len(self._online), k):
+            self._online.append(_xytheta(values.atPose2(X(j))))
+        self._isam.update(factors, values)
         self._latest_pose = self._isam.calculateEstimatePose2(X(k))
         online = _xytheta(self._latest_pose)
         if len(self._online) == k + 1:
@@ -442,6 +573,9 @@ class Isam2LandmarkSLAM(_LandmarkSmootherBase):
         if k == len(self._stamps) - 1:
             return self._latest_pose
         return self._isam.calculateEstimatePose2(X(k))
+
+    def _solver_point(self, key: int):
+        return self._isam.calculateEstimatePoint2(key)
 
     def _collect(self):
         factors, values, stamps = self._pending
@@ -519,6 +653,9 @@ class FixedLagLandmarkSLAM(_LandmarkSmootherBase):
         if k == len(self._stamps) - 1:
             return self._latest_pose
         return self._smoother.calculateEstimatePose2(X(k))
+
+    def _solver_point(self, key: int):
+        return self._smoother.calculateEstimatePoint2(key)
 
     def _collect(self):
         factors, values, stamps = self._pending

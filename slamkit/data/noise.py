@@ -18,6 +18,7 @@ Metadata keys (``slamkit.sim.landmark_world`` and the dataset readers write them
   Probabilistic Robotics, eq. 7.11 and Table 7.1);
 * ``range_bearing_sigma`` = (sigma_range_m, sigma_bearing_rad);
 * ``initial_pose_sigma`` = (x_m, y_m, theta_rad): the standard deviations of the start pose;
+* ``range_gate_m``: the range-only outlier gate (:meth:`NoiseParams.range_rejected`);
 * or the field names of :class:`NoiseParams` directly (``sigma_v_mps`` ...).
 """
 
@@ -48,8 +49,14 @@ class NoiseParams:
     sigma_range_m: float = 0.1
     sigma_bearing_rad: float = 0.02
     initial_pose_sigma: tuple[float, float, float] = (1e-3, 1e-3, 1e-3)
+    #: range-only outlier gate: a range whose residual against the estimator's current
+    #: prediction exceeds this is rejected and counted (the same rule in every estimator;
+    #: inf keeps every range)
+    range_gate_m: float = float("inf")
 
     def __post_init__(self) -> None:
+        if not self.range_gate_m > 0:
+            raise ConfigError(f"NoiseParams.range_gate_m must be positive, got {self.range_gate_m}")
         for name in SENSOR_SIGMAS:
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0):
@@ -58,6 +65,10 @@ class NoiseParams:
         if sigma.size != 3 or not (np.all(np.isfinite(sigma)) and np.all(sigma >= 0)):
             raise ConfigError(f"NoiseParams.initial_pose_sigma must be 3 finite sigmas >= 0 "
                               f"(x_m, y_m, theta_rad), got {self.initial_pose_sigma}")
+
+    def range_rejected(self, residual_m: float | np.ndarray) -> bool | np.ndarray:
+        """True where a range residual (measured - predicted) lies outside the gate."""
+        return np.abs(residual_m) > self.range_gate_m
 
     @property
     def control_cov(self) -> np.ndarray:
@@ -87,8 +98,8 @@ class NoiseParams:
                 values[key] = tuple(given.tolist())
             else:
                 values.update(zip(names, given.tolist()))
-        for name in SENSOR_SIGMAS:
-            if name in metadata:
+        for name in (*SENSOR_SIGMAS, "range_gate_m"):
+            if metadata.get(name) is not None:
                 values[name] = float(metadata[name])
         values.update(overrides)
         return cls(**values)

@@ -38,6 +38,16 @@ class RangeBearing:
 
 
 @dataclass(frozen=True)
+class Range:
+    """Range-only observations taken at ``stamp_s`` (ranging radios, UWB beacons): ``range_m[k]``
+    is the distance from the body origin to landmark ``landmark_ids[k]`` (-1 where unknown)."""
+
+    stamp_s: float
+    landmark_ids: np.ndarray
+    range_m: np.ndarray
+
+
+@dataclass(frozen=True)
 class Gps:
     stamp_s: float
     world_p_body: np.ndarray
@@ -68,7 +78,7 @@ class Scan:
     max_range_m: float
 
 
-Event = Odometry | RangeBearing | Gps | Imu | WheelEncoders | Scan
+Event = Odometry | RangeBearing | Range | Gps | Imu | WheelEncoders | Scan
 
 
 def event_problem(event: Event) -> str | None:
@@ -86,6 +96,11 @@ def event_problem(event: Event) -> str | None:
         # a slightly negative range is what additive noise on a near landmark gives: allowed
         if not (np.isfinite(event.range_m).all() and np.isfinite(event.bearing_rad).all()):
             return "a range or bearing is not finite"
+    elif isinstance(event, Range):
+        if not np.isfinite(event.range_m).all():
+            return "a range is not finite"
+        if np.size(event.landmark_ids) != np.size(event.range_m):
+            return f"{np.size(event.landmark_ids)} landmark_ids but {np.size(event.range_m)} ranges"
     elif isinstance(event, Gps):
         if not np.isfinite(event.world_p_body).all():
             return "the position is not finite"

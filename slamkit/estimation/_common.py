@@ -18,7 +18,7 @@ from scipy.stats import chi2
 
 from slamkit.data.estimate import Estimate, Prior
 from slamkit.data.noise import NoiseParams  # noqa: F401  (the filters import it from here)
-from slamkit.data.sequence import Event, Gps, Imu, Odometry, RangeBearing, Scan, WheelEncoders, check_event
+from slamkit.data.sequence import Event, Gps, Imu, Odometry, Range, RangeBearing, Scan, WheelEncoders, check_event
 from slamkit.data.trajectory import Trajectory
 from slamkit.errors import EstimationError
 from slamkit.geometry.angles import wrap_angle
@@ -42,6 +42,15 @@ def observation_rows(event: RangeBearing) -> tuple[np.ndarray, np.ndarray]:
         raise EstimationError(
             f"RangeBearing at t={event.stamp_s}: {len(ids)} landmark_ids but {len(z)} ranges")
     return ids, z
+
+
+def range_rows(event: Range) -> tuple[np.ndarray, np.ndarray]:
+    """(ids (m,), ranges (m,)) from a Range event."""
+    ids = np.asarray(event.landmark_ids, dtype=np.int64).reshape(-1)
+    r = np.asarray(event.range_m, dtype=float).reshape(-1)
+    if len(ids) != len(r):
+        raise EstimationError(f"Range at t={event.stamp_s}: {len(ids)} landmark_ids but {len(r)} ranges")
+    return ids, r
 
 
 def range_bearing_residual(z: np.ndarray, z_hat: np.ndarray) -> np.ndarray:
@@ -147,6 +156,8 @@ class FilterBase:
             self._predict(event)
         elif isinstance(event, RangeBearing):
             self._update(event)
+        elif isinstance(event, Range):
+            self._update_range(event)
         elif isinstance(event, Gps):
             self._update_gps(event)
         elif isinstance(event, Imu):
@@ -210,6 +221,10 @@ class FilterBase:
 
     def _update_gps(self, gps: Gps) -> None:
         # Filters that cannot use GPS count it as ignored rather than failing the run.
+        self._ignored += 1
+
+    def _update_range(self, ranges: Range) -> None:
+        # filters without a range-only update count the event as ignored
         self._ignored += 1
 
     def _imu(self, imu: Imu) -> None:

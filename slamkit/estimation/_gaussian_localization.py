@@ -9,7 +9,8 @@ import numpy as np
 
 from slamkit.data.estimate import Prior
 from slamkit.errors import ConfigError
-from slamkit.estimation._common import FilterBase, NoiseParams, chi2_gate, landmark_array
+from slamkit.estimation._common import FilterBase, NoiseParams, chi2_gate, landmark_array, range_rows
+from slamkit.models import range_only
 
 
 class GaussianLocalization(FilterBase):
@@ -29,3 +30,17 @@ class GaussianLocalization(FilterBase):
         self.x = prior.world_xytheta_body.copy()
         self.P = prior.covariance.copy()
         self._rejected = 0
+        self._rejected_ranges = 0
+
+    def _known_ranges(self, event) -> list[tuple[int, float]]:
+        """(map index, range) of the event's ranges to mapped landmarks whose residual against
+        the current pose passes the range gate; the others are counted as rejected."""
+        ids, ranges = range_rows(event)
+        out = []
+        for lid, r in zip(ids.tolist(), ranges.tolist()):
+            k = self._index.get(int(lid))
+            if k is None or self.noise.range_rejected(r - range_only.observe(self.x[:2], self.landmarks[k])):
+                self._rejected_ranges += 1
+                continue
+            out.append((k, r))
+        return out

@@ -2,7 +2,8 @@
 differential-drive robot against a known landmark map.
 
 Thrun, Burgard & Fox, *Probabilistic Robotics*, Table 3.3 (EKF) and Table 7.2 (EKF localization
-with known correspondences, here with velocity noise mapped through the control Jacobian, eq.
+with known correspondences; range-only events update with the scalar r = |m - p|,
+``slamkit.models.range_only``, here with velocity noise mapped through the control Jacobian, eq.
 7.11, and the exact-arc motion model of ``slamkit.models.diff_drive``). Unknown correspondences
 (``landmark_ids == -1``) are resolved by maximum likelihood over the map (Table 7.3) behind a
 chi-square gate. Covariance updates use the Joseph form; innovations wrap the bearing.
@@ -15,7 +16,7 @@ from typing import Callable, Mapping
 
 import numpy as np
 
-from slamkit.data.sequence import Gps, Odometry, RangeBearing
+from slamkit.data.sequence import Gps, Odometry, Range, RangeBearing
 from slamkit.estimation._gaussian_localization import GaussianLocalization
 from slamkit.estimation._common import (
     NoiseParams,
@@ -23,7 +24,7 @@ from slamkit.estimation._common import (
     range_bearing_residual,
 )
 from slamkit.geometry.angles import wrap_angle
-from slamkit.models import diff_drive, range_bearing
+from slamkit.models import diff_drive, range_bearing, range_only
 
 
 def ekf_predict(x: np.ndarray, P: np.ndarray, f: Callable[[np.ndarray], np.ndarray],
@@ -163,6 +164,19 @@ class EKFLocalization(GaussianLocalization):
             self.x = np.asarray(x, dtype=float)
             self.x[2] = wrap_angle(self.x[2])
 
+    def _update_range(self, event: Range) -> None:
+        # one scalar update per range, each linearised at the previous posterior
+        R = np.array([[self.noise.sigma_range_m**2]])
+        for k, r in self._known_ranges(event):
+            m = self.landmarks[k]
+            H = np.zeros((1, 3))
+            H[0, :2] = range_only.observe_jacobians(self.x[:2], m)[0]
+            x, self.P, nu, S = ekf_update(self.x, self.P, np.array([r]),
+                                          np.array([range_only.observe(self.x[:2], m)]), H, R)
+            self._record_nis(nu, S)
+            self.x = np.asarray(x, dtype=float)
+            self.x[2] = wrap_angle(self.x[2])
+
     def _update_gps(self, gps: Gps) -> None:
         H = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
         R = np.eye(2) * gps.sigma_m**2
@@ -175,4 +189,4 @@ class EKFLocalization(GaussianLocalization):
         return self.x.copy(), self.P.copy()
 
     def _extras(self) -> dict:
-        return {"rejected_measurements": self._rejected}
+        return {"rejected_measurements": self._rejected, "rejected_ranges": self._rejected_ranges}

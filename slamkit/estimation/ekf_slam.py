@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from slamkit.data.estimate import Prior
-from slamkit.data.sequence import Odometry, RangeBearing
+from slamkit.data.sequence import Odometry, Range, RangeBearing
 from slamkit.errors import ConfigError
 from slamkit.estimation._common import (
     FilterBase,
@@ -38,9 +38,11 @@ from slamkit.estimation._common import (
     chi2_gate,
     observation_rows,
     range_bearing_residual,
+    range_rows,
 )
 from slamkit.geometry.angles import wrap_angle
-from slamkit.models import diff_drive, range_bearing
+from slamkit.models import diff_drive, range_bearing, range_only
+from slamkit.models.range_only import BeaconInitialiser, DelayedInitConfig
 
 
 @dataclass(frozen=True)
@@ -54,6 +56,9 @@ class EKFSLAMConfig:
     #: in between it is ambiguous and dropped
     new_landmark_probability: float = 0.9999
     initial_capacity_landmarks: int = 32
+    #: range-only beacons: when one is initialised from its buffered ranges (delayed
+    #: initialisation, the rule every range-only estimator shares)
+    range_init: DelayedInitConfig = DelayedInitConfig()
 
     def __post_init__(self) -> None:
         if not 0 < self.gate_probability <= self.new_landmark_probability < 1:
@@ -86,6 +91,22 @@ def sparse_update(x: np.ndarray, P: np.ndarray, n: int, j: int, z: np.ndarray, R
     x[2] = wrap_angle(x[2])
     _rank1_downdate(P[:n, :n], W[:, 0])                      # O(n^2)
     _rank1_downdate(P[:n, :n], W[:, 1])
+    return nu, S
+
+
+def sparse_range_update(x: np.ndarray, P: np.ndarray, n: int, j: int, r: float, variance: float,
+                        ) -> tuple[float, float]:
+    """In-place EKF update of x[:n], P[:n, :n] with one range r to the landmark at index j:
+    H is non-zero in the robot's (x, y) and the landmark's 2 columns, so it is the same O(n^2)
+    rank-1 update as :func:`sparse_update`. Returns (nu, S) for NIS."""
+    Hp, Hm = range_only.observe_jacobians(x[:2], x[j:j + 2])
+    PHt = P[:n, :2] @ Hp + P[:n, j:j + 2] @ Hm               # (n,)
+    S = float(Hp @ PHt[:2] + Hm @ PHt[j:j + 2] + variance)
+    nu = float(r - range_only.observe(x[:2], x[j:j + 2]))
+    W = PHt / np.sqrt(S)
+    x[:n] += W * (nu / np.sqrt(S))
+    x[2] = wrap_angle(x[2])
+    _rank1_downdate(P[:n, :n], W)
     return nu, S
 
 
@@ -131,6 +152,8 @@ class EKFSLAM(FilterBase):
         self._next_id = 1_000_000 if self.config.known_correspondences else 0
         self._rejected = 0
         self._ambiguous = 0
+        self._rejected_ranges = 0
+        self._beacons = BeaconInitialiser(self.config.range_init, self.noise.sigma_range_m)
 
     def _grow(self) -> None:
         cap = len(self.x)
@@ -210,6 +233,43 @@ class EKFSLAM(FilterBase):
             nu, S = sparse_update(self.x, self.P, self.n, 3 + 2 * slot, z, R)
             self._record_nis(nu, S)
 
+    def _update_range(self, event: Range) -> None:
+        """Range-only beacons (known ids): a mapped beacon updates the state after the range
+        gate; an unmapped one buffers the range until :class:`BeaconInitialiser` trilaterates
+        it, then enters the state with the trilateration's covariance plus the robot's position
+        covariance (its cross-covariances start at zero: the buffered ranges came from past
+        poses the filter no longer holds)."""
+        ids, ranges = range_rows(event)
+        var = self.noise.sigma_range_m**2
+        for lid, r in zip(ids.tolist(), ranges.tolist()):
+            if lid < 0:
+                # range-only needs the beacon's identity (no association from a range alone)
+                self._rejected_ranges += 1
+                continue
+            slot = self._slot_of.get(lid)
+            if slot is None:
+                fix = self._beacons.add(lid, self.x[:2], r)
+                if fix is not None:
+                    self._add_beacon(lid, fix.trilateration.world_p_landmark, fix.covariance)
+                continue
+            j = 3 + 2 * slot
+            if self.noise.range_rejected(r - range_only.observe(self.x[:2], self.x[j:j + 2])):
+                self._rejected_ranges += 1
+                continue
+            nu, S = sparse_range_update(self.x, self.P, self.n, j, r, var)
+            self._record_nis(np.array([nu]), np.array([[S]]))
+
+    def _add_beacon(self, lid: int, world_p: np.ndarray, cov: np.ndarray) -> None:
+        self._grow()
+        n = self.n
+        self.P[n:n + 2, :n] = 0.0
+        self.P[:n, n:n + 2] = 0.0
+        self.P[n:n + 2, n:n + 2] = cov + self.P[:2, :2]
+        self.x[n:n + 2] = world_p
+        self.n = n + 2
+        self._slot_of[lid] = len(self.slot_ids)
+        self.slot_ids.append(lid)
+
     def _associate(self, z: np.ndarray) -> int | None:
         """Maximum-likelihood landmark for z inside the gate; creates a new landmark (returns
         None) when z is far from all; drops it (None) when ambiguous."""
@@ -239,4 +299,6 @@ class EKFSLAM(FilterBase):
         return pos, cov
 
     def _extras(self) -> dict:
-        return {"num_landmarks": self.num_landmarks, "ambiguous_measurements": self._ambiguous}
+        return {"num_landmarks": self.num_landmarks, "ambiguous_measurements": self._ambiguous,
+                "rejected_ranges": self._rejected_ranges,
+                "uninitialised_beacons": len(self._beacons.pending())}

@@ -40,9 +40,10 @@ import numpy as np
 
 from slamkit._native import load_extension
 from slamkit.data.estimate import Prior
-from slamkit.data.sequence import Gps, Odometry, RangeBearing
+from slamkit.data.sequence import Gps, Odometry, Range, RangeBearing
 from slamkit.errors import ConfigError
 from slamkit.estimation._common import (
+    range_rows,
     FilterBase,
     NoiseParams,
     landmark_array,
@@ -51,7 +52,7 @@ from slamkit.estimation._common import (
     weighted_pose_mean_cov,
 )
 from slamkit.geometry.angles import wrap_angle
-from slamkit.models import diff_drive, range_bearing
+from slamkit.models import diff_drive, range_bearing, range_only
 
 PFKERNEL_MODULE = "slamkit.estimation._pfkernel"
 
@@ -454,6 +455,7 @@ class ParticleFilterLocalization(FilterBase):
         self.particles = sample_gaussian_poses(prior.world_xytheta_body, prior.covariance, n, self.rng)
         self.log_w = np.full(n, -np.log(n))
         self.n_resamples = 0
+        self._rejected_ranges = 0
 
     def _predict(self, odometry: Odometry) -> None:
         u = np.array([odometry.v_mps, odometry.omega_radps])
@@ -488,6 +490,27 @@ class ParticleFilterLocalization(FilterBase):
             return
         self._weigh_and_resample(*result)
 
+    def _update_range(self, event: Range) -> None:
+        """Range-only likelihood N(r; |m - p_i|, sigma_r^2) per particle i; a range is gated
+        on its residual against the weighted mean pose (the rule every estimator applies)."""
+        ids, ranges = range_rows(event)
+        mean = self._pose_and_covariance()[0]
+        rows = [(self._index[i], r) for i, r in zip(ids.tolist(), ranges.tolist()) if i in self._index
+                and not self.noise.range_rejected(r - range_only.observe(mean[:2], self.landmarks[self._index[i]]))]
+        self._rejected_ranges += len(ids) - len(rows)
+        if not rows:
+            return
+        lm = self.landmarks[[k for k, _ in rows]]
+        z = np.array([r for _, r in rows])
+        residual = z[None, :] - range_only.observe(self.particles[:, None, :2], lm[None])   # (N, m)
+        var = self.noise.sigma_range_m**2
+        w = np.exp(self.log_w)
+        nu = w @ residual                                       # predictive innovation (m,)
+        S = w @ (residual - nu) ** 2 + var                      # its variance (m,)
+        self._record_nis_values(nu**2 / S, dof=1)
+        loglik = -0.5 * np.sum(residual**2, axis=1) / var - 0.5 * len(rows) * np.log(2 * np.pi * var)
+        self._weigh_and_resample(loglik, len(rows))
+
     def _update_gps(self, gps: Gps) -> None:
         z = np.asarray(gps.world_p_body, dtype=float).reshape(-1)[:2]
         d = self.particles[:, :2] - z
@@ -513,4 +536,5 @@ class ParticleFilterLocalization(FilterBase):
         return pose_mean_cov(self.particles, np.exp(self.log_w))
 
     def _extras(self) -> dict:
-        return {"n_resamples": self.n_resamples, "n_particles_final": len(self.particles)}
+        return {"n_resamples": self.n_resamples, "n_particles_final": len(self.particles),
+                "rejected_ranges": self._rejected_ranges}

@@ -25,7 +25,7 @@ from typing import Mapping
 import numpy as np
 from scipy.linalg import block_diag, cholesky
 
-from slamkit.data.sequence import Gps, Odometry, RangeBearing
+from slamkit.data.sequence import Gps, Odometry, Range, RangeBearing
 from slamkit.errors import ConfigError, EstimationError
 from slamkit.estimation._gaussian_localization import GaussianLocalization
 from slamkit.estimation._common import (
@@ -33,7 +33,7 @@ from slamkit.estimation._common import (
     observation_rows,
 )
 from slamkit.geometry.angles import wrap_angle
-from slamkit.models import diff_drive, range_bearing
+from slamkit.models import diff_drive, range_bearing, range_only
 
 
 @dataclass(frozen=True)
@@ -192,6 +192,19 @@ class UKFLocalization(GaussianLocalization):
         k = np.arange(m)
         self._record_nis(nu.reshape(m, 2), S.reshape(m, 2, m, 2)[k, :, k, :])
 
+    def _update_range(self, event: Range) -> None:
+        # the gated ranges of one event in one update through the same sigma points
+        rows = self._known_ranges(event)
+        if not rows:
+            return
+        lm = self.landmarks[[k for k, _ in rows]]
+        X, Wm, Wc = sigma_points(self.x, self.P, self.config.sigma_points, _POSE_ANGLES)
+        Z = range_only.observe(X[:, None, :2], lm[None])                      # (K, m)
+        R = np.eye(len(rows)) * self.noise.sigma_range_m**2
+        self.x, self.P, nu, S = ukf_update(self.x, self.P, X, Wm, Wc, Z, np.array([r for _, r in rows]), R,
+                                           _POSE_ANGLES, None)
+        self._record_nis(nu[:, None], np.diagonal(S)[:, None, None])
+
     def _update_gps(self, gps: Gps) -> None:
         X, Wm, Wc = sigma_points(self.x, self.P, self.config.sigma_points, _POSE_ANGLES)
         z = np.asarray(gps.world_p_body, dtype=float).reshape(-1)[:2]
@@ -203,4 +216,4 @@ class UKFLocalization(GaussianLocalization):
         return self.x.copy(), self.P.copy()
 
     def _extras(self) -> dict:
-        return {"rejected_measurements": self._rejected}
+        return {"rejected_measurements": self._rejected, "rejected_ranges": self._rejected_ranges}

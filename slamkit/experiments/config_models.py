@@ -124,6 +124,8 @@ class ScenarioEntry(BaseModel):
     scenario: str | None = None
     name: str | None = None
     params: dict[str, Any] = {}
+    #: estimator label -> params overriding the pipeline's for this scenario only
+    estimators: dict[str, dict[str, Any]] = {}
 
 
 class FilterVsSmootherPipeline(PipelineConfig):
@@ -276,36 +278,52 @@ def check_pipeline(config: dict[str, Any], doc: YamlDocument | None = None, sour
     return model
 
 
-def _check_estimators(raw: Any, doc: YamlDocument | None, source: str) -> None:
+def _estimator_items(raw: Any) -> list[tuple[str, dict[str, Any]]]:
+    """(label, params) of a config's ``estimators`` (a mapping or a list of names / 1-key maps)."""
+    items = raw.items() if isinstance(raw, dict) else [
+        (e, {}) if isinstance(e, str) else next(iter(e.items())) for e in raw if isinstance(e, (str, dict)) and e]
+    return [(str(label), dict(params or {})) for label, params in items]
+
+
+def _check_estimators(raw: Any, doc: YamlDocument | None, source: str,
+                      path: tuple = ("estimators",)) -> None:
     from slamkit.data.noise import SENSOR_SIGMAS
     from slamkit.experiments.estimators import REGISTRY, config_class
 
-    items = raw.items() if isinstance(raw, dict) else [
-        (e, {}) if isinstance(e, str) else next(iter(e.items())) for e in raw if isinstance(e, (str, dict)) and e]
-    for label, params in items:
-        params = dict(params or {})
+    for label, params in _estimator_items(raw):
         try:
             kind = REGISTRY.canonical(str(params.pop("type", label)))
         except ConfigError as exc:  # the registry's one message, with its suggestion
-            where = doc.where(("estimators", label)) if doc is not None else source
-            raise ConfigError(f"{where}: estimators.{label}: {exc}") from None
+            where = doc.where((*path, label)) if doc is not None else source
+            raise ConfigError(f"{where}: {'.'.join(map(str, path))}.{label}: {exc}") from None
         cls = config_class(kind)
         fields = model_of(cls).model_fields if cls is not None else {}
         noise = {k: (Annotated[float, Field(gt=0, le=1e6)] | None, None) for k in SENSOR_SIGMAS}
         model = pydantic.create_model(f"{kind}Params", __config__=STRICT,
                                       **{k: (f.annotation, None) for k, f in fields.items()}, **noise)
-        validate(model, params, doc, source, ("estimators", label))
+        validate(model, params, doc, source, (*path, label))
 
 
 def _check_scenarios(model: FilterVsSmootherPipeline, doc: YamlDocument | None, source: str) -> None:
     from slamkit.sim.inertial_world import PRESETS as INERTIAL_PRESETS, InertialScenario
     from slamkit.sim.landmark_world import LandmarkScenario
 
+    pipeline_estimators = dict(_estimator_items(model.estimators))
     for k, entry in enumerate(model.scenarios):
         if isinstance(entry, ScenarioEntry):
             if sum(v is not None for v in (entry.preset, entry.dataset, entry.scenario)) != 1:
                 where = doc.where(("scenarios", k)) if doc is not None else source
                 raise ConfigError(f"{where}: scenarios.{k}: needs exactly one of 'preset', 'dataset' or 'scenario'")
+            # per-scenario estimator overrides: labels of the pipeline's estimators, whose
+            # merged params must still be the estimator's
+            unknown = sorted(set(entry.estimators) - set(pipeline_estimators))
+            if unknown:
+                where = doc.where(("scenarios", k, "estimators")) if doc is not None else source
+                raise ConfigError(f"{where}: scenarios.{k}.estimators: {unknown} are not estimators of this "
+                                  f"pipeline ({', '.join(pipeline_estimators)})")
+            _check_estimators({label: {**pipeline_estimators[label], **params}
+                               for label, params in entry.estimators.items()},
+                              doc, source, ("scenarios", k, "estimators"))
             if entry.preset is not None:
                 scenario = InertialScenario if entry.preset in INERTIAL_PRESETS else LandmarkScenario
                 _nested(model_of(scenario), entry.params, doc, source, ("scenarios", k, "params"))

@@ -282,6 +282,9 @@ def score(run: EstimatorRun, reference: Trajectory | None,
             metrics["nis_mean"] = float(np.mean(nis[ok]))
         if not ok.all():
             metrics["nis_degenerate_fraction"] = float(1.0 - ok.mean())
+    if "rejected_ranges" in est.extras:
+        # range-only estimators: how many ranges the shared range gate rejected
+        metrics["rejected_ranges"] = float(est.extras["rejected_ranges"])
     if world_p_landmarks and est.world_p_landmarks:
         metrics["landmark_rmse_m"] = landmark_rmse_m(est.world_p_landmarks, world_p_landmarks,
                                                      2 if planar else 3)

@@ -18,6 +18,7 @@ from slamkit.models import gps
 from slamkit.models import lidar
 from slamkit.models import planar
 from slamkit.models import range_bearing as rb
+from slamkit.models import range_only as ro
 from slamkit.models import strapdown
 from slamkit.models.bicycle import Bicycle
 from slamkit.models.camera import PinholeCamera
@@ -110,6 +111,9 @@ CASES = [
          (np.array([1.0, 2.0, 0.4]), np.array([-3.0, 5.0])), (0, 1), (1,)),
     Case("range_bearing.inverse_observe", rb.inverse_observe, rb.inverse_observe_jacobians,
          (np.array([1.0, 2.0, 0.4]), np.array([4.0, -2.5])), (0, 1)),
+    Case("range_only.observe", lambda p, m: np.atleast_1d(ro.observe(p, m)),
+         lambda p, m: tuple(J[None] for J in ro.observe_jacobians(p, m)),
+         (np.array([1.0, 2.0]), np.array([-3.0, 5.0])), (0, 1)),
     Case("strapdown.error_transition and noise_jacobian (one IMU step)", _strapdown_error, _strapdown_jacobians,
          (np.zeros(15), np.zeros(12)), (0, 1), tol=1e-8),
 ]
@@ -148,7 +152,7 @@ COVERED = {
     "bicycle.Bicycle.motion_jacobians", "tracked.Tracked.motion_jacobians",
     "omni.Omni3.motion_jacobians", "mecanum.Mecanum.motion_jacobians",
     "range_bearing.observe_jacobians", "range_bearing.inverse_observe_jacobians",
-    "gps.observe_jacobian", "lidar.scan_endpoints_jacobian",
+    "range_only.observe_jacobians", "gps.observe_jacobian", "lidar.scan_endpoints_jacobian",
     "camera.PinholeCamera.project_jacobian", "camera.PinholeCamera.distort_jacobian",
     "camera.PinholeCamera.project_world_jacobians",
     "stereo.StereoCamera.project_jacobian", "stereo.StereoCamera.triangulate_jacobian",

@@ -85,7 +85,9 @@ def assemble(config: Mapping[str, Any], results: list[TaskResult], scenarios: li
     """The pipeline's output from its task results: runs, summary, consistency, report, payload."""
     records = [rec for r in results for rec in r.records]
     summary = summarise(records)
-    paired = paired_comparisons(records, treatment=lambda r: r.estimator)
+    # the best estimator is looked for within a setting: localisation and SLAM never compete
+    paired = paired_comparisons(records, treatment=lambda r: r.estimator,
+                                context=lambda r: {"dataset": r.dataset, "setting": r.params.get("setting")})
     rows, curves = consistency_table(results, scenarios, choices)
     payload = payload_of(results, scenarios, choices, curves)
     notes = sorted({n for r in results for n in r.notes})

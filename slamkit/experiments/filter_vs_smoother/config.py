@@ -38,6 +38,13 @@ class ScenarioSpec:
     dataset: str | None = None
     params: Mapping[str, Any] = field(default_factory=dict)
     scenario: str | None = None
+    #: estimator label -> params overriding the pipeline's on this scenario
+    estimator_params: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+
+    def estimator_choices(self, choices: list["EstimatorChoice"]) -> tuple["EstimatorChoice", ...]:
+        """The pipeline's estimators with this scenario's overrides merged into their params."""
+        return tuple(EstimatorChoice(c.label, c.type, {**c.params, **self.estimator_params.get(c.label, {})})
+                     for c in choices)
 
     @property
     def simulated(self) -> bool:
@@ -62,7 +69,7 @@ def parse_scenarios(config: Mapping[str, Any]) -> list[ScenarioSpec]:
         if not isinstance(item, Mapping) or sum(key in item for key in SOURCES) != 1:
             raise ConfigError(f"filter_vs_smoother: scenarios[{k}] needs exactly one of 'preset', "
                               f"'dataset' or 'scenario', got {item!r}")
-        unknown = set(item) - {*SOURCES, "name", "params"}
+        unknown = set(item) - {*SOURCES, "name", "params", "estimators"}
         if unknown:
             raise ConfigError(f"filter_vs_smoother: scenarios[{k}] has unknown key(s) {sorted(unknown)}")
         if "preset" in item and item["preset"] not in PRESETS:
@@ -70,8 +77,9 @@ def parse_scenarios(config: Mapping[str, Any]) -> list[ScenarioSpec]:
                               f"got {item['preset']!r}")
         default_name = item.get("preset") or item.get("dataset") or Path(str(item.get("scenario"))).stem
         name = path_component(str(item.get("name") or default_name), f"filter_vs_smoother: scenarios[{k}] name")
+        overrides = {str(k): dict(v or {}) for k, v in (item.get("estimators") or {}).items()}
         out.append(ScenarioSpec(name, item.get("preset"), item.get("dataset"), dict(item.get("params") or {}),
-                                item.get("scenario")))
+                                item.get("scenario"), overrides))
     names = [s.name for s in out]
     if len(set(names)) != len(names):
         raise ConfigError(f"filter_vs_smoother: scenario names must be unique, got {names} (set 'name')")

@@ -72,6 +72,10 @@ def build_sequence(scenario: ScenarioSpec, seed: int) -> Sequence:
         from slamkit.data.formats.kitti_imu_gps import load_kitti_imu_gps
 
         return load_kitti_imu_gps(scenario.dataset, label=scenario.name, **dict(scenario.params))
+    if registry.get(scenario.dataset).format == "plaza":
+        from slamkit.data.formats.plaza import load_plaza_sequence
+
+        return load_plaza_sequence(scenario.dataset, **dict(scenario.params))
     from slamkit.data.formats.landmark_datasets import load_landmark_sequence
 
     return load_landmark_sequence(scenario.dataset, **dict(scenario.params))
@@ -99,6 +103,20 @@ class TaskResult:
     runs: dict[str, EstimatorRun] | None = None
 
 
+#: what a landmark-sequence run estimates: the pose against the known map, or the map too
+SETTINGS = {"localisation": "localisation (map known)", "slam": "SLAM (map estimated)"}
+
+
+def setting_of(estimator_type: str, sequence: Sequence) -> str | None:
+    """'localisation' for an estimator given the sequence's landmark map, 'slam' for one that
+    estimates it; None on sequences without landmarks (inertial, grid worlds)."""
+    if not sequence.world_p_landmarks:
+        return None
+    from slamkit.experiments.estimators import spec
+
+    return "localisation" if spec(estimator_type).needs_landmark_map else "slam"
+
+
 def run_task(task: Task, observer: PipelineObserver | None = None) -> TaskResult:
     """Build the sequence, run every estimator, score them (and write their trajectories)."""
     sequence = build_sequence(task.scenario, task.seed)
@@ -120,6 +138,9 @@ def run_task(task: Task, observer: PipelineObserver | None = None) -> TaskResult
         if run.estimate is not None and is_inertial(sequence):
             scored.metrics.update(inertial_metrics(run.estimate, sequence.metadata))
         params = {"type": choice.type, "kind": run.kind, "reference": reference_name, **choice.params}
+        setting = setting_of(choice.type, sequence)
+        if setting is not None:
+            params["setting"] = setting
         if run.failed:
             params["failed"] = run.failed
         records.append(RunRecord(task.scenario.name, choice.label, scored.metrics, task.seed, params))
@@ -146,7 +167,7 @@ def run_monte_carlo(config: Mapping[str, Any], trajectories_dir: Path | None = N
     seeds = parse_seeds(config)
     workers = parse_workers(config)
     tdir = None if trajectories_dir is None else str(trajectories_dir)
-    tasks = [Task(s, seed, choices, tdir, keep_full=(k == 0))
+    tasks = [Task(s, seed, s.estimator_choices(list(choices)), tdir, keep_full=(k == 0))
              for s in scenarios for k, seed in enumerate(seeds if s.simulated else seeds[:1])]
     advance = progress.task("filter vs smoother", len(tasks)) if progress is not None else (lambda n=1: None)
     main_tasks = [t for t in tasks if t.keep_full]
