@@ -512,7 +512,7 @@ def certify(graph: PoseGraph, poses: np.ndarray, config: CertifyConfig = Certify
             lam = multipliers(Q, R)
             lam_min, method, residual, converged = min_eigenvalue(Q, lam, R, config)
         lower = float(np.trace(lam, axis1=1, axis2=2).sum()) + graph.dim * graph.num_poses * min(lam_min, 0.0)
-    gap = f - lower
+    gap = max(f - lower, 0.0)  # >= 0 by weak duality; a negative difference is rounding
     return Certificate(
         certified=bool(converged and lam_min >= -config.eps), min_eigenvalue=lam_min, eps=config.eps,
         objective_input=f_input, objective=f, dual_lower_bound=lower, suboptimality_bound=gap,

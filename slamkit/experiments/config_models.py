@@ -94,6 +94,8 @@ class PoseGraphPipeline(PipelineConfig):
     solvers: Annotated[list[Literal["lm", "gn", "dogleg", "isam2"]], Field(min_length=1)] = ["lm"]
     inits: Annotated[list[Literal["file", "odometry", "lago", "chordal"]], Field(min_length=1)] = ["file"]
     robust: Literal["none", "huber", "cauchy"] = "none"
+    #: SE-Sync optimality certificates: auto (least squares, up to 40k rotation unknowns), on, off
+    certify: Literal["auto", "on", "off"] = "auto"
     options: dict[str, Any] = {}
 
     def check_options(self, config: dict[str, Any], doc: YamlDocument | None, source: str) -> None:
