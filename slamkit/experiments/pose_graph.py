@@ -25,7 +25,7 @@ from slamkit.data.formats.tum import write_tum
 from slamkit.data.pose_graph import PoseGraph
 from slamkit.data.trajectory import Trajectory
 from slamkit.paths import file_in
-from slamkit.errors import ConfigError
+from slamkit.errors import BackendError, ConfigError
 from slamkit.experiments.config_models import PoseGraphPipeline
 from slamkit.experiments.observers import PipelineObserver
 from slamkit.experiments.pipeline import Pipeline, PipelineOutput, StepProgress
@@ -191,7 +191,10 @@ def _solve_and_score(graph, entry, ground_truth, config, keep_iterates, note, t0
         report = replace(report, ate_rmse_m=rmse, ate_align=mode)
     skipped = certify_decision(certify_mode, graph, config)
     if skipped is None:
-        report = replace(report, certificate=certify(graph, result.poses, CertifyConfig()))
+        try:
+            report = replace(report, certificate=certify(graph, result.poses, CertifyConfig()))
+        except BackendError as exc:  # e.g. no translation information: F has no unique optimum
+            report = replace(report, certify_skipped=f"certificate unavailable: {exc}")
     else:
         report = replace(report, certify_skipped=skipped)
     return report
