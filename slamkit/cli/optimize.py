@@ -16,7 +16,7 @@ def optimize(
     source: str = typer.Argument(..., help="registry name (see `slamkit data list`) or a g2o/TORO/iSAM file"),
     solver: str = typer.Option("lm", help="lm | gn | dogleg | isam2"),
     init: str = typer.Option("file", help="file | odometry | lago (2D) | chordal (3D)"),
-    robust: str = typer.Option("none", help="none | huber | cauchy"),
+    robust: str = typer.Option("none", help="none | huber | cauchy | dcs"),
     robust_k: float = typer.Option(None, "--robust-k", help="kernel width (default: GTSAM's)", callback=positive),
     max_iterations: int = typer.Option(100, "--max-iterations", min=1),
     marginals: bool = typer.Option(False, "--marginals", help="compute marginal covariances"),

@@ -1,0 +1,46 @@
+"""The pose_graph_outliers pipeline end to end on a small sweep, its config validation, and the
+1000-outlier goals of issue 16 (slow)."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from slamkit.errors import ConfigError
+from slamkit.experiments.pipeline import run_pipeline
+
+
+def test_small_sweep_writes_runs_report_plot_and_recording(shared_datasets, tmp_path, verify_rrd) -> None:
+    from slamkit.viz.pipelines import observer_for
+
+    config = {"pipeline": "pose_graph_outliers", "name": "t", "datasets": ["ring"], "counts": [0, 20],
+              "kinds": ["random", "grouped"], "backends": ["none", "dcs"]}
+    result = run_pipeline(config, tmp_path / "out", progress=False,
+                          observer_factory=lambda kind, path: observer_for(kind, path))
+    runs = result.results["runs"]
+    # count 0 once, then 2 kinds x 1 count, each x 2 back-ends
+    assert len(runs) == 6
+    by = {(r["params"]["kind"], r["params"]["outliers"], r["estimator"]): r["metrics"] for r in runs}
+    assert by[("none", 0, "none")]["ate_rmse_m"] == pytest.approx(1.4316, abs=1e-3)
+    assert by[("none", 0, "none")]["ate_ratio"] == pytest.approx(1.0)
+    assert by[("random", 20, "none")]["ate_ratio"] > 10
+    assert by[("random", 20, "dcs")]["outlier_recall"] == 1.0
+    assert by[("random", 20, "dcs")]["ate_ratio"] == pytest.approx(1.0, abs=0.01)
+    out = result.out_dir
+    assert (out / "plots" / "ate_vs_outliers.png").stat().st_size > 10_000
+    report = (out / "report.md").read_text()
+    assert "| ring | random | 20 | dcs |" in report
+    summary = json.loads((out / "results.json").read_text())["summary"]
+    assert {"dataset", "kind", "outliers", "estimator", "metric", "mean"} <= set(summary[0])
+    entities = verify_rrd(out / "recording.rrd")
+    assert {"/plots/ate_rmse_m/ring/random/dcs", "/plots/outlier_recall/ring/grouped/dcs"} <= entities
+
+
+def test_config_errors_name_the_field(tmp_path) -> None:
+    with pytest.raises(ConfigError, match="kinds"):
+        run_pipeline({"pipeline": "pose_graph_outliers", "datasets": ["ring"], "kinds": ["everywhere"]},
+                     tmp_path / "x", progress=False)
+    with pytest.raises(ConfigError, match="backends"):
+        run_pipeline({"pipeline": "pose_graph_outliers", "datasets": ["ring"], "backends": ["ransac"]},
+                     tmp_path / "y", progress=False)
