@@ -107,8 +107,8 @@ class PoseGraphOutliersPipeline(PipelineConfig):
     datasets: Annotated[list[str], Field(min_length=1)]
     counts: Annotated[list[Annotated[int, Field(ge=0)]], Field(min_length=1)] = [0, 10, 100, 1000]
     kinds: Annotated[list[Literal["random", "local", "grouped"]], Field(min_length=1)] = ["random"]
-    backends: Annotated[list[Literal["none", "huber", "cauchy", "dcs", "switchable", "gnc"]],
-                        Field(min_length=1)] = ["none", "huber", "cauchy", "dcs", "switchable", "gnc"]
+    backends: Annotated[list[Literal["none", "huber", "cauchy", "dcs", "switchable", "gnc", "pcm", "pcm_gnc"]],
+                        Field(min_length=1)] = ["none", "huber", "cauchy", "dcs", "switchable", "gnc", "pcm", "pcm_gnc"]
     seeds: Annotated[list[int], Field(min_length=1)] = [0]
     #: slamkit.sim.outliers.OutlierConfig fields other than kind and count
     outliers: dict[str, Any] = {}
