@@ -405,11 +405,11 @@ def refine(problem: SESyncProblem, R: np.ndarray, t: np.ndarray, max_iterations:
            rel_tol: float, dm: DataMatrix | None = None) -> tuple[np.ndarray, np.ndarray, int]:
     """Minimise F from (R, t) with pose 0 fixed; returns (R, t, iterations).
 
-    Levenberg-Marquardt (Gauss-Newton steps, damped when F would increase) while the relative
-    decrease of F is above 1e-6, then Riemannian Newton steps (``_newton_system``), which
-    converge quadratically where Gauss-Newton is only linear (F's residual is not zero); a Newton
-    step that does not decrease F is replaced by a Gauss-Newton one. Stops when the relative
-    decrease is below ``rel_tol``."""
+    One Levenberg-Marquardt step (Gauss-Newton, damped when F would increase), then Riemannian
+    Newton steps (``_newton_system``), which converge quadratically where Gauss-Newton is only
+    linear (F's residual is not zero: sphere2500 from GTSAM's optimum, GN needs 9 steps for a
+    1e-6 relative decrease, ratio ~0.72 per step); a Newton step that does not decrease F is
+    replaced by a Gauss-Newton one. Stops when the relative decrease is below ``rel_tol``."""
     dm = data_matrix(problem) if dm is None else dm
     f = sesync_value(problem, R, t)
     mu = 0.0
@@ -445,7 +445,7 @@ def refine(problem: SESyncProblem, R: np.ndarray, t: np.ndarray, max_iterations:
         R, t, f = R_new, t_new, f_new
         if decrease <= rel_tol * max(f, 1e-300):
             break
-        newton = newton or decrease <= 1e-6 * f
+        newton = True  # after one Gauss-Newton step; a Newton step that fails falls back to GN
     return R, t, it
 
 
