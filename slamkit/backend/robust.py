@@ -160,17 +160,11 @@ def _switchable(graph, cand, values, config):
         out.add(gtsam.CustomFactor(unit, keys + [s_key], _switched_error(factor)))
         out.add(gtsam.PriorFactorVector(s_key, np.array([1.0]), switch_prior))
     out.add(fg.at(graph.num_edges))  # gauge prior
-    opt_config = OptimizeConfig(max_iterations=config.max_iterations)
-    optimizer, params = make_optimizer(out, values, "lm", "cholesky", opt_config)
-    try:
-        iterate_to_convergence(optimizer, params)
-    except _SolveFailed as exc:
-        raise BackendError(f"{graph.name}: switchable constraints failed: {exc}") from None
-    result = optimizer.values()
+    result, iterations = _levenberg_marquardt(graph, out, values, config)
     weights = np.ones(graph.num_edges)
     for k, key in switch_keys.items():
         weights[k] = float(np.clip(result.atVector(key)[0], 0.0, 1.0))
-    return gtsam.Values(result), weights, optimizer.iterations()
+    return result, weights, iterations
 
 
 def _switched_error(factor):

@@ -33,7 +33,7 @@ import rerun.blueprint as rrb
 
 from slamkit.experiments.lidar_slam import LidarSlamResult
 from slamkit.maps.log_odds import LogOddsMap
-from slamkit.viz.recording import open_recording
+from slamkit.viz.recording import OutputObserver, open_recording
 
 COLOR_MAP = (90, 90, 90)
 COLOR_GROUND_TRUTH = (40, 200, 80)
@@ -136,23 +136,12 @@ def record_lidar_slam(results, path: str | Path | None = None, spawn: bool = Fal
     return None if path is None else Path(path)
 
 
-class LidarSlamObserver:
+class LidarSlamObserver(OutputObserver):
     """Records the ``lidar_slam`` pipeline from its output (``payload``: LidarSlamResult list)."""
 
     payload_type = list[LidarSlamResult]
-    wants_steps = False
-    step_every = 1
-
-    def __init__(self, path, spawn: bool = False):
-        self.path, self.spawn = path, spawn
-
-    def on_step(self, snapshot) -> None:
-        pass
 
     def on_output(self, output) -> None:
         results = output.payload  # a PipelineOutput whose payload is the LidarSlamResult list
         if results:
             record_lidar_slam(results, self.path, self.spawn)
-
-    def close(self) -> None:
-        pass

@@ -18,6 +18,7 @@ from slamkit.data.pose_graph import PoseGraph
 from slamkit.experiments.pipeline import PipelineOutput
 from slamkit.experiments.pose_graph import OptimizeReport
 from slamkit.data.trajectory import Trajectory
+from slamkit.viz.recording import OutputObserver
 
 COLOR_INITIAL = (150, 150, 150)
 COLOR_ESTIMATE = (30, 120, 255)
@@ -104,19 +105,11 @@ def record_optimization(report, path=None, spawn: bool = False) -> None:
                        report.result.errors, report.iterates, report.ground_truth)
 
 
-class PoseGraphPipelineObserver:
+class PoseGraphPipelineObserver(OutputObserver):
     """Records the ``pose_graph`` pipeline: the first run of every dataset under
     ``<dataset>/world/...`` and ``<dataset>/plots/error``."""
 
     payload_type = list[OptimizeReport]
-    wants_steps = False  # everything it draws is in the pipeline's output
-    step_every = 1
-
-    def __init__(self, path, spawn: bool = False):
-        self.path, self.spawn = path, spawn
-
-    def on_step(self, snapshot) -> None:
-        pass
 
     def on_output(self, output: PipelineOutput[list[OptimizeReport]]) -> None:
         from slamkit.viz.recording import open_recording
@@ -137,6 +130,3 @@ class PoseGraphPipelineObserver:
             for r in reports:
                 log_pose_graph(_Prefixed(rec.stream, r.dataset), r.graph, r.result.initial_poses,
                                r.result.poses, r.result.errors, (), r.ground_truth)
-
-    def close(self) -> None:
-        pass

@@ -14,20 +14,13 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from slamkit.experiments.pipeline import PipelineOutput
+from slamkit.viz.recording import OutputObserver
 
 METRICS = ("ate_rmse_m", "outlier_recall")
 
 
-class PoseGraphOutliersObserver:
+class PoseGraphOutliersObserver(OutputObserver):
     payload_type = list
-    wants_steps = False
-    step_every = 1
-
-    def __init__(self, path, spawn: bool = False):
-        self.path, self.spawn = path, spawn
-
-    def on_step(self, snapshot) -> None:
-        pass
 
     def on_output(self, output: PipelineOutput[list[dict[str, Any]]]) -> None:
         from slamkit.viz.recording import open_recording
@@ -53,6 +46,3 @@ class PoseGraphOutliersObserver:
                 rec.stream.send_columns(f"plots/{metric}/{dataset}/{kind}/{backend}",
                                         indexes=[rr.TimeColumn("outliers", sequence=counts)],
                                         columns=rr.Scalars.columns(scalars=[np.mean(points[c]) for c in counts]))
-
-    def close(self) -> None:
-        pass

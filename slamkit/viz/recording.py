@@ -121,3 +121,20 @@ class Recording:
 def open_recording(application_id: str, path: str | Path | None = None, spawn: bool = False,
                    blueprint: rrb.Blueprint | None = None) -> Recording:
     return Recording(application_id, path=path, spawn=spawn, blueprint=blueprint)
+
+
+class OutputObserver:
+    """Base of the recorders that draw only from a pipeline's output (no per-step snapshots):
+    subclasses set ``payload_type`` and implement ``on_output``."""
+
+    wants_steps = False  # everything it draws is in the pipeline's output
+    step_every = 1
+
+    def __init__(self, path, spawn: bool = False):
+        self.path, self.spawn = path, spawn
+
+    def on_step(self, snapshot) -> None:
+        pass
+
+    def close(self) -> None:
+        pass
