@@ -25,6 +25,7 @@ from slamkit.backend.robust import ROBUST_BACKENDS, RobustResult, RobustSolveCon
 from slamkit.frontend.pcm import pcm
 from slamkit.data import registry
 from slamkit.data.pose_graph import PoseGraph
+from slamkit.errors import BackendError
 from slamkit.experiments.config_models import PoseGraphOutliersPipeline
 from slamkit.experiments.observers import PipelineObserver
 from slamkit.experiments.pipeline import Pipeline, PipelineOutput, StepProgress
@@ -63,6 +64,7 @@ def run(config: Mapping[str, Any], folder: ResultsFolder, progress: StepProgress
              if c > 0 or (k == kinds[0] and s == seeds[0])]
     advance = progress.task("outlier cells", len(cells) * len(backends))
     runs: list[RunRecord] = []
+    failures: list[str] = []
     clean: dict[str, tuple[PoseGraph, Any, RobustResult, float]] = {}
     for dataset, kind, count, seed in cells:
         if dataset not in clean:
@@ -78,20 +80,28 @@ def run(config: Mapping[str, Any], folder: ResultsFolder, progress: StepProgress
                                   np.random.default_rng(seed), seed))
         clean_traj = _trajectory(graph, base.poses)
         for backend in backends:
-            result = _solve(corrupted.graph, backend, solve_options)
+            try:
+                result = _solve(corrupted.graph, backend, solve_options)
+            except BackendError as exc:  # one failed solve is a result of the benchmark, not its end
+                failures.append(f"{dataset} / {kind} / {count} / seed {seed} / {backend}: {exc}")
+                runs.append(RunRecord(dataset, backend, {"failed": 1.0}, seed=seed,
+                                      params={"kind": kind if count else "none", "outliers": count}))
+                advance()
+                continue
             est = _trajectory(corrupted.graph, result.poses)
             ate = ate_against(reference, est)[0]
             metrics = {"ate_rmse_m": ate, "ate_ratio": ate / clean_ate if clean_ate > 0 else float("nan"),
                        "ate_to_clean_rmse_m": ate_against(clean_traj, est)[0],
                        **detection_scores(corrupted.is_outlier, result.inlier),
-                       "iterations": float(result.iterations), "time_solve_s": result.time_solve_s}
+                       "iterations": float(result.iterations), "time_solve_s": result.time_solve_s,
+                       "failed": 0.0}
             runs.append(RunRecord(dataset, backend, metrics, seed=seed,
                                   params={"kind": kind if count else "none", "outliers": count}))
             advance()
     summary = summarise(runs, by=lambda r: {"dataset": r.dataset, "kind": r.params["kind"],
                                             "outliers": r.params["outliers"], "estimator": r.estimator})
     _plot(folder.plots, runs, backends)
-    return PipelineOutput(runs, _report(config, runs, clean), summary=summary,
+    return PipelineOutput(runs, _report(config, runs, clean, failures), summary=summary,
                           payload=[r.to_dict() for r in runs])
 
 
@@ -117,7 +127,7 @@ def _solve(graph: PoseGraph, backend: str, solve_options: Mapping[str, Any]) -> 
     return RobustResult(backend, inner.poses, inlier, weights, chi2, inner.iterations, sw.elapsed_s)
 
 
-def _report(config: Mapping[str, Any], runs: list[RunRecord], clean) -> str:
+def _report(config: Mapping[str, Any], runs: list[RunRecord], clean, failures: list[str]) -> str:
     text = f"# Robust back-ends under false loop closures: {config.get('name', 'pose_graph_outliers')}\n\n"
     text += ("Vertigo-style false loop closures (slamkit.sim.outliers) added to each graph; every back-end "
              "starts from odometry dead reckoning and trusts the odometry edges. ATE is against ground "
@@ -134,13 +144,16 @@ def _report(config: Mapping[str, Any], runs: list[RunRecord], clean) -> str:
         groups.setdefault((r.dataset, r.params["kind"], r.params["outliers"], r.estimator), []).append(r)
 
     def mean(rs, m):
-        v = [r.metrics[m] for r in rs if np.isfinite(r.metrics[m])]
+        v = [r.metrics[m] for r in rs if m in r.metrics and np.isfinite(r.metrics[m])]
         return float(np.mean(v)) if v else None
 
     rows = [[*key, mean(rs, "ate_rmse_m"), mean(rs, "ate_ratio"), mean(rs, "outlier_recall"),
              mean(rs, "outlier_precision"), mean(rs, "inlier_recall"), mean(rs, "time_solve_s"), len(rs)]
             for key, rs in groups.items()]
-    return text + markdown_table(header, rows) + "\n"
+    text += markdown_table(header, rows) + "\n"
+    if failures:
+        text += "\n## Failed solves (no metrics)\n\n" + "\n".join(f"- {f}" for f in failures) + "\n"
+    return text
 
 
 def _plot(plots: Path, runs: list[RunRecord], backends: list[str]) -> None:
@@ -159,9 +172,10 @@ def _plot(plots: Path, runs: list[RunRecord], backends: list[str]) -> None:
             for r in runs:
                 if (r.dataset == dataset and r.estimator == backend
                         and r.params["kind"] in (kind, "none")):
-                    pts.setdefault(r.params["outliers"], []).append(r.metrics["ate_rmse_m"])
+                    pts.setdefault(r.params["outliers"], []).append(r.metrics.get("ate_rmse_m", np.nan))
             xs = sorted(pts)
-            ax.plot(xs, [np.mean(pts[x]) for x in xs], marker="o", label=backend)
+            ax.plot(xs, [np.nanmean(pts[x]) if np.isfinite(pts[x]).any() else np.nan for x in xs],
+                    marker="o", label=backend)
         ax.set_xscale("symlog", linthresh=10)
         ax.set_yscale("log")
         ax.set_xlabel(f"{kind} false loop closures")

@@ -73,3 +73,23 @@ def test_goal_ring_1000_random_outliers(shared_datasets) -> None:
     ratio, scores = _goal("ring", "gnc")
     assert ratio <= 1.05 and scores["outlier_recall"] >= 0.99
     assert scores["inlier_recall"] == 1.0
+
+
+def test_a_failed_solve_is_recorded_not_fatal(shared_datasets, tmp_path, monkeypatch) -> None:
+    from slamkit.errors import BackendError
+    from slamkit.experiments import pose_graph_outliers as pgo
+
+    real = pgo._solve
+
+    def flaky(graph, backend, options):
+        if backend == "dcs":
+            raise BackendError("dcs failed: Levenberg-Marquardt gave up")
+        return real(graph, backend, options)
+
+    monkeypatch.setattr(pgo, "_solve", flaky)
+    config = {"pipeline": "pose_graph_outliers", "datasets": ["ring"], "counts": [10],
+              "backends": ["none", "dcs"], "record": False}
+    result = run_pipeline(config, tmp_path / "f", progress=False)
+    metrics = {r["estimator"]: r["metrics"] for r in result.results["runs"]}
+    assert metrics["dcs"] == {"failed": 1.0} and metrics["none"]["failed"] == 0.0
+    assert "ring / random / 10 / seed 0 / dcs: dcs failed" in (result.out_dir / "report.md").read_text()
