@@ -93,3 +93,12 @@ def test_a_failed_solve_is_recorded_not_fatal(shared_datasets, tmp_path, monkeyp
     metrics = {r["estimator"]: r["metrics"] for r in result.results["runs"]}
     assert metrics["dcs"] == {"failed": 1.0} and metrics["none"]["failed"] == 0.0
     assert "ring / random / 10 / seed 0 / dcs: dcs failed" in (result.out_dir / "report.md").read_text()
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="goal not reached yet: manhattan-olson + 1000 random outliers (seed 0), "
+                   "GNC-TLS: ATE 23.63 m vs 0.794 m outlier-free, outlier recall 0.997, 11 true loop "
+                   "closures rejected, 1097 s; DCS: ATE 17.48 m, recall 0.996; least squares 28.9 m")
+def test_goal_manhattan_olson_1000_random_outliers(shared_datasets) -> None:
+    ratio, scores = _goal("manhattan-olson", "gnc")
+    assert ratio <= 1.05 and scores["outlier_recall"] >= 0.99
