@@ -14,6 +14,8 @@ nearly coincide, for anisotropic noise they differ genuinely.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from slamkit.backend._convert import quat_wxyz_to_rotation
@@ -52,6 +54,55 @@ def _trace_of_inverse(blocks: np.ndarray) -> np.ndarray:
         return out
 
 
+@dataclass(frozen=True)
+class SESyncProblem:
+    """A pose graph's edges in SE-Sync's terms: rows ``i -> j`` (0-based, matching the graph's
+    vertex rows), measured rotations ``rotation`` (M, d, d) and translations ``translation``
+    (M, d) of ``i_T_j``, and the isotropic weights ``kappa``, ``tau`` (M,)."""
+
+    dim: int
+    num_poses: int
+    i: np.ndarray
+    j: np.ndarray
+    rotation: np.ndarray
+    translation: np.ndarray
+    kappa: np.ndarray
+    tau: np.ndarray
+
+
+def sesync_problem(graph: PoseGraph) -> SESyncProblem:
+    row = graph.index_of()
+    i = np.array([row[v] for v in graph.edge_from.tolist()], dtype=np.int64)
+    j = np.array([row[v] for v in graph.edge_to.tolist()], dtype=np.int64)
+    kappa, tau = sesync_weights(graph)
+    rotation, translation = pose_arrays(graph.dim, graph.measurements)
+    return SESyncProblem(graph.dim, graph.num_poses, i, j, rotation, translation, kappa, tau)
+
+
+def pose_arrays(dim: int, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rows in the PoseGraph layout ((N, 3) or (N, 7)) -> rotations (N, d, d), translations (N, d)."""
+    poses = np.asarray(poses, dtype=float)
+    if dim == 2:
+        return _rot2(poses[:, 2]), poses[:, :2]
+    return quat_wxyz_to_rotation(poses[:, 3:]), poses[:, :3]
+
+
+def sesync_residuals(problem: SESyncProblem, R: np.ndarray, t: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """Unweighted residuals ``R_j - R_i R~_ij`` (M, d, d) and ``t_j - t_i - R_i t~_ij`` (M, d)."""
+    Ri = R[problem.i]
+    rot_res = R[problem.j] - Ri @ problem.rotation
+    trans_res = t[problem.j] - t[problem.i] - np.einsum("kab,kb->ka", Ri, problem.translation)
+    return rot_res, trans_res
+
+
+def sesync_value(problem: SESyncProblem, R: np.ndarray, t: np.ndarray) -> float:
+    """F at rotations ``R`` (N, d, d) and translations ``t`` (N, d)."""
+    rot_res, trans_res = sesync_residuals(problem, R, t)
+    return float(np.sum(problem.kappa * np.sum(rot_res**2, axis=(1, 2)))
+                 + np.sum(problem.tau * np.sum(trans_res**2, axis=1)))
+
+
 def sesync_objective(graph: PoseGraph, poses: np.ndarray) -> float:
     """F evaluated at ``poses`` ((N, 3) or (N, 7) in the PoseGraph layout, rows matching
     ``graph.vertex_ids``)."""
@@ -59,24 +110,7 @@ def sesync_objective(graph: PoseGraph, poses: np.ndarray) -> float:
     poses = np.asarray(poses, dtype=float)
     if poses.shape != (graph.num_poses, width):
         raise BackendError(f"poses must have shape ({graph.num_poses}, {width}), got {poses.shape}")
-    row = graph.index_of()
-    i = np.array([row[v] for v in graph.edge_from.tolist()], dtype=np.int64)
-    j = np.array([row[v] for v in graph.edge_to.tolist()], dtype=np.int64)
-    kappa, tau = sesync_weights(graph)
-    z = graph.measurements
-    if graph.dim == 2:
-        R = _rot2(poses[:, 2])
-        t = poses[:, :2]
-        Rz, tz = _rot2(z[:, 2]), z[:, :2]
-    else:
-        R = quat_wxyz_to_rotation(poses[:, 3:])
-        t = poses[:, :3]
-        Rz, tz = quat_wxyz_to_rotation(z[:, 3:]), z[:, :3]
-    Ri = R[i]
-    rot_res = R[j] - Ri @ Rz
-    trans_res = t[j] - t[i] - np.einsum("kab,kb->ka", Ri, tz)
-    value = float(np.sum(kappa * np.sum(rot_res**2, axis=(1, 2)))
-                  + np.sum(tau * np.sum(trans_res**2, axis=1)))
+    value = sesync_value(sesync_problem(graph), *pose_arrays(graph.dim, poses))
     if not np.isfinite(value) or value < 0.0:
         # F is a weighted sum of squares: NaN, inf or a negative value means the poses or the
         # weights (information that is not positive definite) are broken, not a result

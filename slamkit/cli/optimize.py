@@ -16,22 +16,27 @@ def optimize(
     source: str = typer.Argument(..., help="registry name (see `slamkit data list`) or a g2o/TORO/iSAM file"),
     solver: str = typer.Option("lm", help="lm | gn | dogleg | isam2"),
     init: str = typer.Option("file", help="file | odometry | lago (2D) | chordal (3D)"),
-    robust: str = typer.Option("none", help="none | huber | cauchy"),
+    robust: str = typer.Option("none", help="none | huber | cauchy | dcs"),
     robust_k: float = typer.Option(None, "--robust-k", help="kernel width (default: GTSAM's)", callback=positive),
     max_iterations: int = typer.Option(100, "--max-iterations", min=1),
     marginals: bool = typer.Option(False, "--marginals", help="compute marginal covariances"),
     out: Path = typer.Option(None, "--out", help="folder for the optimised graph, TUM trajectory, config and metrics.json"),
     rrd: Path = typer.Option(None, "--rrd", help="write a Rerun recording"),
     spawn: bool = typer.Option(False, "--spawn", help="open a Rerun viewer"),
+    certify: str = typer.Option("auto", "--certify", help="SE-Sync optimality certificate: auto (least squares, "
+                                "up to 40k rotation unknowns) | on | off; an uncertified result is re-solved "
+                                "from chordal (3D) / LAGO (2D) initialisation and both are reported"),
     as_json: bool = typer.Option(False, "--json", help="print one JSON object on stdout"),
 ) -> None:
-    """Optimise a pose graph; report GTSAM error, chi2, SE-Sync objective, iterations, times, ATE."""
+    """Optimise a pose graph; report GTSAM error, chi2, SE-Sync objective, iterations, times, ATE
+    and SE-Sync's optimality certificate."""
     from slamkit.backend.solvers import OptimizeConfig
     from slamkit.experiments.pose_graph import optimize_source
 
     config = OptimizeConfig(solver=solver, init=init, robust=robust, robust_k=robust_k,
                             max_iterations=max_iterations, compute_marginals=marginals)
-    report = optimize_source(source, config, out=out, keep_iterates=rrd is not None or spawn)
+    report = optimize_source(source, config, out=out, keep_iterates=rrd is not None or spawn,
+                             certify_mode=certify)
     if rrd is not None or spawn:
         from slamkit.viz.pose_graph import record_optimization
 
@@ -42,9 +47,17 @@ def optimize(
         return
     table = Table(title=f"slamkit optimize {report.dataset}", show_header=False)
     for key, value in summary.items():
-        if key == "warnings":
+        if key in ("warnings", "certificate", "retry"):
             continue
         table.add_row(key, f"{value:.6g}" if isinstance(value, float) else str(value))
+    for prefix, r in (("certificate", report), ("retry", report.retry)):
+        if r is None or r.certificate is None:
+            continue
+        if prefix == "retry":
+            table.add_row("retry init", r.init)
+            table.add_row("retry final_error", f"{r.final_error:.6g}")
+        for key, value in r.certificate.summary().items():
+            table.add_row(f"{prefix}.{key}", f"{value:.6g}" if isinstance(value, float) else str(value))
     console = Console()
     console.print(table)
     for w in report.warnings:

@@ -93,11 +93,34 @@ class PoseGraphPipeline(PipelineConfig):
     datasets: Annotated[list[str], Field(min_length=1)]
     solvers: Annotated[list[Literal["lm", "gn", "dogleg", "isam2"]], Field(min_length=1)] = ["lm"]
     inits: Annotated[list[Literal["file", "odometry", "lago", "chordal"]], Field(min_length=1)] = ["file"]
-    robust: Literal["none", "huber", "cauchy"] = "none"
+    robust: Literal["none", "huber", "cauchy", "dcs"] = "none"
+    #: SE-Sync optimality certificates: auto (least squares, up to 40k rotation unknowns), on, off
+    certify: Literal["auto", "on", "off"] = "auto"
     options: dict[str, Any] = {}
 
     def check_options(self, config: dict[str, Any], doc: YamlDocument | None, source: str) -> None:
         _nested(_optimize_options(), self.options, doc, source, ("options",))
+
+
+class PoseGraphOutliersPipeline(PipelineConfig):
+    pipeline: Literal["pose_graph_outliers"]
+    datasets: Annotated[list[str], Field(min_length=1)]
+    counts: Annotated[list[Annotated[int, Field(ge=0)]], Field(min_length=1)] = [0, 10, 100, 1000]
+    kinds: Annotated[list[Literal["random", "local", "grouped"]], Field(min_length=1)] = ["random"]
+    backends: Annotated[list[Literal["none", "huber", "cauchy", "dcs", "switchable", "gnc", "pcm", "pcm_gnc"]],
+                        Field(min_length=1)] = ["none", "huber", "cauchy", "dcs", "switchable", "gnc", "pcm", "pcm_gnc"]
+    seeds: Annotated[list[int], Field(min_length=1)] = [0]
+    #: slamkit.sim.outliers.OutlierConfig fields other than kind and count
+    outliers: dict[str, Any] = {}
+    #: slamkit.backend.robust.RobustSolveConfig fields other than backend
+    solver: dict[str, Any] = {}
+
+    def check_options(self, config: dict[str, Any], doc: YamlDocument | None, source: str) -> None:
+        from slamkit.backend.robust import RobustSolveConfig
+        from slamkit.sim.outliers import OutlierConfig
+
+        _nested(model_of(OutlierConfig), self.outliers, doc, source, ("outliers",))
+        _nested(model_of(RobustSolveConfig), self.solver, doc, source, ("solver",))
 
 
 # --- filter_vs_smoother --------------------------------------------------------------------------

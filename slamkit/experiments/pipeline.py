@@ -105,6 +105,7 @@ class _Entry:
 #: every pipeline kind by registry name
 PIPELINES: Registry[_Entry] = Registry("pipeline", {
     "pose_graph": _Entry("slamkit.experiments.pose_graph:PIPELINE"),
+    "pose_graph_outliers": _Entry("slamkit.experiments.pose_graph_outliers:PIPELINE"),
     "filter_vs_smoother": _Entry("slamkit.experiments.filter_vs_smoother:PIPELINE"),
     "local_planning": _Entry("slamkit.experiments.closed_loop:PIPELINE"),
     "lidar_slam": _Entry("slamkit.experiments.lidar_slam:PIPELINE"),

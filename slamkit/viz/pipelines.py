@@ -16,6 +16,7 @@ from slamkit.experiments.observers import NullObserver, PipelineObserver
 from slamkit.experiments.pipeline import recorder_of, register_recorder
 
 register_recorder("pose_graph", "slamkit.viz.pose_graph:PoseGraphPipelineObserver")
+register_recorder("pose_graph_outliers", "slamkit.viz.pose_graph_outliers:PoseGraphOutliersObserver")
 register_recorder("filter_vs_smoother", "slamkit.viz.filter_vs_smoother:FilterVsSmootherObserver")
 register_recorder("local_planning", "slamkit.viz.control:LocalPlanningObserver")
 register_recorder("lidar_slam", "slamkit.viz.lidar_slam:LidarSlamObserver")

@@ -76,3 +76,43 @@ def test_pose_graph_pipeline_writes_table_plots_and_recording(shared_datasets, t
     assert "| ring | lm | file |" in (out / "report.md").read_text()
     entities = verify_rrd(out / "recording.rrd")
     assert {"/ring/world/estimate", "/ring/plots/error", "/tinygrid3d/world/estimate"} <= entities
+
+
+def test_optimize_certifies_csail_at_sesyncs_optimum(shared_datasets) -> None:
+    result = CliRunner().invoke(app, ["optimize", "csail", "--json"])
+    assert result.exit_code == 0, result.output
+    data = json.loads(result.stdout)
+    cert = data["certificate"]
+    # SE-Sync, IJRR 2019, Table 1: f* = 3.170e1 (certified); GTSAM's own optimum has F = 53.49
+    assert data["certified"] is True and cert["certified"] is True
+    assert data["sesync_objective"] == pytest.approx(53.4863, rel=1e-5)
+    assert cert["objective"] == pytest.approx(31.70, abs=0.005)
+    assert cert["min_eigenvalue"] >= -1e-3 and cert["time_total_s"] > 0
+    assert data["retry"] is None
+    off = json.loads(CliRunner().invoke(app, ["optimize", "csail", "--json", "--certify", "off"]).stdout)
+    assert off["certificate"] is None and off["certify_skipped"] == "certification off"
+
+
+def twisted_cycle_g2o(path, n: int = 8) -> None:
+    """n poses at the origin with headings wound once around the circle, every edge measuring the
+    identity: a local minimum of both GTSAM's error and F (global optimum: all headings equal)."""
+    lines = [f"VERTEX_SE2 {k} 0 0 {2 * 3.141592653589793 * k / n - (2 * 3.141592653589793 if k > n // 2 else 0)}"
+             for k in range(n)]
+    lines += [f"EDGE_SE2 {k} {(k + 1) % n} 0 0 0 1 0 0 1 0 5" for k in range(n)]
+    path.write_text("\n".join(lines) + "\n")
+
+
+def test_an_uncertified_local_minimum_is_retried_from_lago(tmp_path) -> None:
+    path = tmp_path / "twisted.g2o"
+    twisted_cycle_g2o(path)
+    report = optimize_source(path, OptimizeConfig())
+    # LM stays at the planted local minimum: each edge off by pi/4, error 8 * 5 * (pi/4)^2 / 2
+    assert report.final_error == pytest.approx(8 * 5 * (3.141592653589793 / 4) ** 2 / 2, rel=1e-6)
+    assert report.certified is False
+    # lambda_min = -2 kappa (1 - cos(pi/4)) (tests/backend/test_certify.py)
+    assert report.certificate.min_eigenvalue == pytest.approx(-2 * 5 * (1 - 0.7071067811865476), rel=1e-6)
+    retry = report.retry
+    assert retry is not None and retry.init == "lago" and retry.certified is True
+    assert retry.final_error < 1e-9 and retry.certificate.objective < 1e-9
+    summary = report.summary()
+    assert summary["certified"] is False and summary["retry"]["certified"] is True

@@ -1,0 +1,104 @@
+"""The pose_graph_outliers pipeline end to end on a small sweep, its config validation, and the
+1000-outlier goals of issue 16 (slow)."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from slamkit.errors import ConfigError
+from slamkit.experiments.pipeline import run_pipeline
+
+
+def test_small_sweep_writes_runs_report_plot_and_recording(shared_datasets, tmp_path, verify_rrd) -> None:
+    from slamkit.viz.pipelines import observer_for
+
+    config = {"pipeline": "pose_graph_outliers", "name": "t", "datasets": ["ring"], "counts": [0, 20],
+              "kinds": ["random", "grouped"], "backends": ["none", "dcs"]}
+    result = run_pipeline(config, tmp_path / "out", progress=False,
+                          observer_factory=lambda kind, path: observer_for(kind, path))
+    runs = result.results["runs"]
+    # count 0 once, then 2 kinds x 1 count, each x 2 back-ends
+    assert len(runs) == 6
+    by = {(r["params"]["kind"], r["params"]["outliers"], r["estimator"]): r["metrics"] for r in runs}
+    assert by[("none", 0, "none")]["ate_rmse_m"] == pytest.approx(1.4316, abs=1e-3)
+    assert by[("none", 0, "none")]["ate_ratio"] == pytest.approx(1.0)
+    assert by[("random", 20, "none")]["ate_ratio"] > 10
+    assert by[("random", 20, "dcs")]["outlier_recall"] == 1.0
+    assert by[("random", 20, "dcs")]["ate_ratio"] == pytest.approx(1.0, abs=0.01)
+    out = result.out_dir
+    assert (out / "plots" / "ate_vs_outliers.png").stat().st_size > 10_000
+    report = (out / "report.md").read_text()
+    assert "| ring | random | 20 | dcs |" in report
+    summary = json.loads((out / "results.json").read_text())["summary"]
+    assert {"dataset", "kind", "outliers", "estimator", "metric", "mean"} <= set(summary[0])
+    entities = verify_rrd(out / "recording.rrd")
+    assert {"/plots/ate_rmse_m/ring/random/dcs", "/plots/outlier_recall/ring/grouped/dcs"} <= entities
+
+
+def test_config_errors_name_the_field(tmp_path) -> None:
+    with pytest.raises(ConfigError, match="kinds"):
+        run_pipeline({"pipeline": "pose_graph_outliers", "datasets": ["ring"], "kinds": ["everywhere"]},
+                     tmp_path / "x", progress=False)
+    with pytest.raises(ConfigError, match="backends"):
+        run_pipeline({"pipeline": "pose_graph_outliers", "datasets": ["ring"], "backends": ["ransac"]},
+                     tmp_path / "y", progress=False)
+
+
+def _goal(dataset: str, backend: str):
+    """Issue 16's goal on ``dataset`` + 1000 random false loop closures (seed 0): ``backend``'s ATE
+    ratio to the outlier-free solution and its outlier recall."""
+    import numpy as np
+
+    from slamkit.data import registry
+    from slamkit.experiments.pose_graph import ate_against
+    from slamkit.experiments.pose_graph_outliers import _solve, _trajectory, detection_scores
+    from slamkit.sim.outliers import OutlierConfig, add_outliers
+
+    graph, entry = registry.load_pose_graph_source(dataset)
+    gt = registry.ground_truth(entry.name)
+    clean = _solve(graph, "none", {})
+    bad = add_outliers(graph, OutlierConfig(kind="random", count=1000), np.random.default_rng(0), 0)
+    result = _solve(bad.graph, backend, {})
+    ratio = (ate_against(gt, _trajectory(bad.graph, result.poses))[0]
+             / ate_against(gt, _trajectory(graph, clean.poses))[0])
+    return ratio, detection_scores(bad.is_outlier, result.inlier)
+
+
+@pytest.mark.slow
+def test_goal_ring_1000_random_outliers(shared_datasets) -> None:
+    # measured: GNC-TLS ATE 1.4316 m = the outlier-free 1.4316 m, every outlier rejected, no true
+    # loop closure lost (~30 s)
+    ratio, scores = _goal("ring", "gnc")
+    assert ratio <= 1.05 and scores["outlier_recall"] >= 0.99
+    assert scores["inlier_recall"] == 1.0
+
+
+def test_a_failed_solve_is_recorded_not_fatal(shared_datasets, tmp_path, monkeypatch) -> None:
+    from slamkit.errors import BackendError
+    from slamkit.experiments import pose_graph_outliers as pgo
+
+    real = pgo._solve
+
+    def flaky(graph, backend, options):
+        if backend == "dcs":
+            raise BackendError("dcs failed: Levenberg-Marquardt gave up")
+        return real(graph, backend, options)
+
+    monkeypatch.setattr(pgo, "_solve", flaky)
+    config = {"pipeline": "pose_graph_outliers", "datasets": ["ring"], "counts": [10],
+              "backends": ["none", "dcs"], "record": False}
+    result = run_pipeline(config, tmp_path / "f", progress=False)
+    metrics = {r["estimator"]: r["metrics"] for r in result.results["runs"]}
+    assert metrics["dcs"] == {"failed": 1.0} and metrics["none"]["failed"] == 0.0
+    assert "ring / random / 10 / seed 0 / dcs: dcs failed" in (result.out_dir / "report.md").read_text()
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="goal not reached yet: manhattan-olson + 1000 random outliers (seed 0), "
+                   "GNC-TLS: ATE 23.63 m vs 0.794 m outlier-free, outlier recall 0.997, 11 true loop "
+                   "closures rejected, 1097 s; DCS: ATE 17.48 m, recall 0.996; least squares 28.9 m")
+def test_goal_manhattan_olson_1000_random_outliers(shared_datasets) -> None:
+    ratio, scores = _goal("manhattan-olson", "gnc")
+    assert ratio <= 1.05 and scores["outlier_recall"] >= 0.99
