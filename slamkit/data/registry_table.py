@@ -182,6 +182,7 @@ WHEEL_FILES: dict[str, tuple[int, str, str | None]] = {
     "VO_calibration00s.txt": (50, "3ddfb990bab2b301b86c332582ea6425a17a4ef2664957062c8089bf997012e6", None),
     "VO_camera_poses00s.txt": (15_053, "062c876b63746eb748b069628fbe9144533d904dcec79fe05874db1ffd85dcff", None),
     "VO_stereo_factors00s.txt": (3_030_190, "e66b9ce0cc4bee456961164a1c9a5e59b229675ef4610f2cc4932391c5a4fd1d", None),
+    "eqvio_processed_30s.csv": (2_665_606, "3b62cc8093e2cbb081460abfffba663a61a5a9702a382acc3a583c5d056e27af", None),
     "w20000.txt": (1_867_785, "9690b10bc2c7f2cebfb1969dd1643b5813aa3db50b40d98685c36c4eeae69c57", "c24a2c9845993f43e70032d1cdcb76befd9c5069"),
     "sphere2500.txt": (618_297, "4b9418a300e6ec3ec0a4223e13b0febb068d18f9a008ebb59c1b9f262626e552", "e39dd5901ce34c9c4a31a178fc4848ec6036ff15"),
     "sphere2500_groundtruth.txt": (633_111, "b9cfd29c951586bf9afc09bb8f88bf67b7436e6c988a3e208e126e7d77b4520a", "198279f4ff47fad3a8861c664a5bf6185c51e401"),
@@ -614,6 +615,14 @@ ENTRIES: dict[str, dict] = {
         notes="Pose id i is KITTI 00 frame i (id 0 = the origin); each line of the factors "
               "file is 'pose landmark uL uR v X Y Z' with (X, Y, Z) the landmark in that camera's frame. "
               "Read by slamkit.data.formats.gtsam_vo; scored against kitti00-gt beside kitti00-orbslam."),
+    "euroc-v101-eqvio": dict(
+        kind="visual_inertial", format="eqvio_csv", files=["gtsam_data/eqvio_processed_30s.csv"],
+        title="30 s of real EuRoC V1_01_easy: IMU at 200 Hz and tracked image features at 20 Hz "
+              "(gtsam's EqVIOFilterExample replay file)",
+        licence=LIC_GTSAM, counts=dict(imu=6001, frames=601, features=13316, tracks=307),
+        notes="Features are undistorted normalised coordinates with a track id; metadata T_ci_* is "
+              "imu_T_camera (EuRoC cam0 T_BS). Read by slamkit.data.formats.eqvio_csv; scored against "
+              "v101-gt beside v101-openvins (slamkit.experiments.visual_inertial)."),
     "kitti00-gt": dict(
         kind="trajectory", format="kitti",
         files=["reference_trajectories/KITTI_00_gt.txt", "reference_trajectories/KITTI_00_gt_times.txt"],
