@@ -108,6 +108,7 @@ PIPELINES: Registry[_Entry] = Registry("pipeline", {
     "filter_vs_smoother": _Entry("slamkit.experiments.filter_vs_smoother:PIPELINE"),
     "local_planning": _Entry("slamkit.experiments.closed_loop:PIPELINE"),
     "lidar_slam": _Entry("slamkit.experiments.lidar_slam:PIPELINE"),
+    "navigation": _Entry("slamkit.experiments.navigation:PIPELINE"),
 })
 
 

@@ -19,6 +19,7 @@ register_recorder("pose_graph", "slamkit.viz.pose_graph:PoseGraphPipelineObserve
 register_recorder("filter_vs_smoother", "slamkit.viz.filter_vs_smoother:FilterVsSmootherObserver")
 register_recorder("local_planning", "slamkit.viz.control:LocalPlanningObserver")
 register_recorder("lidar_slam", "slamkit.viz.lidar_slam:LidarSlamObserver")
+register_recorder("navigation", "slamkit.viz.navigation:NavigationObserver")
 
 
 def observer_for(kind: str, path: Path, spawn: bool = False) -> PipelineObserver:
