@@ -6,10 +6,9 @@ and tracked with a constant-velocity Kalman filter (no oracle obstacle list).
   is unexplained. Unexplained points are split into clusters in scan order wherever two
   neighbours are more than ``cluster_gap_m`` apart (the classic range-image segmentation,
   e.g. Premebida & Nunes 2005), and clusters of fewer than ``min_points`` are dropped (noise).
-  A cluster is reported as a disc: a lidar sees only the near side of a round obstacle, whose
-  visible points (angles uniform over -90..90 degrees of its surface) have their mean 2R/pi from
-  the centre, so the centre is the points' mean pushed ``2R/pi`` away from the sensor, with R half
-  the cluster's extent (at least ``min_radius_m``).
+  A cluster is reported as a disc: a lidar sees only the near side of a round obstacle, so the
+  radius R is half the cluster's extent (the visible chord; at least ``min_radius_m``) and the
+  centre lies R behind the nearest point, on the line of sight through the points' mean.
 * Tracking: one Kalman filter per track on (x, y, vx, vy) with the constant-velocity model and
   white-acceleration process noise (Bar-Shalom, Li & Kirubarajan, *Estimation with Applications
   to Tracking and Navigation*, sec. 6.3.2: Q = q [[dt^3/3, dt^2/2], [dt^2/2, dt]] per axis);
@@ -20,7 +19,6 @@ and tracked with a constant-velocity Kalman filter (no oracle obstacle list).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -80,12 +78,13 @@ def cluster_points(points_xy_m: np.ndarray, sensor_xy_m: np.ndarray, config: Det
         c = pts[labels == k]
         if len(c) < config.min_points:
             continue
-        mean = c.mean(axis=0)
         extent = float(np.linalg.norm(c.max(axis=0) - c.min(axis=0)))
         radius = float(np.clip(0.5 * extent, config.min_radius_m, config.max_radius_m))
-        away = mean - np.asarray(sensor_xy_m, float)
+        rel = c - np.asarray(sensor_xy_m, float)
+        away = rel.mean(axis=0)
         away /= max(float(np.linalg.norm(away)), 1e-9)
-        centres.append(mean + (2.0 / math.pi) * radius * away)
+        nearest = float(np.linalg.norm(rel, axis=1).min())
+        centres.append(np.asarray(sensor_xy_m, float) + (nearest + radius) * away)
         radii.append(radius)
         counts.append(len(c))
     if not centres:

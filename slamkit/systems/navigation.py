@@ -111,6 +111,12 @@ class NavigationConfig:
     controller: str = "dwa"
     controller_params: Mapping[str, Any] = field(default_factory=_course_dwa)
     cruise_speed_mps: float = 0.5
+    #: extra clearance the local planner keeps from tracks moving faster than
+    #: ``blocking_speed_mps`` (people and forklifts do not avoid the robot)
+    moving_margin_m: float = 0.25
+    #: when the local planner finds no admissible arc, take the one whose predicted contact
+    #: comes latest instead of braking in the path of a moving obstacle
+    evade: bool = True
     # -- goal
     approach_radius_m: float = 0.35
     approach_speed_mps: float = 0.15
@@ -314,16 +320,20 @@ class NavigationStack:
             if stuck:
                 self._brake_since = t
         t0 = time.perf_counter()
-        world = LocalWorld(tracks.xy_m, tracks.radius_m, tracks.velocity_mps, self.distance, t)
+        moving = np.linalg.norm(tracks.velocity_mps, axis=1) >= c.blocking_speed_mps
+        world = LocalWorld(tracks.xy_m, tracks.radius_m + c.moving_margin_m * moving, tracks.velocity_mps,
+                           self.distance, t)
         if c.uncertainty == "covariance":
             key = self._sigma_key(cov)
             if key not in self._tightened:
                 self._tightened[key] = tightened_distance(self.distance, cov, c.collision_probability)
             world = tightened_world(world, pose[:2], cov, c.collision_probability,
                                     tracks.covariance[:, :2, :2], self._tightened[key])
-        out = self.controller.compute(RobotState(pose, self._last_cmd, t),
-                                      Reference(self.path, speed_mps=c.cruise_speed_mps), world)
+        state = RobotState(pose, self._last_cmd, t)
+        out = self.controller.compute(state, Reference(self.path, speed_mps=c.cruise_speed_mps), world)
         cmd = out.command
+        if out.status is ControlStatus.FALLBACK_BRAKE and c.evade:
+            cmd = self._evade(state, world, out)
         safe = self.safe_stop_exists(pose, cmd, world)
         if not safe and not self.safe_stop_exists(pose, self._last_cmd, world):
             self.no_safe_stop_cycles += 1
@@ -333,6 +343,28 @@ class NavigationStack:
         else:
             self._brake_since = None
         return self._send(cmd, "driving" if out.status is ControlStatus.OK else out.status.value, out, safe)
+
+    def _evade(self, state: RobotState, world: LocalWorld, out: ControlOutput) -> np.ndarray:
+        """No admissible arc: rather than brake where a moving obstacle will run into the
+        robot, take the candidate whose first predicted contact comes latest (ties: the larger
+        smallest clearance); the brake if it does as well. Sampling controllers only."""
+        if out.candidates_xytheta is None or not hasattr(self.controller, "candidates"):
+            return out.command
+        cand = self.controller.candidates(state)
+        traj = out.candidates_xytheta
+        dt = self.controller.config.rollout_dt_s
+        clear = world.clearance_m(traj[..., :2], dt * np.arange(traj.shape[1])) - self.config.robot_radius_m
+        hit = clear <= 0.0
+        first = np.where(hit.any(axis=1), np.argmax(hit, axis=1), traj.shape[1])
+        key = first * 1e3 + np.clip(clear.min(axis=1), -1e2, 1e2)
+        best = int(np.argmax(key))
+        still = np.repeat(state.world_xytheta_body[None, None, :], traj.shape[1], axis=1)
+        c_still = world.clearance_m(still[..., :2], dt * np.arange(traj.shape[1])) - self.config.robot_radius_m
+        h_still = c_still[0] <= 0.0
+        first_still = int(np.argmax(h_still)) if h_still.any() else traj.shape[1]
+        if key[best] > first_still * 1e3 + np.clip(c_still.min(), -1e2, 1e2):
+            return cand[best]
+        return out.command
 
     def safe_stop_exists(self, pose: np.ndarray, command: np.ndarray, world: LocalWorld,
                          dt_s: float = 0.1) -> bool:
