@@ -183,6 +183,7 @@ def run_episode(scenario: NavigationScenario, nav_config: NavigationConfig = Nav
         "localisation_error_mean_m": float(loc_err.mean()),
         "localisation_error_max_m": float(loc_err.max()),
         "replans": float(stack.replans),
+        "recoveries": float(stack.recoveries),
         "no_safe_stop_cycles": float(stack.no_safe_stop_cycles),
         **layer_timing_summary(stack.timings_s),
         "real_time_factor": float(ts[-1] / max(compute_s, 1e-9)),
