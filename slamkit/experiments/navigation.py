@@ -98,7 +98,8 @@ class EpisodeConfig:
     #: the odometry the plant reports (the stack assumes NavigationConfig.odometry_sigma_*)
     odometry_sigma_v_mps: float = 0.02
     odometry_sigma_omega_radps: float = float(np.deg2rad(1.0))
-    #: a kidnapping: at this time the true robot is shifted by ``kidnap_xy_m`` (None: none)
+    #: a kidnapping: at this time the true robot is shifted by ``kidnap_xy_m`` in its body frame
+    #: (or the opposite way if that is in a wall; retried every cycle until one is free) (None: none)
     kidnap_at_s: float | None = None
     kidnap_xy_m: tuple[float, float] = (0.3, 0.0)
 
@@ -145,8 +146,7 @@ def run_episode(scenario: NavigationScenario, nav_config: NavigationConfig = Nav
         if stack.reached:
             break
         if config.kidnap_at_s is not None and not kidnapped and t >= config.kidnap_at_s:
-            plant.world_xytheta_body[:2] += np.asarray(config.kidnap_xy_m, float)
-            kidnapped = True
+            kidnapped = _kidnap(plant, np.asarray(config.kidnap_xy_m, float), t, r, field_m)
         t_next = t + config.dt_s
         stack.step(plant.advance(cmd, config.dt_s, t_next))
         stack.step(plant.scan(t_next))
@@ -182,6 +182,7 @@ def run_episode(scenario: NavigationScenario, nav_config: NavigationConfig = Nav
         "path_length_m": float(np.linalg.norm(np.diff(true[:, :2], axis=0), axis=1).sum()),
         "localisation_error_mean_m": float(loc_err.mean()),
         "localisation_error_max_m": float(loc_err.max()),
+        "kidnapped": float(kidnapped),
         "replans": float(stack.replans),
         "recoveries": float(stack.recoveries),
         "no_safe_stop_cycles": float(stack.no_safe_stop_cycles),
@@ -190,6 +191,22 @@ def run_episode(scenario: NavigationScenario, nav_config: NavigationConfig = Nav
     }
     return Episode(scenario.name, scenario.name.rsplit("_", 1)[0], scenario.seed, variant,
                    np.array(ts), true, est, metrics)
+
+
+def _kidnap(plant: NavigationPlant, shift_xy_m: np.ndarray, t_s: float, robot_radius_m: float,
+            field_m: np.ndarray) -> bool:
+    """Shift the true robot by ``shift_xy_m`` (in its body frame), or by the opposite shift if
+    that lands in a wall; True when one of them was free (>= 0.05 m clearance) and applied."""
+    x = plant.world_xytheta_body
+    c, s = math.cos(x[2]), math.sin(x[2])
+    world_shift = np.array([c * shift_xy_m[0] - s * shift_xy_m[1], s * shift_xy_m[0] + c * shift_xy_m[1]])
+    for sign in (1.0, -1.0):
+        before = x[:2].copy()
+        x[:2] = before + sign * world_shift
+        if min(plant.clearance_m(t_s, robot_radius_m, field_m)) >= 0.05:
+            return True
+        x[:2] = before
+    return False
 
 
 # --------------------------------------------------------------------------- the pipeline

@@ -55,3 +55,29 @@ def test_short_closed_loop_run_reaches_the_goal_within_3_cm():
     assert m["collision_static"] == 0.0 and m["collision_moving"] == 0.0
     assert m["localisation_error_max_m"] < 0.1
     assert m["replans"] >= 1
+
+
+def test_covariance_aware_costmap_inflates_by_k_sigma():
+    grid = _room()
+    stack = NavigationStack(grid, NavigationConfig(uncertainty="covariance", collision_probability=0.05))
+    fixed = NavigationStack(grid, NavigationConfig())
+    cov = np.diag([0.04**2, 0.02**2, 0.01])
+    # k sigma = 1.645 * 0.04 = 6.58 cm -> 7 cm (cached per whole centimetre); fixed: always 0
+    assert stack._sigma_key(cov) == 7 and fixed._sigma_key(cov) == 0
+    # inscribed radius 0.2 + 0.15 (+ 0.07): the cell whose centre is 0.375 m from the wall cells'
+    # centres (x = 0.1 + 0.375) is free with fixed inflation, blocked with the covariance-aware one
+    iy, ix = 40, int(round((0.1 + 0.375) / 0.05 - 0.5))
+    assert np.isfinite(fixed.cell_cost(0)[iy, ix]) and not np.isfinite(stack.cell_cost(7)[iy, ix])
+
+
+def test_safe_stop_check_on_a_braking_trajectory():
+    stack = NavigationStack(_room(), NavigationConfig(brake_decel_mps2=1.0))
+    stack.reset([1.0, 2.0, 0.0], np.diag([1e-4, 1e-4, 1e-4]))
+    from slamkit.control.protocols import LocalWorld
+
+    # braking from 0.5 m/s in 0.1 s steps covers 0.1 * 0.5 * (1 + .8 + .6 + .4 + .2) = 0.15 m, so
+    # the 0.2 m disc reaches 0.35 m ahead: a disc surface 0.40 m ahead is safe, 0.32 m is not
+    far = LocalWorld([[1.5, 2.0]], [0.1], [[0.0, 0.0]])
+    near = LocalWorld([[1.42, 2.0]], [0.1], [[0.0, 0.0]])
+    assert stack.safe_stop_exists(np.array([1.0, 2.0, 0.0]), np.array([0.5, 0.0]), far)
+    assert not stack.safe_stop_exists(np.array([1.0, 2.0, 0.0]), np.array([0.5, 0.0]), near)
