@@ -36,17 +36,15 @@ from typing import Any, Callable, Mapping
 import numpy as np
 
 from slamkit.errors import ConfigError
+from slamkit.experiments.closed_loop import start_goal_draws
 from slamkit.experiments.config_models import NavigationPipeline, seed_list
 from slamkit.experiments.observers import PipelineObserver
 from slamkit.experiments.pipeline import Pipeline, PipelineOutput, StepProgress
 from slamkit.experiments.results import ResultsFolder, RunRecord, markdown_table, summarise, summary_markdown
 from slamkit.geometry.angles import wrap_angle
 from slamkit.maps.distance_field import distance_field_m
-from slamkit.maps.generators import random_free_poses
 from slamkit.maps.inflation import costmap
-from slamkit.planning.astar import AStarPlanner
 from slamkit.planning.grid_search import costmap_to_cell_cost
-from slamkit.planning.protocols import PlanningProblem
 from slamkit.sim.moving_obstacles import crossing_obstacles
 from slamkit.sim.navigation_world import WORLDS, NavigationPlant, NavigationScenario, world_map
 from slamkit.systems.navigation import NavigationCommand, NavigationConfig, NavigationStack, layer_timing_summary
@@ -65,15 +63,7 @@ def make_navigation_scenario(seed: int, kind: str, willow_yaml: str | None = Non
     field_m = distance_field_m(grid)
     inscribed = robot_radius_m + path_margin_m
     cell_cost = costmap_to_cell_cost(costmap(grid, inscribed, max(1.0, inscribed), distance_m=field_m))
-    planner = AStarPlanner()
-    for _ in range(300):
-        poses = random_free_poses(grid, rng, 2, clearance_m=robot_radius_m + 0.5)
-        d = float(np.linalg.norm(poses[0, :2] - poses[1, :2]))
-        if not distance_m[0] <= d <= distance_m[1]:
-            continue
-        res = planner.plan(PlanningProblem(grid, poses[0, :2], poses[1, :2], cell_cost=cell_cost))
-        if not res.solved or res.length_m > 2.0 * distance_m[1]:
-            continue
+    for poses, res in start_goal_draws(grid, rng, cell_cost, robot_radius_m, distance_m, 300):
         path = res.path
         start = poses[0].copy()
         lead = path[min(10, len(path) - 1)] - path[0]
