@@ -101,17 +101,30 @@ class NavigationPlant:
         return Scan(float(t_s), self.beams, noisy, lid.max_range_m)
 
     def clearance_m(self, t_s: float, robot_radius_m: float, distance_m: np.ndarray) -> tuple[float, float]:
-        """(static, moving) distance from the robot's disc to the nearest wall (half a cell off for
-        the occupied cell's extent) and to the nearest moving disc (+inf without any)."""
+        """(static, moving) distance from the robot's disc to the nearest wall and to the nearest
+        moving disc (+inf without any). The wall distance is exact: from the robot's centre to the
+        nearest occupied cell *square* (looked up among the cells whose centres the distance field
+        puts within reach; outside the map counts as a wall)."""
         g = self.scenario.grid
-        cell = g.world_to_cell(self.world_xytheta_body[None, :2])
-        inside = bool(g.in_bounds(cell)[0])
-        d_static = float(distance_m[cell[0, 1], cell[0, 0]]) if inside else 0.0
-        d_static -= 0.5 * g.resolution_m + robot_radius_m
+        xy = self.world_xytheta_body[:2]
+        cell = g.world_to_cell(xy[None, :])
+        if not bool(g.in_bounds(cell)[0]):
+            d_static = -robot_radius_m
+        else:
+            reach = float(distance_m[cell[0, 1], cell[0, 0]]) + g.resolution_m
+            k = int(math.ceil(reach / g.resolution_m)) + 1
+            ix0, iy0 = max(cell[0, 0] - k, 0), max(cell[0, 1] - k, 0)
+            iy, ix = np.nonzero(g.occupied[iy0:cell[0, 1] + k + 1, ix0:cell[0, 0] + k + 1])
+            if len(ix) == 0:
+                d_static = reach - robot_radius_m
+            else:
+                lo = g.origin_xy_m + np.column_stack([ix + ix0, iy + iy0]) * g.resolution_m
+                gap = np.maximum(np.maximum(lo - xy, xy - (lo + g.resolution_m)), 0.0)
+                d_static = float(np.linalg.norm(gap, axis=1).min()) - robot_radius_m
         obs = self.scenario.obstacles
         d_moving = math.inf
         if len(obs):
             centres = obs.position_at(t_s)
-            d_moving = float((np.linalg.norm(centres - self.world_xytheta_body[:2], axis=1) - obs.radius_m).min())
+            d_moving = float((np.linalg.norm(centres - xy, axis=1) - obs.radius_m).min())
             d_moving -= robot_radius_m
         return d_static, d_moving

@@ -81,3 +81,20 @@ def test_safe_stop_check_on_a_braking_trajectory():
     near = LocalWorld([[1.42, 2.0]], [0.1], [[0.0, 0.0]])
     assert stack.safe_stop_exists(np.array([1.0, 2.0, 0.0]), np.array([0.5, 0.0]), far)
     assert not stack.safe_stop_exists(np.array([1.0, 2.0, 0.0]), np.array([0.5, 0.0]), near)
+
+
+def test_plant_clearance_is_the_exact_distance_to_the_wall_squares():
+    from slamkit.experiments.navigation import NavigationScenario
+    from slamkit.maps.distance_field import distance_field_m
+    from slamkit.sim.moving_obstacles import MovingObstacles
+    from slamkit.sim.navigation_world import NavigationPlant
+
+    grid = _room()  # walls: cells 0-1 (x < 0.1 m) on the left
+    sc = NavigationScenario("room", 0, grid, np.array([0.37, 2.0, 0.0]), np.array([4.0, 2.0, 0.0]),
+                            np.zeros((2, 2)), MovingObstacles.empty())
+    plant = NavigationPlant(sc, np.random.default_rng(0))
+    field = distance_field_m(grid)
+    # centre 0.37 m from x = 0: the wall surface is at x = 0.1 -> 0.27 m, minus the 0.2 m radius
+    assert plant.clearance_m(0.0, 0.2, field)[0] == pytest.approx(0.07, abs=1e-9)
+    plant.world_xytheta_body[:2] = [0.25, 0.22]  # corner: 0.15 m from the left wall, 0.12 from the bottom
+    assert plant.clearance_m(0.0, 0.2, field)[0] == pytest.approx(0.12 - 0.2, abs=1e-9)
