@@ -93,6 +93,25 @@ class EpisodeConfig:
     kidnap_at_s: float | None = None
     kidnap_xy_m: tuple[float, float] = (0.3, 0.0)
 
+    def __post_init__(self) -> None:
+        for name in ("dt_s", "max_time_s", "goal_tolerance_m", "heading_tolerance_rad"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise ConfigError(f"EpisodeConfig.{name} must be a finite number > 0, got {v!r}")
+        for name in ("initial_sigma_xy_m", "initial_sigma_theta_rad", "odometry_sigma_v_mps",
+                     "odometry_sigma_omega_radps"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+                raise ConfigError(f"EpisodeConfig.{name} must be a finite number >= 0, got {v!r}")
+        if self.max_time_s / self.dt_s > 1e6:
+            raise ConfigError("EpisodeConfig: max_time_s / dt_s above a million cycles")
+        if self.kidnap_at_s is not None and not (isinstance(self.kidnap_at_s, (int, float))
+                                                 and math.isfinite(self.kidnap_at_s)):
+            raise ConfigError(f"EpisodeConfig.kidnap_at_s must be finite or None, got {self.kidnap_at_s!r}")
+        if len(self.kidnap_xy_m) != 2 or not all(isinstance(v, (int, float)) and math.isfinite(v)
+                                                 for v in self.kidnap_xy_m):
+            raise ConfigError(f"EpisodeConfig.kidnap_xy_m must be two finite numbers, got {self.kidnap_xy_m!r}")
+
 
 @dataclass(frozen=True)
 class Episode:
@@ -202,38 +221,59 @@ def _kidnap(plant: NavigationPlant, shift_xy_m: np.ndarray, t_s: float, robot_ra
 # --------------------------------------------------------------------------- the pipeline
 
 
+def _section(value: Any, where: str) -> dict[str, Any]:
+    if value is None:
+        return {}
+    if not isinstance(value, Mapping):
+        raise ConfigError(f"{where}: expected a mapping, got {type(value).__name__}")
+    return dict(value)
+
+
 def _variants(config: Mapping[str, Any]) -> list[tuple[str, NavigationConfig, EpisodeConfig]]:
     """(name, stack config, episode config) per variant: the base ``navigation``/``episode``
     sections, each variant's overrides on top."""
-    base_nav = dict(config.get("navigation", {}) or {})
-    base_ep = dict(config.get("episode", {}) or {})
+    base_nav = _section(config.get("navigation"), "navigation")
+    base_ep = _section(config.get("episode"), "episode")
+    variants = config.get("variants", [{"name": "nominal"}])
+    if not isinstance(variants, list):
+        raise ConfigError("variants: expected a list of {name, navigation, episode}")
     out = []
-    for v in config.get("variants", [{"name": "nominal"}]):
-        v = dict(v)
-        name = str(v.pop("name"))
-        nav = _build(NavigationConfig, {**base_nav, **dict(v.get("navigation", {}) or {})}, f"variants.{name}.navigation")
-        ep = _build(EpisodeConfig, {**base_ep, **dict(v.get("episode", {}) or {})}, f"variants.{name}.episode")
+    for i, v in enumerate(variants):
+        v = _section(v, f"variants.{i}")
+        name = str(v.get("name", f"variant_{i}"))
+        nav = _build(NavigationConfig, {**base_nav, **_section(v.get("navigation"), f"variants.{name}.navigation")},
+                     f"variants.{name}.navigation")
+        ep = _build(EpisodeConfig, {**base_ep, **_section(v.get("episode"), f"variants.{name}.episode")},
+                    f"variants.{name}.episode")
         out.append((name, nav, ep))
     return out
 
 
 def _build(cls, values: Mapping[str, Any], where: str):
+    """``cls(**values)`` with the nested configs (``mcl``, ``detector``, ``tracker``) given as
+    mappings over their defaults; every failure is a ConfigError naming ``where``."""
     fields = {f.name: f for f in dataclasses.fields(cls)}
     unknown = set(values) - set(fields)
     if unknown:
-        raise ConfigError(f"{where}: unknown keys {sorted(unknown)}; known: {sorted(fields)}")
+        raise ConfigError(f"{where}: unknown keys {sorted(map(str, unknown))}; known: {sorted(fields)}")
     values = dict(values)
-    if "mcl" in values and isinstance(values["mcl"], Mapping):
-        values["mcl"] = dataclasses.replace(NavigationConfig().mcl, **values["mcl"])
-    for key in ("detector", "tracker"):
-        if key in values and isinstance(values[key], Mapping):
-            values[key] = dataclasses.replace(getattr(NavigationConfig(), key), **values[key])
-    values = {k: tuple(v) if isinstance(v, list) and isinstance(fields[k].default, tuple) else v
-              for k, v in values.items()}
     try:
+        for key in ("mcl", "detector", "tracker"):
+            if key in values:
+                nested = _section(values[key], f"{where}.{key}")
+                default = getattr(NavigationConfig(), key)
+                known = {f.name for f in dataclasses.fields(default)}
+                if set(nested) - known:
+                    raise ConfigError(f"{where}.{key}: unknown keys {sorted(map(str, set(nested) - known))}; "
+                                      f"known: {sorted(known)}")
+                values[key] = dataclasses.replace(default, **nested)
+        values = {k: tuple(v) if isinstance(v, list) and isinstance(fields[k].default, tuple) else v
+                  for k, v in values.items()}
         return cls(**values)
-    except TypeError as exc:
-        raise ConfigError(f"{where}: {exc}") from exc
+    except ConfigError as exc:
+        raise (exc if str(exc).startswith(where) else ConfigError(f"{where}: {exc}")) from None
+    except (TypeError, ValueError, ArithmeticError) as exc:
+        raise ConfigError(f"{where}: {exc}") from None
 
 
 def willow_yaml(spec: str | None) -> str:
