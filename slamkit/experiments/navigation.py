@@ -75,7 +75,6 @@ def make_navigation_scenario(seed: int, kind: str, willow_yaml: str | None = Non
     raise ConfigError(f"could not draw a start/goal pair with a path in the {kind} map (seed {seed})")
 
 
-
 @dataclass(frozen=True)
 class EpisodeConfig:
     dt_s: float = 0.1
