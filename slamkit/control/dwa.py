@@ -118,6 +118,10 @@ class DWAController:
         vv, ww = np.meshgrid(v, w, indexing="ij")
         return np.column_stack([vv.ravel(), ww.ravel()])
 
+    def rollouts(self, state: RobotState, cand: np.ndarray, steps: int) -> np.ndarray:
+        """(K, 2) candidates -> (K, steps + 1, 3) poses: each command held over the horizon."""
+        return rollout_arcs(state.world_xytheta_body, cand, self.config.rollout_dt_s, steps)
+
     def compute(self, state: RobotState, reference: Reference, world: LocalWorld) -> ControlOutput:
         if not state.finite:
             return non_finite_brake()
@@ -132,7 +136,7 @@ class DWAController:
 
         cand = self.candidates(state)
         steps = max(1, int(round(c.horizon_s / c.rollout_dt_s)))
-        traj = rollout_arcs(state.world_xytheta_body, cand, c.rollout_dt_s, steps)
+        traj = self.rollouts(state, cand, steps)
         clear = trajectory_clearance(traj, world, c.rollout_dt_s, c.robot_radius_m + c.safety_margin_m)
         dist = distance_to_collision(traj, clear, cand[:, 0], c.rollout_dt_s)
         admissible = cand[:, 0] <= np.sqrt(2.0 * dist * c.brake_decel_mps2)

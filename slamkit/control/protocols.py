@@ -22,6 +22,7 @@ from typing import Any, Mapping, Protocol, runtime_checkable
 import numpy as np
 
 from slamkit.errors import ControlError
+from slamkit.maps.distance_field import bilinear
 
 
 class ControlStatus(enum.Enum):
@@ -114,30 +115,9 @@ class DistanceGrid:
         object.__setattr__(self, "resolution_m", float(self.resolution_m))
 
     def query(self, xy_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(..., 2) points -> (distance (...), gradient (..., 2)), bilinear, vectorised."""
-        xy = np.asarray(xy_m, dtype=float)
-        shape = xy.shape[:-1]
-        p = xy.reshape(-1, 2)
-        h, w = self.distance_m.shape
-        # continuous index whose integer values are cell centres
-        g = (p - self.origin_xy_m) / self.resolution_m - 0.5
-        inside = (g[:, 0] >= -0.5) & (g[:, 0] <= w - 0.5) & (g[:, 1] >= -0.5) & (g[:, 1] <= h - 0.5)
-        gx = np.clip(g[:, 0], 0.0, w - 1.0)
-        gy = np.clip(g[:, 1], 0.0, h - 1.0)
-        x0 = np.minimum(np.floor(gx).astype(np.int64), max(w - 2, 0))
-        y0 = np.minimum(np.floor(gy).astype(np.int64), max(h - 2, 0))
-        x1 = np.minimum(x0 + 1, w - 1)
-        y1 = np.minimum(y0 + 1, h - 1)
-        fx = gx - x0
-        fy = gy - y0
-        d = self.distance_m
-        d00, d10, d01, d11 = d[y0, x0], d[y0, x1], d[y1, x0], d[y1, x1]
-        val = (d00 * (1 - fx) * (1 - fy) + d10 * fx * (1 - fy) + d01 * (1 - fx) * fy + d11 * fx * fy)
-        ddx = ((d10 - d00) * (1 - fy) + (d11 - d01) * fy) / self.resolution_m
-        ddy = ((d01 - d00) * (1 - fx) + (d11 - d10) * fx) / self.resolution_m
-        val = np.where(inside, val, 0.0)
-        grad = np.stack([np.where(inside, ddx, 0.0), np.where(inside, ddy, 0.0)], axis=-1)
-        return val.reshape(shape), grad.reshape(shape + (2,))
+        """(..., 2) points -> (distance (...), gradient (..., 2)), bilinear, vectorised
+        (:func:`slamkit.maps.distance_field.bilinear`; 0 outside the grid)."""
+        return bilinear(self.distance_m, self.resolution_m, self.origin_xy_m, xy_m, outside=0.0)
 
 
 @dataclass(frozen=True)

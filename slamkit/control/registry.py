@@ -23,6 +23,7 @@ from slamkit.control.dwa import DWAConfig, DWAController
 from slamkit.control.mpc import MPCConfig, MPCController
 from slamkit.control.potential_fields import PotentialFieldConfig, PotentialFieldController
 from slamkit.control.protocols import Controller
+from slamkit.control.trajectory_rollout import RolloutConfig, RolloutController
 from slamkit.errors import ConfigError
 from slamkit.naming import Registry
 
@@ -41,6 +42,7 @@ class ControllerSpec:
 CONTROLLERS: Registry[ControllerSpec] = Registry("controller", {
     "potential_fields": ControllerSpec(PotentialFieldController, PotentialFieldConfig, needs_rng=True),
     "dwa": ControllerSpec(DWAController, DWAConfig),
+    "rollout": ControllerSpec(RolloutController, RolloutConfig),
     "mpc": ControllerSpec(MPCController, MPCConfig, {"solver": "ipopt"}),
     "mpc_osqp": ControllerSpec(MPCController, MPCConfig, {"solver": "osqp"}),
     "mpc_fatrop": ControllerSpec(MPCController, MPCConfig, {"solver": "fatrop"}),

@@ -43,7 +43,7 @@ from slamkit.experiments.observers import PipelineObserver
 from slamkit.experiments.pipeline import Pipeline, PipelineOutput, StepProgress
 from slamkit.experiments.results import ResultsFolder, RunRecord, markdown_table, summarise, summary_markdown
 from slamkit.maps.distance_field import distance_field_m
-from slamkit.maps.generators import OfficeConfig, WarehouseConfig, office, random_free_poses, warehouse
+from slamkit.maps.generators import random_free_poses
 from slamkit.maps.inflation import costmap
 from slamkit.maps.occupancy_grid import OccupancyGrid
 from slamkit.models.diff_drive import motion
@@ -51,6 +51,7 @@ from slamkit.planning.astar import AStarPlanner
 from slamkit.planning.grid_search import costmap_to_cell_cost
 from slamkit.planning.protocols import PlanningProblem
 from slamkit.sim.moving_obstacles import MovingObstacles, crossing_obstacles
+from slamkit.sim.navigation_world import world_map
 
 SCENARIO_KINDS = ("office", "warehouse", "open")
 
@@ -105,14 +106,10 @@ def _open_room(rng: np.random.Generator, width_m: float = 16.0, height_m: float 
 
 
 def _map(kind: str, rng: np.random.Generator) -> OccupancyGrid:
-    if kind == "office":
-        return office(rng, OfficeConfig(width_m=20.0, height_m=20.0, resolution_m=0.1), name="office")
-    if kind == "warehouse":
-        return warehouse(rng, WarehouseConfig(width_m=20.0, height_m=20.0, resolution_m=0.1,
-                                              shelf_length_m=6.0, dock_depth_m=5.0, num_pallets=4),
-                         name="warehouse")
     if kind == "open":
         return _open_room(rng)
+    if kind in ("office", "warehouse"):
+        return world_map(kind, rng, resolution_m=0.1, size_m=20.0)
     raise ConfigError(f"unknown scenario kind {kind!r}; choose from {SCENARIO_KINDS}")
 
 
@@ -122,6 +119,22 @@ def _simplify(path: np.ndarray, every: int = 3) -> np.ndarray:
         return path
     keep = np.unique(np.concatenate([np.arange(0, len(path), every), [len(path) - 1]]))
     return path[keep]
+
+
+def start_goal_draws(grid: OccupancyGrid, rng: np.random.Generator, cell_cost: np.ndarray,
+                     robot_radius_m: float, distance_m: tuple[float, float], attempts: int):
+    """Yield (poses (2, 3), A* result) for start/goal pairs drawn in free space at least 0.5 m
+    beyond the robot's radius from walls, ``distance_m`` apart, with an A* path on ``cell_cost``
+    at most twice the longest distance (up to ``attempts`` draws)."""
+    planner = AStarPlanner()
+    for _attempt in range(attempts):
+        poses = random_free_poses(grid, rng, 2, clearance_m=robot_radius_m + 0.5)
+        d = float(np.linalg.norm(poses[0, :2] - poses[1, :2]))
+        if not distance_m[0] <= d <= distance_m[1]:
+            continue
+        res = planner.plan(PlanningProblem(grid, poses[0, :2], poses[1, :2], cell_cost=cell_cost))
+        if res.solved and res.length_m <= 2.0 * distance_m[1]:
+            yield poses, res
 
 
 def make_scenario(seed: int, kind: str = "office", n_obstacles: int = 3,
@@ -136,15 +149,7 @@ def make_scenario(seed: int, kind: str = "office", n_obstacles: int = 3,
     # safety margin, so a path never leads through a gap the local planner refuses to enter
     cost = costmap(grid, inscribed_radius_m=robot_radius_m + 0.15, inflation_radius_m=1.0)
     cell_cost = costmap_to_cell_cost(cost)
-    planner = AStarPlanner()
-    for _attempt in range(200):
-        poses = random_free_poses(grid, rng, 2, clearance_m=robot_radius_m + 0.5)
-        d = float(np.linalg.norm(poses[0, :2] - poses[1, :2]))
-        if not distance_m[0] <= d <= distance_m[1]:
-            continue
-        res = planner.plan(PlanningProblem(grid, poses[0, :2], poses[1, :2], cell_cost=cell_cost))
-        if not res.solved or res.length_m > 2.0 * distance_m[1]:
-            continue
+    for poses, res in start_goal_draws(grid, rng, cell_cost, robot_radius_m, distance_m, 200):
         path = _simplify(res.path)
         start = poses[0].copy()
         # start roughly facing the path, as after a global plan

@@ -202,6 +202,40 @@ class LocalPlanningPipeline(PipelineConfig):
             _nested(model_of(CONTROLLERS.get(name).config), params, doc, source, ("controller_params", name))
 
 
+# --- navigation ---------------------------------------------------------------------------------
+
+class NavigationScenarios(BaseModel):
+    model_config = STRICT
+    worlds: Annotated[list[Literal["office", "warehouse", "willow"]], Field(min_length=1)] = ["office"]
+    seeds: Seeds = 3
+    n_obstacles: Annotated[int, Field(ge=0, le=20)] = 2
+    #: world 'willow': the dataset registry's ``willow`` (default) or a map_server YAML path
+    willow_map: str | None = None
+
+
+class NavigationVariant(BaseModel):
+    model_config = STRICT
+    name: PlainName
+    navigation: dict[str, Any] = {}
+    episode: dict[str, Any] = {}
+
+
+class NavigationPipeline(PipelineConfig):
+    pipeline: Literal["navigation"]
+    scenarios: NavigationScenarios = NavigationScenarios()
+    #: NavigationConfig fields (slamkit.systems.navigation) shared by every variant
+    navigation: dict[str, Any] = {}
+    #: EpisodeConfig fields (slamkit.experiments.navigation) shared by every variant
+    episode: dict[str, Any] = {}
+    variants: Annotated[list[NavigationVariant], Field(min_length=1)] = [NavigationVariant(name="nominal")]
+    record_scenarios: Annotated[int, Field(ge=0, le=1000)] = 1
+
+    def check_options(self, config: dict[str, Any], doc: YamlDocument | None, source: str) -> None:
+        from slamkit.experiments.navigation import _variants
+
+        _variants(config)  # builds every variant's configs: unknown keys and bad values are errors
+
+
 # --- lidar_slam ----------------------------------------------------------------------------------
 
 class LogEntryModel(BaseModel):

@@ -110,6 +110,7 @@ PIPELINES: Registry[_Entry] = Registry("pipeline", {
     "local_planning": _Entry("slamkit.experiments.closed_loop:PIPELINE"),
     "lidar_slam": _Entry("slamkit.experiments.lidar_slam:PIPELINE"),
     "visual_odometry": _Entry("slamkit.experiments.visual_odometry:PIPELINE"),
+    "navigation": _Entry("slamkit.experiments.navigation:PIPELINE"),
 })
 
 

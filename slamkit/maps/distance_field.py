@@ -51,3 +51,33 @@ def distance_at(grid: OccupancyGrid, field_m: np.ndarray, world_xy_m: np.ndarray
     out = np.full(len(cells), float(outside_m))
     out[ok] = field_m[cells[ok, 1], cells[ok, 0]]
     return out
+
+
+def bilinear(field_m: np.ndarray, resolution_m: float, origin_xy_m: np.ndarray, xy_m: np.ndarray,
+             outside: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """(..., 2) points -> (value (...), gradient (..., 2)) of a field sampled at cell centres,
+    interpolated bilinearly between them (vectorised). Points outside the grid get ``outside``
+    and a zero gradient; within half a cell of the border the edge values are held."""
+    xy = np.asarray(xy_m, dtype=float)
+    shape = xy.shape[:-1]
+    p = xy.reshape(-1, 2)
+    d = np.asarray(field_m, dtype=float)
+    h, w = d.shape
+    # continuous index whose integer values are cell centres
+    g = (p - np.asarray(origin_xy_m, float)) / resolution_m - 0.5
+    inside = (g[:, 0] >= -0.5) & (g[:, 0] <= w - 0.5) & (g[:, 1] >= -0.5) & (g[:, 1] <= h - 0.5)
+    gx = np.clip(g[:, 0], 0.0, w - 1.0)
+    gy = np.clip(g[:, 1], 0.0, h - 1.0)
+    x0 = np.minimum(np.floor(gx).astype(np.int64), max(w - 2, 0))
+    y0 = np.minimum(np.floor(gy).astype(np.int64), max(h - 2, 0))
+    x1 = np.minimum(x0 + 1, w - 1)
+    y1 = np.minimum(y0 + 1, h - 1)
+    fx = gx - x0
+    fy = gy - y0
+    d00, d10, d01, d11 = d[y0, x0], d[y0, x1], d[y1, x0], d[y1, x1]
+    val = (d00 * (1 - fx) * (1 - fy) + d10 * fx * (1 - fy) + d01 * (1 - fx) * fy + d11 * fx * fy)
+    ddx = ((d10 - d00) * (1 - fy) + (d11 - d01) * fy) / resolution_m
+    ddy = ((d01 - d00) * (1 - fx) + (d11 - d10) * fx) / resolution_m
+    val = np.where(inside, val, outside)
+    grad = np.stack([np.where(inside, ddx, 0.0), np.where(inside, ddy, 0.0)], axis=-1)
+    return val.reshape(shape), grad.reshape(shape + (2,))

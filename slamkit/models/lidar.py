@@ -204,6 +204,7 @@ class LikelihoodFieldModel:
         world_to_cell: Callable[[np.ndarray], np.ndarray],
         body_xytheta_sensor=(0.0, 0.0, 0.0),
         outside_distance_m: float = np.inf,
+        field_lookup: Callable[[np.ndarray], np.ndarray] | None = None,
     ) -> np.ndarray:
         """Per-particle log-likelihood (P,) of one scan for poses (P, 3) (or (3,) -> scalar).
 
@@ -211,7 +212,9 @@ class LikelihoodFieldModel:
         ``world_to_cell((N, 2) world xy) -> (N, 2) integer (ix, iy)`` (as
         ``OccupancyGrid.world_to_cell``). End points outside the field get
         ``outside_distance_m`` (default inf: only the random component explains them).
-        Max-range and NaN beams are skipped (Table 6.3, line 4).
+        Max-range and NaN beams are skipped (Table 6.3, line 4). ``field_lookup((N, 2) world
+        xy) -> (N,)`` replaces the nearest-cell lookup (e.g. bilinear interpolation of the field,
+        which removes the half-cell quantisation of the end points' distances).
         """
         x = np.asarray(world_xytheta_body, dtype=float)
         r = np.asarray(ranges_m, dtype=float)
@@ -221,12 +224,18 @@ class LikelihoodFieldModel:
             raise ConfigError(f"ranges_m {r.shape} and angles_rad {a.shape} must be equal 1-D shapes")
         valid = np.isfinite(r) & (r < max_range_m)
         pts = scan_endpoints(x, r[valid], a[valid], body_xytheta_sensor)  # (..., Bv, 2)
+        if field_lookup is not None:
+            dist = np.asarray(field_lookup(pts.reshape(-1, 2)), float).reshape(pts.shape[:-1])
+            return self._log_p(dist, max_range_m)
         cells = np.asarray(world_to_cell(pts.reshape(-1, 2))).reshape(pts.shape).astype(np.int64)
         h, w = field.shape
         ix, iy = cells[..., 0], cells[..., 1]
         inside = (ix >= 0) & (ix < w) & (iy >= 0) & (iy < h)
         dist = np.full(ix.shape, float(outside_distance_m))
         dist[inside] = field[iy[inside], ix[inside]]
+        return self._log_p(dist, max_range_m)
+
+    def _log_p(self, dist: np.ndarray, max_range_m: float) -> np.ndarray:
         s = self.sigma_hit_m
         p = self.z_hit * np.exp(-0.5 * (dist / s) ** 2) / (s * _SQRT_2PI) + self.z_rand / max_range_m
         return np.sum(np.log(p), axis=-1)

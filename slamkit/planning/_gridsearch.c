@@ -11,10 +11,12 @@
  * the Python headers (no numpy headers). The Python side allocates every array.
  *
  *   search(cost, height, width, start, goal, connectivity, corner_cutting, heuristic, h_scale,
- *          g_out, parent_out, path_out, order_out)
+ *          g_out, parent_out, path_out, order_out[, enter_cost])
  *       -> (goal_cost, path_len, expansions, n_order, opened)
  *
  * cost       float64[H*W]  traversal multiplier per cell, +inf = blocked (must be >= 0)
+ * enter_cost 0 (default): a move costs step * the mean of its two cells' multipliers;
+ *            1: step * the multiplier of the cell it enters (the textbook grid model)
  * heuristic  0 zero, 1 euclidean, 2 manhattan, 3 octile, 4 chebyshev  (in cells, times h_scale)
  * g_out      float64[H*W]  cost-to-come of every closed / opened cell (inf elsewhere)
  * parent_out int64[H*W]    predecessor (-1 for none)
@@ -117,7 +119,8 @@ static inline __attribute__((always_inline)) double heur(int kind, int64_t x, in
 /* The search proper; returns 1 when out of memory. */
 static inline __attribute__((always_inline)) int run(
         const int hkind, const double *cost, Py_ssize_t H, Py_ssize_t W, Py_ssize_t start,
-        Py_ssize_t goal, int conn, int corner_cutting, double hscale, double *g, int64_t *parent,
+        Py_ssize_t goal, int conn, int corner_cutting, int enter_cost, double hscale, double *g,
+        int64_t *parent,
         int64_t *path, int64_t *order, double *goal_cost_out, Py_ssize_t *path_len_out,
         Py_ssize_t *expansions_out, Py_ssize_t *n_order_out, Py_ssize_t *opened_out) {
     /* neighbour offsets: the 4 straight moves first, then the diagonals */
@@ -161,7 +164,7 @@ static inline __attribute__((always_inline)) int run(
                         (!isfinite(cost[uy * W + vx]) || !isfinite(cost[vy * W + ux]))) continue;
                     step = M_SQRT2;
                 }
-                const double ng = gu + step * 0.5 * (cu + cv);
+                const double ng = gu + step * (enter_cost ? cv : 0.5 * (cu + cv));
                 if (ng < g[v]) {
                     if (g[v] == INFINITY) opened++;
                     g[v] = ng;
@@ -200,10 +203,11 @@ static int get_buf(PyObject *obj, Py_buffer *view, Py_ssize_t nbytes, int writab
 static PyObject *search(PyObject *self, PyObject *args) {
     PyObject *cost_o, *g_o, *parent_o, *path_o, *order_o;
     Py_ssize_t H, W, start, goal;
-    int conn, corner_cutting, hkind;
+    int conn, corner_cutting, hkind, enter_cost = 0;
     double hscale;
-    if (!PyArg_ParseTuple(args, "OnnnniiidOOOO", &cost_o, &H, &W, &start, &goal, &conn,
-                          &corner_cutting, &hkind, &hscale, &g_o, &parent_o, &path_o, &order_o))
+    if (!PyArg_ParseTuple(args, "OnnnniiidOOOO|i", &cost_o, &H, &W, &start, &goal, &conn,
+                          &corner_cutting, &hkind, &hscale, &g_o, &parent_o, &path_o, &order_o,
+                          &enter_cost))
         return NULL;
     Py_ssize_t N = H * W;
     if (H <= 0 || W <= 0 || N >= 4294967295LL || start < 0 || start >= N || goal < 0 || goal >= N) {
@@ -236,7 +240,7 @@ static PyObject *search(PyObject *self, PyObject *args) {
     Py_BEGIN_ALLOW_THREADS
     /* one copy of the loop per heuristic, so the heuristic switch is resolved at compile time */
     switch (hkind) {
-#define CALL(K) case K: oom = run(K, cost, H, W, start, goal, conn, corner_cutting, hscale, g, parent, \
+#define CALL(K) case K: oom = run(K, cost, H, W, start, goal, conn, corner_cutting, enter_cost, hscale, g, parent, \
                                   path, order, &goal_cost, &path_len, &expansions, &n_order, &opened); break;
         CALL(1) CALL(2) CALL(3) CALL(4)
         default: CALL(0)

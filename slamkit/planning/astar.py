@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from slamkit.planning.grid_search import HEURISTICS, search, setup_grid_problem
+from slamkit.planning.grid_search import HEURISTICS, check_edge_cost, search, setup_grid_problem
 from slamkit.planning.protocols import (Hook, PlanEvent, PlanResult, PlanStats, PlanStatus,
                                         PlanningProblem, failed)
 from slamkit.errors import PlanningError
@@ -30,8 +30,11 @@ class AStarConfig:
     corner_cutting: bool = False
     heuristic_weight: float = 1.0   # > 1: weighted A* (bounded suboptimal by this factor)
     hook_batches: int = 50          # expansion events sent to a hook per search
+    #: "mean": a move costs the mean of its two cells' multipliers; "enter": the cell it enters
+    edge_cost: str = "mean"
 
     def __post_init__(self) -> None:
+        check_edge_cost(self.edge_cost)
         if self.heuristic not in HEURISTICS:
             raise PlanningError(f"unknown heuristic {self.heuristic!r}; choose from {sorted(HEURISTICS)}")
         if self.connectivity not in (4, 8):
@@ -64,7 +67,8 @@ class AStarPlanner:
         cfg = self.config
         hscale = cfg.heuristic_weight * setup.min_cost
         out = search(setup.cell_cost, setup.start_ixy, setup.goal_ixy, cfg.connectivity,
-                     cfg.corner_cutting, cfg.heuristic, hscale, record_order=self.hook is not None)
+                     cfg.corner_cutting, cfg.heuristic, hscale, record_order=self.hook is not None,
+                     edge_cost=cfg.edge_cost)
         elapsed = time.perf_counter() - t0
         grid = setup.grid
         if self.hook is not None and out.order is not None:

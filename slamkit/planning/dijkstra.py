@@ -19,6 +19,7 @@ class DijkstraConfig:
     connectivity: int = 8
     corner_cutting: bool = False
     hook_batches: int = 50
+    edge_cost: str = "mean"   # or "enter" (see slamkit.planning.grid_search)
 
 
 class DijkstraPlanner(AStarPlanner):
@@ -27,5 +28,6 @@ class DijkstraPlanner(AStarPlanner):
     def __init__(self, config: DijkstraConfig = DijkstraConfig(), hook: Hook | None = None):
         super().__init__(AStarConfig(heuristic="zero", connectivity=config.connectivity,
                                      corner_cutting=config.corner_cutting,
-                                     hook_batches=config.hook_batches), hook)
+                                     hook_batches=config.hook_batches,
+                                     edge_cost=config.edge_cost), hook)
         self.dijkstra_config = config

@@ -31,7 +31,7 @@ import numpy as np
 
 from slamkit.errors import PlanningError
 from slamkit.planning.astar import report_expansions
-from slamkit.planning.grid_search import setup_grid_problem
+from slamkit.planning.grid_search import check_edge_cost, setup_grid_problem
 from slamkit.planning.protocols import (Hook, PlanResult, PlanStats, PlanStatus, PlanningProblem,
                                         failed)
 
@@ -45,8 +45,13 @@ class DStarLiteConfig:
     connectivity: int = 8
     corner_cutting: bool = False
     hook_batches: int = 50
+    #: "mean" or "enter" (see slamkit.planning.grid_search); with "enter" the graph is directed
+    #: (c(u, v) = step * cost(v)): rhs and the path walk use the successor costs, and a changed
+    #: cell's incoming edges start at its 8 neighbours, which ``update`` already touches
+    edge_cost: str = "mean"
 
     def __post_init__(self) -> None:
+        check_edge_cost(self.edge_cost)
         if self.connectivity not in (4, 8):
             raise PlanningError(f"connectivity must be 4 or 8, got {self.connectivity}")
 
@@ -68,8 +73,10 @@ class DStarLitePlanner:
         return self._hscale * (max(dx, dy) + (_SQRT2 - 1.0) * min(dx, dy))
 
     def _neighbours(self, u: int):
-        """(v, edge cost) for the finite-cost edges out of u (symmetric graph)."""
+        """(v, edge cost c(u, v)) for the finite-cost edges out of u (the neighbour sets are
+        symmetric; the costs too unless ``edge_cost`` is "enter")."""
         w, h, cost = self._w, self._hgt, self._cost
+        enter = self.config.edge_cost == "enter"
         cu = cost[u]
         if cu == math.inf:
             return
@@ -87,7 +94,7 @@ class DStarLitePlanner:
                 if not self.config.corner_cutting and (cost[uy * w + vx] == math.inf or cost[vy * w + ux] == math.inf):
                     continue
                 step = _SQRT2
-            yield v, step * 0.5 * (cu + cv)
+            yield v, step * (cv if enter else 0.5 * (cu + cv))
 
     # ---------------------------------------------------------------- queue
     def _key(self, s: int) -> tuple[float, float]:

@@ -1,7 +1,10 @@
 """Best-first search on 4/8-connected grids: the shared core of A* and Dijkstra.
 
 Graph: one vertex per free cell; straight moves cost 1, diagonal moves sqrt(2) (times the
-resolution and the mean of the two cells' traversal multipliers). Without corner cutting a
+resolution and a traversal multiplier). ``edge_cost`` says which multiplier: ``"mean"`` (the
+default) the mean of the two cells' multipliers, a symmetric graph; ``"enter"`` the multiplier of
+the cell the move enters, the textbook grid model in which a cell's cost is paid on entering it
+(the start cell's cost is never paid, the goal cell's is). Without corner cutting a
 diagonal move needs both orthogonally adjacent cells free - the rule of the MovingAI benchmark
 (Sturtevant, "Benchmarks for Grid-Based Pathfinding", IEEE TCIAIG 4(2), 2012).
 
@@ -24,6 +27,15 @@ from slamkit.errors import PlanningError
 from slamkit.planning import _native
 
 HEURISTICS = {"zero": 0, "euclidean": 1, "manhattan": 2, "octile": 3, "chebyshev": 4}
+#: how a move is charged: the mean of its two cells' multipliers, or the multiplier of the cell entered
+EDGE_COSTS = ("mean", "enter")
+
+
+def check_edge_cost(edge_cost: str) -> bool:
+    """Validate an ``edge_cost`` name; True for the enter-cell model."""
+    if edge_cost not in EDGE_COSTS:
+        raise PlanningError(f"unknown edge_cost {edge_cost!r}; choose from {list(EDGE_COSTS)}")
+    return edge_cost == "enter"
 
 
 @dataclass(frozen=True)
@@ -60,12 +72,14 @@ def heuristic_code(name: str) -> int:
 def search(cell_cost: np.ndarray, start_ixy: tuple[int, int], goal_ixy: tuple[int, int],
            connectivity: int = 8, corner_cutting: bool = False, heuristic: str = "octile",
            heuristic_scale: float | None = None, record_order: bool = False,
-           use_native: bool = True) -> SearchOutput:
+           use_native: bool = True, edge_cost: str = "mean") -> SearchOutput:
     """Search ``cell_cost`` (H, W) (multiplier >= 0, inf = blocked) from start to goal cell.
 
     ``heuristic_scale`` multiplies the heuristic in cells; by default the smallest finite
     multiplier, which keeps Euclidean/octile/Chebyshev admissible (Manhattan only on
-    4-connected grids). Values > that give weighted A* (faster, suboptimal)."""
+    4-connected grids). Values > that give weighted A* (faster, suboptimal). ``edge_cost``: see
+    the module docstring."""
+    enter = check_edge_cost(edge_cost)
     if connectivity not in (4, 8):
         raise PlanningError(f"connectivity must be 4 or 8, got {connectivity}")
     cost = np.ascontiguousarray(cell_cost, dtype=np.float64)
@@ -83,7 +97,7 @@ def search(cell_cost: np.ndarray, start_ixy: tuple[int, int], goal_ixy: tuple[in
     mod = _native.gridsearch() if use_native else None
     if mod is None:
         return search_python(cost, s, t, connectivity, corner_cutting, hkind, heuristic_scale,
-                             record_order)
+                             record_order, enter)
     n = h * w
     g = np.empty(n)
     parent = np.empty(n, dtype=np.int64)
@@ -91,7 +105,7 @@ def search(cell_cost: np.ndarray, start_ixy: tuple[int, int], goal_ixy: tuple[in
     order = np.empty(n, dtype=np.int64) if record_order else None
     goal_cost, path_len, expansions, n_order, opened = mod.search(
         cost.reshape(-1), h, w, s, t, connectivity, int(corner_cutting), hkind,
-        float(heuristic_scale), g, parent, path, order)
+        float(heuristic_scale), g, parent, path, order, int(enter))
     return SearchOutput(goal_cost, path[:path_len].copy(), expansions, g,
                         None if order is None else order[:n_order].copy(), opened)
 
@@ -102,7 +116,7 @@ _DY = (0, 0, 1, -1, 1, -1, 1, -1)
 
 def search_python(cost: np.ndarray, start: int, goal: int, connectivity: int = 8,
                   corner_cutting: bool = False, hkind: int = 3, hscale: float = 1.0,
-                  record_order: bool = False) -> SearchOutput:
+                  record_order: bool = False, enter_cost: bool = False) -> SearchOutput:
     """The same search as the C core, in plain Python with ``heapq`` (flat indices, lists)."""
     h, w = cost.shape
     flat = cost.reshape(-1).tolist()
@@ -158,7 +172,7 @@ def search_python(cost: np.ndarray, start: int, goal: int, connectivity: int = 8
                 if not corner_cutting and (not free[uy * w + vx] or not free[vy * w + ux]):
                     continue
                 step = sqrt2
-            ng = gu + step * 0.5 * (cu + flat[v])
+            ng = gu + step * (flat[v] if enter_cost else 0.5 * (cu + flat[v]))
             if ng < g[v]:
                 g[v] = ng
                 parent[v] = u

@@ -7,7 +7,9 @@ S. Karaman and E. Frazzoli, "Sampling-based Algorithms for Optimal Motion Planni
     gamma_RRT* = rewire_factor * 2 (1 + 1/d)^(1/d) (mu(X) / zeta_d)^(1/d)        (Thm. 38)
 
 (mu(X): measure of the space - OMPL uses the same upper bound of mu(X_free); zeta_d: volume of
-the unit d-ball) that gives it the cheapest cost-to-come, then every neighbour that would be
+the unit d-ball). ``RRTStarConfig.gamma`` sets gamma_RRT* directly instead (the course's
+r_n = gamma (log n / n)^(1/d) with gamma = 5); below the bound of Thm. 38 the planner is still
+correct but no longer guaranteed asymptotically optimal. that gives it the cheapest cost-to-come, then every neighbour that would be
 cheaper through x_new is rewired to it; cost changes propagate to the rewired subtrees. The
 goal is a sink: any vertex within ``max_step`` of it with a free straight motion offers a
 solution, and the best one is tracked as rewiring lowers costs, so the returned cost keeps
@@ -33,6 +35,8 @@ class RRTStarConfig:
     max_step: float | None = None     # None: 20% of the world's extent (OMPL's default range)
     goal_bias: float = 0.05
     rewire_factor: float = 1.1        # OMPL's default: 10% above the theoretical bound
+    #: gamma_RRT* itself (same units as the space's distance); None: computed from rewire_factor
+    gamma: float | None = None
     stop_at_first_solution: bool = False
     hook_every: int = 100
 
@@ -43,6 +47,8 @@ class RRTStarConfig:
             raise PlanningError(f"goal_bias must be in [0, 1], got {self.goal_bias}")
         if self.rewire_factor < 1.0:
             raise PlanningError("rewire_factor < 1 loses asymptotic optimality")
+        if self.gamma is not None and not (math.isfinite(self.gamma) and self.gamma > 0):
+            raise PlanningError(f"gamma must be a positive finite number or None, got {self.gamma}")
 
 
 def unit_ball_volume(d: int) -> float:
@@ -51,6 +57,11 @@ def unit_ball_volume(d: int) -> float:
 
 def gamma_rrt_star(measure: float, d: int, rewire_factor: float = 1.1) -> float:
     return rewire_factor * 2.0 * (1.0 + 1.0 / d) ** (1.0 / d) * (measure / unit_ball_volume(d)) ** (1.0 / d)
+
+
+def connection_radius(gamma: float, n: int, d: int, max_step: float) -> float:
+    """r_n = min(gamma (log n / n)^(1/d), max_step) for a tree of n vertices."""
+    return min(gamma * (math.log(n) / n) ** (1.0 / d), max_step)
 
 
 class RRTStarPlanner(SamplingPlanner):
@@ -80,7 +91,7 @@ class RRTStarPlanner(SamplingPlanner):
         self._block_pts, self._block_i = np.zeros((0, d)), 0
         eta = cfg.max_step or default_step(world)
         tol = problem.goal_tolerance
-        gamma = gamma_rrt_star(world.measure, d, cfg.rewire_factor)
+        gamma = cfg.gamma if cfg.gamma is not None else gamma_rrt_star(world.measure, d, cfg.rewire_factor)
         tree = Tree(start, capacity=min(cfg.max_iterations + 2, 1 << 16))
         children: list[list[int]] = [[]]
         goal_idx: list[int] = []          # vertices offering a solution ...
@@ -112,7 +123,7 @@ class RRTStarPlanner(SamplingPlanner):
                 continue
             if d_all is None:
                 d_all = world.distance(x_new, nodes)
-            r = min(gamma * (math.log(n + 1) / (n + 1)) ** (1.0 / d), eta)
+            r = connection_radius(gamma, n + 1, d, eta)
             near = np.flatnonzero(d_all <= r)
             if d_all[i_nearest] > r:
                 near = np.append(near, i_nearest)

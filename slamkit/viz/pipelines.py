@@ -21,6 +21,7 @@ register_recorder("filter_vs_smoother", "slamkit.viz.filter_vs_smoother:FilterVs
 register_recorder("local_planning", "slamkit.viz.control:LocalPlanningObserver")
 register_recorder("lidar_slam", "slamkit.viz.lidar_slam:LidarSlamObserver")
 register_recorder("visual_odometry", "slamkit.viz.visual_odometry:VisualOdometryObserver")
+register_recorder("navigation", "slamkit.viz.navigation:NavigationObserver")
 
 
 def observer_for(kind: str, path: Path, spawn: bool = False) -> PipelineObserver:

@@ -65,8 +65,8 @@ def test_never_raises_in_a_crowded_world(ctl):
 # --------------------------------------------------------------------------- the registry
 
 
-def test_registry_names_the_five_controllers_and_each_builds_under_its_name():
-    assert CONTROLLERS.names() == ["potential_fields", "dwa", "mpc", "mpc_osqp", "mpc_fatrop"]
+def test_registry_names_the_six_controllers_and_each_builds_under_its_name():
+    assert CONTROLLERS.names() == ["potential_fields", "dwa", "rollout", "mpc", "mpc_osqp", "mpc_fatrop"]
     for name in CONTROLLERS:
         assert NAME_RULE.match(name)
         ctl = make_controller(name)

@@ -18,7 +18,7 @@ from slamkit.naming import SlamkitDeprecationWarning
 
 def test_every_pipeline_declares_its_name_model_and_payload() -> None:
     assert PIPELINES.names() == ["pose_graph", "pose_graph_outliers", "filter_vs_smoother", "local_planning",
-                                 "lidar_slam", "visual_odometry"]
+                                 "lidar_slam", "visual_odometry", "navigation"]
     for name in PIPELINES:
         p = pipeline_of(name)
         assert isinstance(p, Pipeline) and p.name == name
@@ -31,8 +31,8 @@ def test_importing_the_pipeline_module_imports_no_pipeline() -> None:
     code = ("import sys, slamkit.experiments.pipeline; "
             "print(sorted(m for m in ('slamkit.experiments.pose_graph', 'slamkit.experiments.filter_vs_smoother', "
             "'slamkit.experiments.closed_loop', 'slamkit.experiments.lidar_slam', "
-            "'slamkit.experiments.pose_graph_outliers', 'slamkit.experiments.visual_odometry') "
-            "if m in sys.modules))")
+            "'slamkit.experiments.pose_graph_outliers', 'slamkit.experiments.visual_odometry', "
+            "'slamkit.experiments.navigation') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"
 

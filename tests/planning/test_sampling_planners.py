@@ -19,7 +19,7 @@ from slamkit.planning.protocols import PlanningProblem, PlanStatus
 from slamkit.naming import SlamkitDeprecationWarning
 from slamkit.planning.registry import GRID_PLANNERS, make_planner, planner_names
 from slamkit.planning.rrt import RRTConfig, RRTPlanner
-from slamkit.planning.rrt_star import RRTStarConfig, RRTStarPlanner, gamma_rrt_star
+from slamkit.planning.rrt_star import RRTStarConfig, RRTStarPlanner, connection_radius, gamma_rrt_star
 from slamkit.planning.worlds import PointWorld, SE2World, points_in_polygon
 
 SAMPLING = [n for n in planner_names() if n not in GRID_PLANNERS]
@@ -123,6 +123,26 @@ def test_gamma_matches_karaman_frazzoli():
     # d = 2, mu = 100: 2 (3/2)^(1/2) (100 / pi)^(1/2) = 13.82 before OMPL's 1.1 factor
     assert gamma_rrt_star(100.0, 2, 1.0) == pytest.approx(2 * math.sqrt(1.5) * math.sqrt(100 / math.pi))
     assert gamma_rrt_star(100.0, 2, 1.0) == pytest.approx(13.8198, abs=1e-4)
+
+
+def test_gamma_settable_as_in_the_course():
+    # the course's gamma = 5 in 2D: r_100 = 5 sqrt(ln 100 / 100) = 1.0730 m, capped by max_step
+    assert connection_radius(5.0, 100, 2, 10.0) == pytest.approx(1.07298, abs=1e-5)
+    assert connection_radius(5.0, 100, 2, 0.5) == 0.5
+    # an explicit gamma equal to the computed one is the same planner, draw for draw
+    world = _cluttered()
+    problem = PlanningProblem(world, [0.5, 0.5], [9.5, 9.5])
+    cfg = RRTStarConfig(max_iterations=600)
+    same = RRTStarConfig(max_iterations=600, gamma=gamma_rrt_star(world.measure, 2, cfg.rewire_factor))
+    a = RRTStarPlanner(cfg, rng=np.random.default_rng(4)).plan(problem)
+    b = RRTStarPlanner(same, rng=np.random.default_rng(4)).plan(problem)
+    np.testing.assert_array_equal(a.path, b.path)
+    # gamma = 5 (below the 15.2 bound of this 100 m^2 world) still solves, with a smaller radius
+    small = RRTStarPlanner(RRTStarConfig(max_iterations=600, gamma=5.0), rng=np.random.default_rng(4)).plan(problem)
+    assert small.solved and small.cost >= float(np.linalg.norm(problem.goal - problem.start))
+    for bad in (0.0, -1.0, float("nan")):
+        with pytest.raises(PlanningError, match="gamma"):
+            RRTStarConfig(gamma=bad)
 
 
 def test_rrt_star_cost_history_decreases():

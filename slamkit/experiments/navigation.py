@@ -1,0 +1,387 @@
+"""End-to-end navigation on an estimated pose (``pipelines/navigation.yaml``, pipeline kind
+``navigation``): the experiment closes the loop between the simulator
+(:mod:`slamkit.sim.navigation_world`) and the navigation stack
+(:class:`slamkit.systems.navigation.NavigationStack`), and scores it against the ground truth the
+stack never sees.
+
+One control cycle (``dt_s`` = 0.1 s): the stack answers a velocity command from its belief; the
+plant executes it exactly for dt; the odometry of that period (the command plus Gaussian noise)
+and a lidar scan at the new pose go to the stack. An episode ends when the stack says it has
+reached the goal pose, on a collision, or after ``max_time_s``.
+
+Scenarios (:func:`make_navigation_scenario`): a seeded map (generated 20 m office or warehouse at
+5 cm, or the real Willow Garage map at 10 cm), start and goal poses 6-14 m apart with an A* path
+on the costmap, and ``n_obstacles`` discs (people, a forklift) crossing that path timed to meet
+the robot. The robot's map is the world's grid (the issue's "map built offline by slamkit's lidar
+SLAM" is not wired in: see the report).
+
+Metrics per episode (units in the names): ``success`` (the stack stopped within
+``goal_tolerance_m`` of the goal position and ``heading_tolerance_rad`` of its heading, by the
+truth, without a collision), ``final_position_error_m``, ``final_heading_error_rad``,
+``collision_static`` / ``collision_moving`` (0/1), ``min_clearance_static_m`` /
+``min_clearance_moving_m``, ``time_s``, ``path_length_m``, ``localisation_error_mean_m`` /
+``_max_m`` (estimate vs truth over the run), ``replans``, ``no_safe_stop_cycles``, and per layer
+``<layer>_median_ms`` / ``<layer>_p99_ms`` with ``real_time_factor`` (simulated time over the
+stack's compute time).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Mapping
+
+import numpy as np
+
+from slamkit.errors import ConfigError
+from slamkit.experiments.closed_loop import start_goal_draws
+from slamkit.experiments.config_models import NavigationPipeline, seed_list
+from slamkit.experiments.observers import PipelineObserver
+from slamkit.experiments.pipeline import Pipeline, PipelineOutput, StepProgress
+from slamkit.experiments.results import ResultsFolder, RunRecord, markdown_table, summarise, summary_markdown
+from slamkit.geometry.angles import wrap_angle
+from slamkit.maps.distance_field import distance_field_m
+from slamkit.maps.inflation import costmap
+from slamkit.planning.grid_search import costmap_to_cell_cost
+from slamkit.sim.moving_obstacles import crossing_obstacles
+from slamkit.sim.navigation_world import WORLDS, NavigationPlant, NavigationScenario, world_map
+from slamkit.systems.navigation import NavigationCommand, NavigationConfig, NavigationStack, layer_timing_summary
+
+def make_navigation_scenario(seed: int, kind: str, willow_yaml: str | None = None,
+                             robot_radius_m: float = 0.2, distance_m: tuple[float, float] = (6.0, 14.0),
+                             n_obstacles: int = 2, obstacle_speed_mps: tuple[float, float] = (0.2, 0.6),
+                             obstacle_radius_m: tuple[float, float] = (0.25, 0.45),
+                             nominal_speed_mps: float = 0.4, path_margin_m: float = 0.15) -> NavigationScenario:
+    """A seeded scenario: start and goal poses in free space ``distance_m`` apart with an A*
+    path on the costmap (inscribed radius robot + ``path_margin_m``), and ``n_obstacles`` discs
+    (people of radius ~0.25 m, a forklift up to ~0.45 m) crossing the path, timed to meet a
+    robot driving it at ``nominal_speed_mps``."""
+    rng = np.random.default_rng(seed)
+    grid = world_map(kind, rng, willow_yaml)
+    field_m = distance_field_m(grid)
+    inscribed = robot_radius_m + path_margin_m
+    cell_cost = costmap_to_cell_cost(costmap(grid, inscribed, max(1.0, inscribed), distance_m=field_m))
+    for poses, res in start_goal_draws(grid, rng, cell_cost, robot_radius_m, distance_m, 300):
+        path = res.path
+        start = poses[0].copy()
+        lead = path[min(10, len(path) - 1)] - path[0]
+        start[2] = math.atan2(lead[1], lead[0]) + rng.uniform(-0.5, 0.5)
+        obstacles = crossing_obstacles(path, n_obstacles, rng, grid=grid, speed_mps=obstacle_speed_mps,
+                                       radius_m=obstacle_radius_m, nominal_speed_mps=nominal_speed_mps,
+                                       min_side_m=1.0)
+        return NavigationScenario(f"{kind}_{seed}", seed, grid, start, poses[1].copy(), path, obstacles)
+    raise ConfigError(f"could not draw a start/goal pair with a path in the {kind} map (seed {seed})")
+
+
+@dataclass(frozen=True)
+class EpisodeConfig:
+    dt_s: float = 0.1
+    max_time_s: float = 90.0
+    goal_tolerance_m: float = 0.03
+    heading_tolerance_rad: float = 0.1
+    #: the stack's start belief: the true start plus an error of this sigma, believed with it
+    initial_sigma_xy_m: float = 0.05
+    initial_sigma_theta_rad: float = 0.05
+    #: the odometry the plant reports (the stack assumes NavigationConfig.odometry_sigma_*)
+    odometry_sigma_v_mps: float = 0.02
+    odometry_sigma_omega_radps: float = float(np.deg2rad(1.0))
+    #: a kidnapping: at this time the true robot is shifted by ``kidnap_xy_m`` in its body frame
+    #: (or the opposite way if that is in a wall; retried every cycle until one is free) (None: none)
+    kidnap_at_s: float | None = None
+    kidnap_xy_m: tuple[float, float] = (0.3, 0.0)
+
+    def __post_init__(self) -> None:
+        for name in ("dt_s", "max_time_s", "goal_tolerance_m", "heading_tolerance_rad"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise ConfigError(f"EpisodeConfig.{name} must be a finite number > 0, got {v!r}")
+        for name in ("initial_sigma_xy_m", "initial_sigma_theta_rad", "odometry_sigma_v_mps",
+                     "odometry_sigma_omega_radps"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+                raise ConfigError(f"EpisodeConfig.{name} must be a finite number >= 0, got {v!r}")
+        if self.max_time_s / self.dt_s > 1e6:
+            raise ConfigError("EpisodeConfig: max_time_s / dt_s above a million cycles")
+        if self.kidnap_at_s is not None and not (isinstance(self.kidnap_at_s, (int, float))
+                                                 and math.isfinite(self.kidnap_at_s)):
+            raise ConfigError(f"EpisodeConfig.kidnap_at_s must be finite or None, got {self.kidnap_at_s!r}")
+        if len(self.kidnap_xy_m) != 2 or not all(isinstance(v, (int, float)) and math.isfinite(v)
+                                                 for v in self.kidnap_xy_m):
+            raise ConfigError(f"EpisodeConfig.kidnap_xy_m must be two finite numbers, got {self.kidnap_xy_m!r}")
+
+
+@dataclass(frozen=True)
+class Episode:
+    scenario: str
+    world: str
+    seed: int
+    variant: str
+    t_s: np.ndarray
+    true_xytheta: np.ndarray
+    estimated_xytheta: np.ndarray
+    metrics: Mapping[str, float] = field(default_factory=dict)
+
+
+def run_episode(scenario: NavigationScenario, nav_config: NavigationConfig = NavigationConfig(),
+                config: EpisodeConfig = EpisodeConfig(), variant: str = "",
+                on_step: Callable[[NavigationStack, NavigationPlant, float, NavigationCommand], None] | None = None
+                ) -> Episode:
+    """One closed-loop episode (see the module docstring); ``on_step(stack, plant, t, decision)``
+    is called after every cycle (the recorder)."""
+    rng = np.random.default_rng([scenario.seed, 1])
+    stack = NavigationStack(scenario.grid, nav_config, np.random.default_rng([scenario.seed, 2]))
+    plant = NavigationPlant(scenario, rng, odometry_sigma_v_mps=config.odometry_sigma_v_mps,
+                            odometry_sigma_omega_radps=config.odometry_sigma_omega_radps)
+    sig = np.array([config.initial_sigma_xy_m, config.initial_sigma_xy_m, config.initial_sigma_theta_rad])
+    belief = scenario.start_xytheta + sig * rng.standard_normal(3)
+    stack.reset(belief, np.diag(sig**2))
+    stack.set_goal(scenario.goal_xytheta)
+    stack.step(plant.scan(0.0))
+    field_m = distance_field_m(scenario.grid)
+    r = nav_config.robot_radius_m
+    ts, xs, es = [0.0], [plant.world_xytheta_body.copy()], [stack.current_pose()[0]]
+    c_static, c_moving = plant.clearance_m(0.0, r, field_m)
+    min_static, min_moving = c_static, c_moving
+    hit_static = hit_moving = False
+    kidnapped = False
+    steps = int(round(config.max_time_s / config.dt_s))
+    for k in range(steps):
+        t = k * config.dt_s
+        decision = stack.command(t)
+        cmd = decision.command
+        if stack.reached:
+            break
+        if config.kidnap_at_s is not None and not kidnapped and t >= config.kidnap_at_s:
+            kidnapped = _kidnap(plant, np.asarray(config.kidnap_xy_m, float), t, r, field_m)
+        t_next = t + config.dt_s
+        stack.step(plant.advance(cmd, config.dt_s, t_next))
+        stack.step(plant.scan(t_next))
+        ts.append(t_next)
+        xs.append(plant.world_xytheta_body.copy())
+        es.append(stack.current_pose()[0])
+        c_static, c_moving = plant.clearance_m(t_next, r, field_m)
+        min_static, min_moving = min(min_static, c_static), min(min_moving, c_moving)
+        if on_step is not None:
+            on_step(stack, plant, t_next, decision)
+        if c_static < 0.0 or c_moving < 0.0:
+            hit_static, hit_moving = c_static < 0.0, c_moving < 0.0
+            break
+    true = np.array(xs)
+    est = np.array(es)
+    final_err = float(np.linalg.norm(true[-1, :2] - scenario.goal_xytheta[:2]))
+    final_head = float(abs(wrap_angle(true[-1, 2] - scenario.goal_xytheta[2])))
+    collided = hit_static or hit_moving
+    success = (stack.reached and not collided and final_err <= config.goal_tolerance_m
+               and final_head <= config.heading_tolerance_rad)
+    loc_err = np.linalg.norm(true[:, :2] - est[:, :2], axis=1)
+    compute_s = sum(sum(v) for v in stack.timings_s.values())
+    metrics = {
+        "success": float(success),
+        "reached_by_belief": float(stack.reached),
+        "final_position_error_m": final_err,
+        "final_heading_error_rad": final_head,
+        "collision_static": float(hit_static),
+        "collision_moving": float(hit_moving),
+        "min_clearance_static_m": float(min_static),
+        "min_clearance_moving_m": float(min_moving) if math.isfinite(min_moving) else float("nan"),
+        "time_s": float(ts[-1]) if success else float("nan"),
+        "path_length_m": float(np.linalg.norm(np.diff(true[:, :2], axis=0), axis=1).sum()),
+        "localisation_error_mean_m": float(loc_err.mean()),
+        "localisation_error_max_m": float(loc_err.max()),
+        "kidnapped": float(kidnapped),
+        "replans": float(stack.replans),
+        "recoveries": float(stack.recoveries),
+        "no_safe_stop_cycles": float(stack.no_safe_stop_cycles),
+        **layer_timing_summary(stack.timings_s),
+        "real_time_factor": float(ts[-1] / max(compute_s, 1e-9)),
+    }
+    return Episode(scenario.name, scenario.name.rsplit("_", 1)[0], scenario.seed, variant,
+                   np.array(ts), true, est, metrics)
+
+
+def _kidnap(plant: NavigationPlant, shift_xy_m: np.ndarray, t_s: float, robot_radius_m: float,
+            field_m: np.ndarray) -> bool:
+    """Shift the true robot by ``shift_xy_m`` (in its body frame), or by the opposite shift if
+    that lands in a wall; True when one of them was free (>= 0.05 m clearance) and applied."""
+    x = plant.world_xytheta_body
+    c, s = math.cos(x[2]), math.sin(x[2])
+    world_shift = np.array([c * shift_xy_m[0] - s * shift_xy_m[1], s * shift_xy_m[0] + c * shift_xy_m[1]])
+    for sign in (1.0, -1.0):
+        before = x[:2].copy()
+        x[:2] = before + sign * world_shift
+        if min(plant.clearance_m(t_s, robot_radius_m, field_m)) >= 0.05:
+            return True
+        x[:2] = before
+    return False
+
+
+# --------------------------------------------------------------------------- the pipeline
+
+
+def _section(value: Any, where: str) -> dict[str, Any]:
+    if value is None:
+        return {}
+    if not isinstance(value, Mapping):
+        raise ConfigError(f"{where}: expected a mapping, got {type(value).__name__}")
+    return dict(value)
+
+
+def _variants(config: Mapping[str, Any]) -> list[tuple[str, NavigationConfig, EpisodeConfig]]:
+    """(name, stack config, episode config) per variant: the base ``navigation``/``episode``
+    sections, each variant's overrides on top."""
+    base_nav = _section(config.get("navigation"), "navigation")
+    base_ep = _section(config.get("episode"), "episode")
+    variants = config.get("variants", [{"name": "nominal"}])
+    if not isinstance(variants, list):
+        raise ConfigError("variants: expected a list of {name, navigation, episode}")
+    out = []
+    for i, v in enumerate(variants):
+        v = _section(v, f"variants.{i}")
+        name = str(v.get("name", f"variant_{i}"))
+        nav = _build(NavigationConfig, {**base_nav, **_section(v.get("navigation"), f"variants.{name}.navigation")},
+                     f"variants.{name}.navigation")
+        ep = _build(EpisodeConfig, {**base_ep, **_section(v.get("episode"), f"variants.{name}.episode")},
+                    f"variants.{name}.episode")
+        out.append((name, nav, ep))
+    return out
+
+
+def _build(cls, values: Mapping[str, Any], where: str):
+    """``cls(**values)`` with the nested configs (``mcl``, ``detector``, ``tracker``) given as
+    mappings over their defaults; every failure is a ConfigError naming ``where``."""
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    unknown = set(values) - set(fields)
+    if unknown:
+        raise ConfigError(f"{where}: unknown keys {sorted(map(str, unknown))}; known: {sorted(fields)}")
+    values = dict(values)
+    try:
+        for key in ("mcl", "detector", "tracker"):
+            if key in values:
+                nested = _section(values[key], f"{where}.{key}")
+                default = getattr(NavigationConfig(), key)
+                known = {f.name for f in dataclasses.fields(default)}
+                if set(nested) - known:
+                    raise ConfigError(f"{where}.{key}: unknown keys {sorted(map(str, set(nested) - known))}; "
+                                      f"known: {sorted(known)}")
+                values[key] = dataclasses.replace(default, **nested)
+        values = {k: tuple(v) if isinstance(v, list) and isinstance(fields[k].default, tuple) else v
+                  for k, v in values.items()}
+        return cls(**values)
+    except ConfigError as exc:
+        raise (exc if str(exc).startswith(where) else ConfigError(f"{where}: {exc}")) from None
+    except (TypeError, ValueError, ArithmeticError) as exc:
+        raise ConfigError(f"{where}: {exc}") from None
+
+
+def willow_yaml(spec: str | None) -> str:
+    """The Willow map YAML: a path, or the dataset registry's ``willow`` entry (None)."""
+    if spec is None or spec == "willow":
+        from slamkit.data.registry import path_of
+
+        return str(path_of("willow", "maps_ros/willow-2010-02-18-0.10.yaml"))
+    return str(spec)
+
+
+def scenarios_of(config: Mapping[str, Any]) -> list[NavigationScenario]:
+    sc = dict(config.get("scenarios", {}) or {})
+    worlds = list(sc.get("worlds", ["office"]))
+    for w in worlds:
+        if w not in WORLDS:
+            raise ConfigError(f"scenarios.worlds: unknown world {w!r}; choose from {WORLDS}")
+    seeds = seed_list(sc.get("seeds", 3))
+    willow = willow_yaml(sc.get("willow_map")) if "willow" in worlds else None
+    n_obs = int(sc.get("n_obstacles", 2))
+    return [make_navigation_scenario(seed, w, willow, n_obstacles=n_obs) for w in worlds for seed in seeds]
+
+
+def runs_of(episodes: list[Episode]) -> list[RunRecord]:
+    return [RunRecord(e.world, e.variant, dict(e.metrics), seed=e.seed, params={"scenario": e.scenario})
+            for e in episodes]
+
+
+def report_markdown(config: Mapping[str, Any], episodes: list[Episode], summary: list[dict]) -> str:
+    text = f"# Navigation: {config.get('name', 'navigation')}\n\n"
+    text += ("MCL (likelihood field, 500 particles) on simulated lidar and wheel odometry, A* global "
+             "planning, the local planner on the estimated pose among lidar-tracked obstacles. "
+             "Success: stopped within the goal tolerance (position and heading, by the truth) "
+             "without a collision. Mean ± half the 95% CI over seeds, per world and variant.\n\n")
+    text += summary_markdown(summary) + "\n\n## Runs\n\n"
+    rows = [[e.scenario, e.variant, e.metrics["success"], e.metrics["final_position_error_m"],
+             e.metrics["collision_static"], e.metrics["collision_moving"], e.metrics["time_s"],
+             e.metrics["localisation_error_max_m"], e.metrics["replans"]] for e in episodes]
+    text += markdown_table(["scenario", "variant", "success", "final error (m)", "static hit", "moving hit",
+                            "time (s)", "max loc. error (m)", "replans"], rows) + "\n"
+    return text
+
+
+def plot(plots: Path, episodes: list[Episode], scenarios: Mapping[str, NavigationScenario]) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    e = episodes[0]
+    sc = scenarios[e.scenario]
+    g = sc.grid
+    fig, ax = plt.subplots(figsize=(7, 7))
+    extent = (g.origin_xy_m[0], g.origin_xy_m[0] + g.width * g.resolution_m,
+              g.origin_xy_m[1], g.origin_xy_m[1] + g.height * g.resolution_m)
+    ax.imshow(g.occupied, origin="lower", extent=extent, cmap="Greys", alpha=0.8)
+    for ep in episodes:
+        if ep.scenario == e.scenario:
+            ax.plot(ep.true_xytheta[:, 0], ep.true_xytheta[:, 1], lw=1.5, label=f"{ep.variant} truth")
+            ax.plot(ep.estimated_xytheta[:, 0], ep.estimated_xytheta[:, 1], "--", lw=1, label=f"{ep.variant} estimate")
+    for a, b in zip(sc.obstacles.a_xy_m, sc.obstacles.b_xy_m):
+        ax.plot([a[0], b[0]], [a[1], b[1]], color="tab:red", lw=3, alpha=0.4)
+    ax.plot(*sc.goal_xytheta[:2], "g*", ms=12)
+    lo = np.minimum(e.true_xytheta[:, :2].min(axis=0), sc.goal_xytheta[:2]) - 2.0
+    hi = np.maximum(e.true_xytheta[:, :2].max(axis=0), sc.goal_xytheta[:2]) + 2.0
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(lo[1], hi[1])
+    ax.legend(loc="best", fontsize=8)
+    ax.set_title(f"{e.scenario}: truth and estimate (red: crossing obstacles)")
+    ax.set_aspect("equal")
+    fig.savefig(plots / "trajectory.png", dpi=110, bbox_inches="tight")
+    plt.close(fig)
+
+
+def _snapshots(observer: PipelineObserver, run_name: str, scenario: NavigationScenario):
+    """An ``on_step`` that hands each cycle to a pipeline observer as a ``StepSnapshot`` whose
+    state holds the scenario, the stack, the plant, the decision's command and its local-planner
+    output (read at once: the stack and plant move on)."""
+    from slamkit.experiments.observers import StepSnapshot
+
+    counter = iter(range(10**9))
+
+    def on_step(stack, plant, t_s, decision) -> None:
+        observer.on_step(StepSnapshot("navigation", run_name, next(counter), t_s,
+                                      {"scenario": scenario, "stack": stack, "plant": plant,
+                                       "command": decision.command, "output": decision.output}))
+    return on_step
+
+
+def run(config: Mapping[str, Any], folder: ResultsFolder, progress: StepProgress,
+        observer: PipelineObserver | None = None) -> PipelineOutput[list[Episode]]:
+    """Pipeline ``navigation``: worlds x seeds x variants -> runs, summary, report, plots."""
+    variants = _variants(config)
+    scenarios = scenarios_of(config)
+    advance = progress.task("navigation episodes", len(scenarios) * len(variants))
+    watch = observer is not None and observer.wants_steps
+    n_record = int(config.get("record_scenarios", 1))
+    episodes = []
+    for i, sc in enumerate(scenarios):
+        for name, nav, ep in variants:
+            hook = _snapshots(observer, f"{name}/{sc.name}", sc) if watch and i < n_record else None
+            episodes.append(run_episode(sc, nav, ep, name, hook))
+            advance(1)
+    runs = runs_of(episodes)
+    summary = summarise(runs)
+    plot(folder.plots, episodes, {s.name: s for s in scenarios})
+    return PipelineOutput(runs, report_markdown(config, episodes, summary), summary, payload=episodes)
+
+
+PIPELINE: Pipeline[list[Episode]] = Pipeline(
+    "navigation", run, NavigationPipeline, list[Episode],
+    "MCL + A* + a local planner on the estimated pose, closed through the simulator")

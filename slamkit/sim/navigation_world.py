@@ -1,0 +1,130 @@
+"""A world for closed-loop navigation: a seeded map (generated office or warehouse, or a ROS map
+such as the real Willow Garage office), a start and a goal pose with a path between them, people
+and a forklift crossing that path, and the plant: a differential drive that executes velocity
+commands exactly (``slamkit.models.diff_drive.motion``) while its wheel odometry reports them with
+Gaussian noise and its lidar sees the map and the moving discs (ray cast, then corrupted by the
+beam-model mixture as in :mod:`slamkit.sim.grid_world`).
+
+Scenarios (start, goal, the path they were drawn with, obstacles timed on it) are drawn in
+:mod:`slamkit.experiments.navigation`, which may plan (this layer may not).
+
+``NavigationPlant.advance(command, dt)`` moves the truth and returns the odometry event of that
+period; ``scan(t)`` the lidar event at the current pose. The truth is ``plant.world_xytheta_body``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from slamkit.data.sequence import Odometry, Scan
+from slamkit.errors import ConfigError
+from slamkit.maps.generators import OfficeConfig, WarehouseConfig, office, warehouse
+from slamkit.maps.occupancy_grid import OccupancyGrid
+from slamkit.maps.raycast import RayCaster, cast_circles
+from slamkit.models.diff_drive import motion
+from slamkit.sim.grid_world import Lidar
+from slamkit.sim.moving_obstacles import MovingObstacles
+from slamkit.sim.ros_map import load_ros_map
+
+WORLDS = ("office", "warehouse", "willow")
+
+
+@dataclass(frozen=True)
+class NavigationScenario:
+    name: str
+    seed: int
+    grid: OccupancyGrid
+    start_xytheta: np.ndarray
+    goal_xytheta: np.ndarray
+    #: the A* path the scenario was drawn with (the obstacles are timed to meet a robot on it)
+    path_xy_m: np.ndarray
+    obstacles: MovingObstacles
+
+
+_MAP_CACHE: dict[tuple[str, str], OccupancyGrid] = {}
+
+
+def world_map(kind: str, rng: np.random.Generator, willow_yaml: str | None = None,
+              resolution_m: float = 0.05, size_m: float = 20.0) -> OccupancyGrid:
+    """The map of a world kind: generated (drawn from ``rng``) or the Willow ROS map."""
+    if kind == "office":
+        return office(rng, OfficeConfig(width_m=size_m, height_m=size_m, resolution_m=resolution_m), name="office")
+    if kind == "warehouse":
+        return warehouse(rng, WarehouseConfig(width_m=size_m, height_m=size_m, resolution_m=resolution_m,
+                                              shelf_length_m=6.0, dock_depth_m=5.0, num_pallets=4),
+                         name="warehouse")
+    if kind == "willow":
+        if willow_yaml is None:
+            raise ConfigError("world 'willow' needs the path of the Willow map YAML (maps_ros)")
+        key = (kind, str(willow_yaml))
+        if key not in _MAP_CACHE:
+            _MAP_CACHE[key] = load_ros_map(willow_yaml).grid
+        return _MAP_CACHE[key]
+    raise ConfigError(f"unknown world {kind!r}; choose from {WORLDS}")
+
+
+class NavigationPlant:
+    """The robot and its sensors in ``scenario`` (see the module docstring)."""
+
+    def __init__(self, scenario: NavigationScenario, rng: np.random.Generator, lidar: Lidar = Lidar(),
+                 odometry_sigma_v_mps: float = 0.02, odometry_sigma_omega_radps: float = float(np.deg2rad(1.0))):
+        self.scenario = scenario
+        self.rng = rng
+        self.lidar = lidar
+        self.sigma = np.array([odometry_sigma_v_mps, odometry_sigma_omega_radps])
+        self.caster = RayCaster(scenario.grid)
+        self.beams = lidar.angles_rad()
+        self.beams.setflags(write=False)
+        self.world_xytheta_body = np.asarray(scenario.start_xytheta, float).copy()
+
+    def advance(self, command: np.ndarray, dt_s: float, t_end_s: float) -> Odometry:
+        """Execute ``command`` (v, omega) for ``dt_s``; the odometry of that period ends at ``t_end_s``."""
+        u = np.asarray(command, float).reshape(2)
+        self.world_xytheta_body = motion(self.world_xytheta_body, u, dt_s)
+        noisy = u + self.sigma * self.rng.standard_normal(2)
+        return Odometry(float(t_end_s), float(dt_s), float(noisy[0]), float(noisy[1]))
+
+    def scan(self, t_s: float) -> Scan:
+        lid, pose = self.lidar, self.world_xytheta_body
+        expected = self.caster.scan(pose, self.beams, lid.max_range_m)[0]
+        obs = self.scenario.obstacles
+        if len(obs):
+            dyn = cast_circles(np.repeat(pose[None, :2], len(self.beams), axis=0), pose[2] + self.beams,
+                               obs.position_at(t_s), obs.radius_m, lid.max_range_m)
+            expected = np.fmin(expected, dyn)
+        no_return = np.isnan(expected)
+        noisy = lid.beam_model.sample(self.rng, np.where(no_return, lid.max_range_m, expected), lid.max_range_m)
+        noisy = np.where(no_return | (noisy >= lid.max_range_m), np.nan, noisy)
+        return Scan(float(t_s), self.beams, noisy, lid.max_range_m)
+
+    def clearance_m(self, t_s: float, robot_radius_m: float, distance_m: np.ndarray) -> tuple[float, float]:
+        """(static, moving) distance from the robot's disc to the nearest wall and to the nearest
+        moving disc (+inf without any). The wall distance is exact: from the robot's centre to the
+        nearest occupied cell *square* (looked up among the cells whose centres the distance field
+        puts within reach; outside the map counts as a wall)."""
+        g = self.scenario.grid
+        xy = self.world_xytheta_body[:2]
+        cell = g.world_to_cell(xy[None, :])
+        if not bool(g.in_bounds(cell)[0]):
+            d_static = -robot_radius_m
+        else:
+            reach = float(distance_m[cell[0, 1], cell[0, 0]]) + g.resolution_m
+            k = int(math.ceil(reach / g.resolution_m)) + 1
+            ix0, iy0 = max(cell[0, 0] - k, 0), max(cell[0, 1] - k, 0)
+            iy, ix = np.nonzero(g.occupied[iy0:cell[0, 1] + k + 1, ix0:cell[0, 0] + k + 1])
+            if len(ix) == 0:
+                d_static = reach - robot_radius_m
+            else:
+                lo = g.origin_xy_m + np.column_stack([ix + ix0, iy + iy0]) * g.resolution_m
+                gap = np.maximum(np.maximum(lo - xy, xy - (lo + g.resolution_m)), 0.0)
+                d_static = float(np.linalg.norm(gap, axis=1).min()) - robot_radius_m
+        obs = self.scenario.obstacles
+        d_moving = math.inf
+        if len(obs):
+            centres = obs.position_at(t_s)
+            d_moving = float((np.linalg.norm(centres - xy, axis=1) - obs.radius_m).min())
+            d_moving -= robot_radius_m
+        return d_static, d_moving

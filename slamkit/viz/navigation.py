@@ -1,0 +1,122 @@
+"""Rerun view of the navigation pipeline: what the stack believes beside what is true.
+
+Entity tree under ``<variant>/<scenario>/`` (2D, world frame, metres; timeline ``sim_time``):
+
+* ``world/map``              occupied cells of the robot's map (static)
+* ``world/costmap``          the A* costmap (cells the inflated robot may not enter; static)
+* ``world/goal``             the goal pose (static)
+* ``world/ground_truth``     the true robot disc and heading (scoring only: the stack never sees it)
+* ``world/estimate``         the MCL mean, its 3-sigma position ellipse, and ``particles``
+* ``world/global_path``      the current A* path
+* ``world/candidates``       DWA / rollout candidates (subsample) and ``chosen``; ``mpc_horizon``
+* ``world/scan_unexplained`` scan end points the map does not explain
+* ``world/tracks``           tracked obstacles (discs) with velocity arrows; ``world/obstacles_true``
+* ``plots/localisation_error_m``, ``plots/speed_mps``, ``plots/sigma_xy_m``
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import rerun as rr
+import rerun.blueprint as rrb
+
+from slamkit.experiments.navigation import Episode
+from slamkit.viz.control import MAX_CANDIDATES, _score_colors
+from slamkit.viz.recording import open_recording
+
+
+def blueprint(prefixes: list[str]) -> rrb.Blueprint:
+    views = [rrb.Spatial2DView(origin=f"{p}world", name=p.strip("/")) for p in prefixes]
+    plots = [rrb.TimeSeriesView(origin=f"{p}plots", name=f"{p}plots") for p in prefixes]
+    return rrb.Blueprint(rrb.Horizontal(rrb.Grid(*views), rrb.Vertical(*plots), column_shares=[3, 1]))
+
+
+def ellipse_xy(mean_xy: np.ndarray, cov_xy: np.ndarray, n_sigma: float = 3.0, n: int = 32) -> np.ndarray:
+    """(n + 1, 2) closed outline of the n-sigma ellipse of a 2D Gaussian."""
+    vals, vecs = np.linalg.eigh(0.5 * (cov_xy + cov_xy.T))
+    t = np.linspace(0.0, 2.0 * np.pi, n + 1)
+    circle = np.column_stack([np.cos(t), np.sin(t)]) * n_sigma * np.sqrt(np.maximum(vals, 0.0))
+    return mean_xy + circle @ vecs.T
+
+
+class NavigationObserver:
+    """The ``navigation`` pipeline's recorder (registered in ``slamkit.viz.pipelines``): its
+    step snapshots carry the scenario, the variant, the stack and the plant of one cycle."""
+
+    payload_type = list[Episode]
+    wants_steps = True
+    step_every = 1
+
+    def __init__(self, path: str | Path | None, spawn: bool = False):
+        self.rec = open_recording("slamkit_navigation", path, spawn)
+        self.stream = self.rec.stream
+        self._run: str | None = None
+        self._prefixes: list[str] = []
+
+    def _start(self, prefix: str, scenario, stack) -> None:
+        s, g = self.stream, scenario.grid
+        iy, ix = np.nonzero(g.occupied)
+        s.log(f"{prefix}world/map", rr.Points2D(g.cell_to_world(np.column_stack([ix, iy])),
+                                                radii=[0.5 * g.resolution_m], colors=[(60, 60, 60)]), static=True)
+        blocked = ~np.isfinite(stack.cell_cost(0)) & ~g.occupied
+        iy, ix = np.nonzero(blocked)
+        s.log(f"{prefix}world/costmap", rr.Points2D(g.cell_to_world(np.column_stack([ix, iy])),
+                                                    radii=[0.5 * g.resolution_m], colors=[(230, 200, 120, 90)]),
+              static=True)
+        goal = scenario.goal_xytheta
+        s.log(f"{prefix}world/goal", rr.Arrows2D(origins=[goal[:2]], vectors=[0.4 * np.array([np.cos(goal[2]), np.sin(goal[2])])],
+                                                 colors=[(0, 160, 0)]), static=True)
+        self._trail: list[np.ndarray] = []
+
+    def on_step(self, snapshot) -> None:
+        st = snapshot.state
+        stack, plant, scenario = st["stack"], st["plant"], st["scenario"]
+        if snapshot.run != self._run:
+            self._run = snapshot.run
+            self._prefixes.append(f"{snapshot.run}/")
+            self._start(f"{snapshot.run}/", scenario, stack)
+        p, s = f"{snapshot.run}/", self.stream
+        s.set_time("sim_time", duration=float(snapshot.stamp_s))
+        x = plant.world_xytheta_body
+        mean, cov = stack.current_pose()
+        s.log(f"{p}world/ground_truth", rr.Points2D([x[:2]], radii=[stack.config.robot_radius_m],
+                                                    colors=[(30, 90, 220, 120)]))
+        s.log(f"{p}world/ground_truth/heading", rr.Arrows2D(origins=[x[:2]], vectors=[0.4 * np.array([np.cos(x[2]), np.sin(x[2])])]))
+        s.log(f"{p}world/estimate", rr.Points2D([mean[:2]], radii=[0.03], colors=[(220, 120, 0)]))
+        s.log(f"{p}world/estimate/ellipse", rr.LineStrips2D([ellipse_xy(mean[:2], cov[:2, :2])], colors=[(220, 120, 0)]))
+        parts = stack.particles
+        s.log(f"{p}world/estimate/particles", rr.Points2D(parts[:500, :2], radii=[0.005], colors=[(220, 120, 0, 120)]))
+        if stack.path is not None:
+            s.log(f"{p}world/global_path", rr.LineStrips2D([stack.path], colors=[(0, 0, 0)], radii=[0.02]))
+        out = st.get("output")
+        if out is not None and out.candidates_xytheta is not None and len(out.candidates_xytheta):
+            cand = out.candidates_xytheta
+            pick = np.unique(np.linspace(0, len(cand) - 1, min(MAX_CANDIDATES, len(cand))).astype(int))
+            s.log(f"{p}world/candidates", rr.LineStrips2D([c[:, :2] for c in cand[pick]],
+                                                         colors=_score_colors(out.scores[pick]), radii=[0.006]))
+            if out.chosen >= 0:
+                s.log(f"{p}world/candidates/chosen", rr.LineStrips2D([cand[out.chosen, :, :2]], colors=[(0, 200, 0)], radii=[0.03]))
+        if out is not None and out.predicted_xytheta is not None:
+            s.log(f"{p}world/mpc_horizon", rr.LineStrips2D([out.predicted_xytheta[:, :2]], colors=[(200, 0, 200)], radii=[0.025]))
+        s.log(f"{p}world/scan_unexplained", rr.Points2D(stack.last_scan_points, radii=[0.02], colors=[(255, 0, 0)]))
+        tr = stack.tracks()
+        s.log(f"{p}world/tracks", rr.Points2D(tr.xy_m, radii=tr.radius_m, colors=[(255, 140, 0, 110)],
+                                              labels=[str(i) for i in tr.ids]))
+        s.log(f"{p}world/tracks/velocity", rr.Arrows2D(origins=tr.xy_m, vectors=tr.velocity_mps))
+        obs = scenario.obstacles
+        if len(obs):
+            s.log(f"{p}world/obstacles_true", rr.Points2D(obs.position_at(snapshot.stamp_s), radii=obs.radius_m,
+                                                          colors=[(220, 40, 40, 90)]))
+        s.log(f"{p}plots/localisation_error_m", rr.Scalars(float(np.linalg.norm(mean[:2] - x[:2]))))
+        s.log(f"{p}plots/sigma_xy_m", rr.Scalars(float(np.sqrt(max(np.linalg.eigvalsh(cov[:2, :2])[-1], 0.0)))))
+        s.log(f"{p}plots/speed_mps", rr.Scalars(float(st["command"][0])))
+
+    def on_output(self, output) -> None:
+        pass
+
+    def close(self) -> Path | None:
+        if self._prefixes:
+            self.stream.send_blueprint(blueprint(self._prefixes))
+        return self.rec.close()

@@ -1,0 +1,101 @@
+"""The lidar obstacle detector and the constant-velocity tracker on scripted scans, with exact
+expectations."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from slamkit.estimation.obstacle_tracker import (ConstantVelocityTracker, DetectorConfig, Detection, TrackerConfig,
+                                                 cluster_points, cv_matrices, merge_overlapping,
+                                                 unexplained_points)
+from slamkit.maps.raycast import cast_circles
+
+
+def _wall_distance(points: np.ndarray) -> np.ndarray:
+    """A map with one wall, the line x = 5: distance of points to it."""
+    return np.abs(points[:, 0] - 5.0)
+
+
+def test_points_the_map_explains_are_dropped():
+    # robot at the origin facing +x; beams at 0 and 90 degrees: the first ends on the wall x = 5,
+    # the second 2 m up (free space), the third returns nothing
+    pts = unexplained_points([0.0, 0.0, 0.0], np.array([0.0, math.pi / 2, math.pi]),
+                             np.array([5.0, 2.0, np.nan]), 10.0, _wall_distance, 0.25)
+    np.testing.assert_allclose(pts, [[0.0, 2.0]], atol=1e-12)
+
+
+def test_a_disc_seen_by_the_lidar_becomes_one_detection_at_its_centre():
+    # a 0.3 m disc 3 m ahead, 1 degree beams (11 hit it, +-5 degrees: y within +-0.262 m): one
+    # disc of radius half the points' bounding-box diagonal, centred that far behind the nearest point (2.7 m)
+    angles = np.deg2rad(np.arange(-30.0, 30.0, 1.0))
+    r = cast_circles(np.zeros((len(angles), 2)), angles, np.array([[3.0, 0.0]]), np.array([0.3]), 10.0)
+    pts = unexplained_points([0.0, 0.0, 0.0], angles, r, 10.0, lambda p: np.full(len(p), 10.0), 0.25)
+    det = cluster_points(pts, np.zeros(2), DetectorConfig())
+    assert len(det.xy_m) == 1 and det.n_points[0] == len(pts) == 11
+    assert det.radius_m[0] == pytest.approx(0.5 * np.linalg.norm(np.ptp(pts, axis=0)), abs=1e-12)
+    assert det.radius_m[0] == pytest.approx(3.0 * math.sin(math.radians(5.0)), abs=0.01)
+    assert det.xy_m[0] == pytest.approx([2.7 + det.radius_m[0], 0.0], abs=1e-9)
+
+
+def test_clusters_split_at_gaps_and_small_ones_are_noise():
+    pts = np.array([[1.0, 0.0], [1.0, 0.05], [1.0, 0.1],       # cluster A (3 points)
+                    [1.0, 1.0], [1.0, 1.05],                   # 2 points: noise
+                    [2.0, 3.0], [2.05, 3.0], [2.1, 3.0], [2.15, 3.0]])  # cluster B (4 points)
+    det = cluster_points(pts, np.zeros(2), DetectorConfig(cluster_gap_m=0.3, min_points=3, min_radius_m=0.05))
+    np.testing.assert_array_equal(det.n_points, [3, 4])
+    # A: extent 0.1 -> radius 0.05 (the floor); nearest point (1, 0) at 1 m; centre 1.05 m out
+    # along the direction of the mean (1, 0.05)
+    assert det.radius_m[0] == pytest.approx(0.05)
+    away = np.array([1.0, 0.05]) / np.linalg.norm([1.0, 0.05])
+    assert det.xy_m[0] == pytest.approx(1.05 * away)
+    assert det.radius_m[1] == pytest.approx(0.075)
+
+
+def test_overlapping_discs_merge_into_the_smallest_enclosing_one():
+    det = merge_overlapping(np.array([[0.0, 0.0], [0.3, 0.0], [5.0, 5.0]]), np.array([0.2, 0.2, 0.1]),
+                            np.array([4, 5, 3]), max_radius_m=1.0)
+    # discs of 0.2 at x = 0 and 0.3 overlap: enclosing disc from -0.2 to 0.5 -> centre 0.15, r 0.35
+    np.testing.assert_allclose(det.xy_m, [[0.15, 0.0], [5.0, 5.0]], atol=1e-12)
+    np.testing.assert_allclose(det.radius_m, [0.35, 0.1])
+    np.testing.assert_array_equal(det.n_points, [9, 3])
+
+
+def test_constant_velocity_matrices():
+    F, Q = cv_matrices(0.5, 2.0)
+    np.testing.assert_allclose(F[0], [1, 0, 0.5, 0])
+    # q [[dt^3/3, dt^2/2], [dt^2/2, dt]] = 2 * [[1/24, 1/8], [1/8, 1/2]]
+    np.testing.assert_allclose(Q[np.ix_([0, 2], [0, 2])], [[1 / 12, 1 / 4], [1 / 4, 1.0]])
+    np.testing.assert_allclose(Q[0, 1], 0.0)
+
+
+def test_tracker_recovers_a_constant_velocity_and_confirms_after_two_hits():
+    tr = ConstantVelocityTracker(TrackerConfig(confirm_hits=2))
+    v = np.array([0.5, -0.2])
+    for k in range(40):
+        t = 0.1 * k
+        tr.update(t, Detection(np.array([[1.0, 2.0]]) + t * v, np.array([0.3]), np.array([10])))
+        if k == 0:
+            assert len(tr.tracks().ids) == 0      # tentative
+        if k == 1:
+            assert len(tr.tracks().ids) == 1      # confirmed
+    out = tr.tracks()
+    assert out.ids.tolist() == [0]
+    np.testing.assert_allclose(out.velocity_mps[0], v, atol=1e-3)
+    np.testing.assert_allclose(out.xy_m[0], np.array([1.0, 2.0]) + 3.9 * v, atol=1e-3)
+    assert out.radius_m[0] == pytest.approx(0.3)
+
+
+def test_two_crossing_tracks_keep_their_identities_and_a_lost_one_is_deleted():
+    tr = ConstantVelocityTracker(TrackerConfig(max_misses=3))
+    for k in range(10):
+        t = 0.1 * k
+        tr.update(t, Detection(np.array([[0.0, 0.3 * t], [3.0, -0.3 * t]]), np.array([0.2, 0.3]), np.array([5, 5])))
+    assert tr.tracks().ids.tolist() == [0, 1]
+    assert tr.tracks().xy_m[1] == pytest.approx([3.0, -0.27], abs=1e-3)
+    for k in range(10, 14):  # the second obstacle is no longer seen: 4 misses > 3 -> deleted
+        t = 0.1 * k
+        tr.update(t, Detection(np.array([[0.0, 0.3 * t]]), np.array([0.2]), np.array([5])))
+    assert tr.tracks().ids.tolist() == [0]

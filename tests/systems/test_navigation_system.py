@@ -1,0 +1,100 @@
+"""The navigation stack: its contract (events in, commands out, a public pose and covariance),
+and a short closed-loop run through the simulator in the default suite."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from slamkit.data.estimate import LatestBelief
+from slamkit.data.sequence import Odometry
+from slamkit.errors import ConfigError
+from slamkit.experiments.navigation import EpisodeConfig, make_navigation_scenario, run_episode
+from slamkit.maps.occupancy_grid import OccupancyGrid
+from slamkit.systems.navigation import NavigationConfig, NavigationStack
+
+
+def _room() -> OccupancyGrid:
+    occ = np.zeros((80, 120), bool)  # 6 m x 4 m at 5 cm, walls 2 cells thick
+    occ[:2, :] = occ[-2:, :] = occ[:, :2] = occ[:, -2:] = True
+    return OccupancyGrid(occ, 0.05)
+
+
+def test_events_in_commands_out_and_a_public_belief():
+    stack = NavigationStack(_room())
+    stack.reset([1.0, 2.0, 0.0], np.diag([0.01, 0.01, 0.01]))
+    assert isinstance(stack, LatestBelief)
+    assert stack.command(0.0).status == "no_goal"
+    stack.set_goal([4.5, 2.0, 0.0])
+    out = stack.command(0.0)
+    assert out.status == "driving" and out.command[0] >= 0.0 and out.safe_stop
+    assert stack.path is not None and np.allclose(stack.path[-1], [4.5, 2.0], atol=0.05)
+    stack.step(Odometry(0.1, 0.1, 0.5, 0.0))
+    mean, cov = stack.current_pose()
+    assert mean[0] == pytest.approx(1.05, abs=0.05) and cov.shape == (3, 3)
+    est = stack.latest_estimate()
+    np.testing.assert_allclose(est.trajectory.xytheta()[0], mean)
+    assert est.pose_covariances.shape == (1, 3, 3)
+    assert set(stack.timings_s) == {"localisation", "perception", "global_planner", "local_planner"}
+
+
+def test_config_is_checked():
+    with pytest.raises(ConfigError, match="uncertainty"):
+        NavigationConfig(uncertainty="maybe")
+    with pytest.raises(ConfigError, match="grid planner"):
+        NavigationConfig(global_planner="rrt_star")
+
+
+def test_short_closed_loop_run_reaches_the_goal_within_3_cm():
+    # office seed 1 with its two crossing obstacles: measured 25.5 s, final error 0.57 cm
+    sc = make_navigation_scenario(1, "office")
+    ep = run_episode(sc, NavigationConfig(), EpisodeConfig(max_time_s=60.0))
+    m = ep.metrics
+    assert m["success"] == 1.0
+    assert m["final_position_error_m"] <= 0.03 and m["final_heading_error_rad"] <= 0.1
+    assert m["collision_static"] == 0.0 and m["collision_moving"] == 0.0
+    assert m["localisation_error_max_m"] < 0.1
+    assert m["replans"] >= 1
+
+
+def test_covariance_aware_costmap_inflates_by_k_sigma():
+    grid = _room()
+    stack = NavigationStack(grid, NavigationConfig(uncertainty="covariance", collision_probability=0.05))
+    fixed = NavigationStack(grid, NavigationConfig())
+    cov = np.diag([0.04**2, 0.02**2, 0.01])
+    # k sigma = 1.645 * 0.04 = 6.58 cm -> 7 cm (cached per whole centimetre); fixed: always 0
+    assert stack._sigma_key(cov) == 7 and fixed._sigma_key(cov) == 0
+    # inscribed radius 0.2 + 0.15 (+ 0.07): the cell whose centre is 0.375 m from the wall cells'
+    # centres (x = 0.1 + 0.375) is free with fixed inflation, blocked with the covariance-aware one
+    iy, ix = 40, int(round((0.1 + 0.375) / 0.05 - 0.5))
+    assert np.isfinite(fixed.cell_cost(0)[iy, ix]) and not np.isfinite(stack.cell_cost(7)[iy, ix])
+
+
+def test_safe_stop_check_on_a_braking_trajectory():
+    stack = NavigationStack(_room(), NavigationConfig(brake_decel_mps2=1.0))
+    stack.reset([1.0, 2.0, 0.0], np.diag([1e-4, 1e-4, 1e-4]))
+    from slamkit.control.protocols import LocalWorld
+
+    # braking from 0.5 m/s in 0.1 s steps covers 0.1 * 0.5 * (1 + .8 + .6 + .4 + .2) = 0.15 m, so
+    # the 0.2 m disc reaches 0.35 m ahead: a disc surface 0.40 m ahead is safe, 0.32 m is not
+    far = LocalWorld([[1.5, 2.0]], [0.1], [[0.0, 0.0]])
+    near = LocalWorld([[1.42, 2.0]], [0.1], [[0.0, 0.0]])
+    assert stack.safe_stop_exists(np.array([1.0, 2.0, 0.0]), np.array([0.5, 0.0]), far)
+    assert not stack.safe_stop_exists(np.array([1.0, 2.0, 0.0]), np.array([0.5, 0.0]), near)
+
+
+def test_plant_clearance_is_the_exact_distance_to_the_wall_squares():
+    from slamkit.experiments.navigation import NavigationScenario
+    from slamkit.maps.distance_field import distance_field_m
+    from slamkit.sim.moving_obstacles import MovingObstacles
+    from slamkit.sim.navigation_world import NavigationPlant
+
+    grid = _room()  # walls: cells 0-1 (x < 0.1 m) on the left
+    sc = NavigationScenario("room", 0, grid, np.array([0.37, 2.0, 0.0]), np.array([4.0, 2.0, 0.0]),
+                            np.zeros((2, 2)), MovingObstacles.empty())
+    plant = NavigationPlant(sc, np.random.default_rng(0))
+    field = distance_field_m(grid)
+    # centre 0.37 m from x = 0: the wall surface is at x = 0.1 -> 0.27 m, minus the 0.2 m radius
+    assert plant.clearance_m(0.0, 0.2, field)[0] == pytest.approx(0.07, abs=1e-9)
+    plant.world_xytheta_body[:2] = [0.25, 0.22]  # corner: 0.15 m from the left wall, 0.12 from the bottom
+    assert plant.clearance_m(0.0, 0.2, field)[0] == pytest.approx(0.12 - 0.2, abs=1e-9)
