@@ -390,8 +390,9 @@ class _LandmarkSmootherBase:
                 continue
             key = self._landmark_key.get(lid)
             if key is None or not self._alive(key):
-                # trilaterated from the ranges divided by the current scale estimate
-                fix = self._beacons.add(lid, xy, r / scale, tag=k)
+                # trilaterated from the ranges divided by the scale estimate of their time; the
+                # factors take the ranges as measured (the tag keeps them)
+                fix = self._beacons.add(lid, xy, r / scale, tag=(k, r))
                 if fix is None:
                     continue
                 key = L(self._next_landmark_index)
@@ -401,7 +402,7 @@ class _LandmarkSmootherBase:
                 values.insert(key, gtsam.Point2(*fix.trilateration.world_p_landmark))
                 stamps[key] = float(event.stamp_s)
                 dropped = 0
-                for tag, rr in zip(fix.tags, (fix.range_m * scale).tolist()):
+                for tag, rr in fix.tags:
                     if tag == k or self._alive(X(tag)):
                         factors.add(self._range_factor(X(tag), key, rr))
                         self._counts["ranges"] += 1

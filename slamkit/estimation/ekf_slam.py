@@ -267,7 +267,7 @@ class EKFSLAM(FilterBase):
             if slot is None:
                 fix = self._beacons.add(lid, self.x[:2], r / scale)
                 if fix is not None:
-                    self._add_beacon(lid, fix.trilateration.world_p_landmark, fix.covariance)
+                    self._add_beacon(lid, fix)
                 continue
             j = self._m0 + 2 * slot
             if self.noise.range_rejected(r - scale * range_only.observe(self.x[:2], self.x[j:j + 2])):
@@ -277,12 +277,25 @@ class EKFSLAM(FilterBase):
             scale = 1.0 if self._scale_index is None else float(self.x[self._scale_index])
             self._record_nis(np.array([nu]), np.array([[S]]))
 
-    def _add_beacon(self, lid: int, world_p: np.ndarray, cov: np.ndarray) -> None:
+    def _add_beacon(self, lid: int, fix) -> None:
+        """A trilaterated beacon enters the state (see :meth:`_update_range`). With an estimated
+        range scale s the trilateration used the ranges divided by s, m = g(s): the beacon is
+        correlated with s (and through it with the rest) by G_s = dm/ds = (J^T J)^-1 J^T d(r/s)/ds,
+        J the range Jacobians at the beacon, d(r/s)/ds = -(r/s)/s."""
         self._grow()
         n = self.n
+        world_p = fix.trilateration.world_p_landmark
         self.P[n:n + 2, :n] = 0.0
         self.P[:n, n:n + 2] = 0.0
-        self.P[n:n + 2, n:n + 2] = cov + self.P[:2, :2]
+        self.P[n:n + 2, n:n + 2] = fix.covariance + self.P[:2, :2]
+        si = self._scale_index
+        if si is not None:
+            J = range_only.observe_jacobians(fix.world_p_body, world_p)[1]          # (K, 2)
+            G_s = np.linalg.pinv(J) @ (-fix.range_m / self.x[si])                  # (2,)
+            cross = G_s[:, None] * self.P[si, :n][None, :]                          # (2, n)
+            self.P[n:n + 2, :n] = cross
+            self.P[:n, n:n + 2] = cross.T
+            self.P[n:n + 2, n:n + 2] += np.outer(G_s, G_s) * self.P[si, si]
         self.x[n:n + 2] = world_p
         self.n = n + 2
         self._slot_of[lid] = len(self.slot_ids)
