@@ -19,6 +19,12 @@ observation of landmark L(j).
   association done upstream.
 * An observation attaches to the most recent pose (the simulators emit the Odometry that ends at
   a stamp before the RangeBearing taken there).
+* Range (range-only beacons) -> ``RangeFactor2D(X(k), L(j), range)`` after the beacon's delayed
+  initialisation; when the sequence declares the ranges' scale unknown
+  (``NoiseParams.range_scale_sigma`` > 0) a variable s (``RANGE_SCALE_KEY``, prior N(1, sigma^2))
+  joins the graph and each range is :func:`scaled_range_factor`, r = s |m - p| (a
+  ``gtsam.CustomFactor`` with analytic Jacobians: a Python call per linearisation, fast enough
+  for Plaza's 1816 and 3529 ranges).
 
 Estimators (``slamkit.data.estimate`` protocols, registry names ``batch``, ``isam2``,
 ``fixed_lag``):
@@ -168,6 +174,34 @@ def odometry_factor_terms(odometry: Odometry, noise: NoiseParams,
     return gtsam.Pose2(*delta), 0.5 * (cov + cov.T)
 
 
+#: the range-scale variable (a 1-vector s, ranges = s * true range) when the sequence declares
+#: the ranges' scale unknown (``NoiseParams.range_scale_sigma`` > 0)
+RANGE_SCALE_KEY = gtsam.symbol("s", 0)
+
+
+def scaled_range_factor(pose_key: int, landmark_key: int, scale_key: int, range_m: float,
+                        model: gtsam.noiseModel.Base) -> gtsam.CustomFactor:
+    """The range factor with an unknown scale: error ``s |m - p| - r`` on (Pose2 X, Point2 L,
+    Vector1 s), with the analytic Jacobians of
+    :func:`slamkit.models.range_only.observe_scaled_jacobians`; a Pose2 retracts its
+    translation in the body frame, so d/dxi = (dr/dp R(theta), 0)."""
+
+    def error(this, values, jacobians):
+        pose = values.atPose2(pose_key)
+        m = values.atPoint2(landmark_key)
+        scale = float(values.atVector(scale_key)[0])
+        p = np.array([pose.x(), pose.y()])
+        Jp, Jm, distance = range_only.observe_scaled_jacobians(p, m, scale)
+        if jacobians is not None:
+            c, sn = np.cos(pose.theta()), np.sin(pose.theta())
+            jacobians[0] = np.array([[Jp[0] * c + Jp[1] * sn, -Jp[0] * sn + Jp[1] * c, 0.0]])
+            jacobians[1] = Jm.reshape(1, 2)
+            jacobians[2] = np.array([[distance]])
+        return np.array([scale * distance - range_m])
+
+    return gtsam.CustomFactor(model, [pose_key, landmark_key, scale_key], error)
+
+
 def _world_cov_rotation(theta: float) -> np.ndarray:
     """A with X Exp(xi) ~ (t + R xi_t, theta + xi_theta): world-frame error = A xi (first order)."""
     c, s = np.cos(theta), np.sin(theta)
@@ -219,6 +253,7 @@ class _LandmarkSmootherBase:
         self._counts = {"odometry": 0, "observations": 0, "unassociated": 0, "ignored_events": 0,
                         "zero_dt_odometry": 0, "ranges": 0, "rejected_ranges": 0}
         self._latest_pose = gtsam.Pose2(*mean)
+        self._scale_key = RANGE_SCALE_KEY if self.noise.range_scale_sigma > 0 else None
         factors = gtsam.NonlinearFactorGraph()
         # the Prior's covariance is world-frame (x, y, theta) like the filters'; GTSAM's Pose2
         # prior lives in the body-frame tangent: Sigma_body = A^T Sigma_world A
@@ -227,8 +262,15 @@ class _LandmarkSmootherBase:
                                            gtsam.noiseModel.Gaussian.Covariance(A.T @ cov @ A)))
         values = gtsam.Values()
         values.insert(X(0), self._latest_pose)
+        stamps = {X(0): None}
+        if self._scale_key is not None:
+            # the unknown range scale s: a weak prior around 1, estimated with everything else
+            factors.add(gtsam.PriorFactorVector(self._scale_key, np.ones(1), gtsam.noiseModel.Isotropic.Sigma(
+                1, self.noise.range_scale_sigma)))
+            values.insert(self._scale_key, np.ones(1))
+            stamps[self._scale_key] = None
         self._reset_solver()
-        self._pending = (factors, values, {X(0): None})
+        self._pending = (factors, values, stamps)
         self._events_pending = 0
         self._ready = True
 
@@ -243,7 +285,8 @@ class _LandmarkSmootherBase:
         factors, values, stamps = self._pending
         if self._stamps[0] is None:
             self._stamps[0] = stamp - event.dt_s if isinstance(event, Odometry) else stamp
-            stamps[X(0)] = self._stamps[0]
+            for key in [k for k, t in stamps.items() if t is None]:
+                stamps[key] = self._stamps[0]
         if isinstance(event, Odometry):
             self._add_odometry(event, factors, values, stamps)
         elif isinstance(event, RangeBearing):
@@ -346,13 +389,16 @@ class _LandmarkSmootherBase:
         k = len(self._stamps) - 1
         pose = self._current_pose(k)
         xy = np.array([pose.x(), pose.y()])
+        scale = self._current_scale()
         for lid, r in zip(ids.tolist(), ranges.tolist()):
             if lid < 0:
                 self._counts["unassociated"] += 1
                 continue
             key = self._landmark_key.get(lid)
             if key is None or not self._alive(key):
-                fix = self._beacons.add(lid, xy, r, tag=k)
+                # trilaterated from the ranges divided by the scale estimate of their time; the
+                # factors take the ranges as measured (the tag keeps them)
+                fix = self._beacons.add(lid, xy, r / scale, tag=(k, r))
                 if fix is None:
                     continue
                 key = L(self._next_landmark_index)
@@ -362,9 +408,9 @@ class _LandmarkSmootherBase:
                 values.insert(key, gtsam.Point2(*fix.trilateration.world_p_landmark))
                 stamps[key] = float(event.stamp_s)
                 dropped = 0
-                for tag, rr in zip(fix.tags, fix.range_m.tolist()):
+                for tag, rr in fix.tags:
                     if tag == k or self._alive(X(tag)):
-                        factors.add(gtsam.RangeFactor2D(X(tag), key, rr, self._range_model))
+                        factors.add(self._range_factor(X(tag), key, rr))
                         self._counts["ranges"] += 1
                     else:
                         dropped += 1
@@ -375,12 +421,35 @@ class _LandmarkSmootherBase:
                                                         gtsam.noiseModel.Gaussian.Covariance(fix.covariance)))
                 continue
             if self._gate_ranges_online and self.noise.range_rejected(
-                    r - range_only.observe(xy, np.asarray(self._current_point(key), dtype=float))):
+                    r - scale * range_only.observe(xy, np.asarray(self._current_point(key), dtype=float))):
                 self._counts["rejected_ranges"] += 1
                 continue
             stamps[key] = float(event.stamp_s)
-            factors.add(gtsam.RangeFactor2D(X(k), key, r, self._range_model))
+            factors.add(self._range_factor(X(k), key, r))
             self._counts["ranges"] += 1
+
+    def _range_factor(self, pose_key: int, landmark_key: int, range_m: float) -> gtsam.NoiseModelFactor:
+        """``RangeFactor2D``, or :func:`scaled_range_factor` when the range scale is estimated."""
+        if self._scale_key is None:
+            return gtsam.RangeFactor2D(pose_key, landmark_key, range_m, self._range_model)
+        return scaled_range_factor(pose_key, landmark_key, self._scale_key, range_m, self._range_model)
+
+    def _current_scale(self) -> float:
+        """The newest estimate of the range scale (1 when it is not estimated)."""
+        if self._scale_key is None:
+            return 1.0
+        if self._pending[1].exists(self._scale_key):
+            return float(self._pending[1].atVector(self._scale_key)[0])
+        return float(self._solver_scale(self._scale_key))
+
+    def _solver_scale(self, key: int) -> float:
+        raise NotImplementedError
+
+    def _scale_extras(self, estimate: gtsam.Values) -> dict:
+        """``{'range_scale': s}`` at ``estimate`` when the range scale is estimated."""
+        if self._scale_key is None or not estimate.exists(self._scale_key):
+            return {}
+        return {"range_scale": float(estimate.atVector(self._scale_key)[0])}
 
     #: online smoothers gate a range against their current estimate when it arrives
     _gate_ranges_online = True
@@ -470,6 +539,9 @@ class BatchLandmarkSLAM(_LandmarkSmootherBase):
     def _solver_point(self, key: int):
         return self._initial.atPoint2(key)
 
+    def _solver_scale(self, key: int) -> float:
+        return self._initial.atVector(key)[0]
+
     def _optimize(self, graph: gtsam.NonlinearFactorGraph, initial: gtsam.Values
                   ) -> tuple[gtsam.Values, int]:
         params = gtsam.LevenbergMarquardtParams()
@@ -488,7 +560,9 @@ class BatchLandmarkSLAM(_LandmarkSmootherBase):
         kept, dropped = gtsam.NonlinearFactorGraph(), 0
         for i in range(self._graph.size()):
             f = self._graph.at(i)
-            if isinstance(f, gtsam.RangeFactor2D) and self.noise.range_rejected(f.unwhitenedError(solution)[0]):
+            # the range factors: RangeFactor2D, or the scaled CustomFactor (the only custom one)
+            if (isinstance(f, (gtsam.RangeFactor2D, gtsam.CustomFactor))
+                    and self.noise.range_rejected(f.unwhitenedError(solution)[0])):
                 dropped += 1
                 continue
             kept.add(f)
@@ -537,7 +611,7 @@ class BatchLandmarkSLAM(_LandmarkSmootherBase):
                 info["warnings"] = [f"marginal covariances unavailable: "
                                     f"{str(exc).strip().splitlines()[0]}"]
         landmarks, landmark_covs = self._landmark_output(solution, cov_of)
-        return poses, covs, landmarks, landmark_covs, info
+        return poses, covs, landmarks, landmark_covs, {**info, **self._scale_extras(solution)}
 
 
 # ---- iSAM2 ---------------------------------------------------------------------------------------
@@ -577,6 +651,9 @@ class Isam2LandmarkSLAM(_LandmarkSmootherBase):
     def _solver_point(self, key: int):
         return self._isam.calculateEstimatePoint2(key)
 
+    def _solver_scale(self, key: int) -> float:
+        return self._isam.calculateEstimateVector(key)[0]
+
     def _collect(self):
         factors, values, stamps = self._pending
         if factors.size():
@@ -591,7 +668,8 @@ class Isam2LandmarkSLAM(_LandmarkSmootherBase):
                              for k in range(n)])
             cov_of = self._isam.marginalCovariance
         landmarks, landmark_covs = self._landmark_output(estimate, cov_of)
-        return poses, covs, landmarks, landmark_covs, {"online_xytheta": np.array(self._online)}
+        return poses, covs, landmarks, landmark_covs, {"online_xytheta": np.array(self._online),
+                                                       **self._scale_extras(estimate)}
 
 
 # ---- fixed lag -----------------------------------------------------------------------------------
@@ -628,6 +706,9 @@ class FixedLagLandmarkSLAM(_LandmarkSmootherBase):
     def _process(self, factors, values, stamps, stamp) -> None:
         start = self._stamps[0] if self._stamps[0] is not None else 0.0
         stamps = {k: (start if t is None else t) for k, t in stamps.items()}
+        if self._scale_key is not None:
+            # the range scale concerns every range: it never leaves the window
+            stamps[self._scale_key] = max([*stamps.values(), *self._key_stamp.values()])
         self._key_stamp.update(stamps)
         newest = max(self._key_stamp.values())
         leaving = [k for k, t in self._key_stamp.items() if t < newest - self.config.lag_s]
@@ -656,6 +737,9 @@ class FixedLagLandmarkSLAM(_LandmarkSmootherBase):
 
     def _solver_point(self, key: int):
         return self._smoother.calculateEstimatePoint2(key)
+
+    def _solver_scale(self, key: int) -> float:
+        return self._smoother.calculateEstimateVector(key)[0]
 
     def _collect(self):
         factors, values, stamps = self._pending
@@ -688,4 +772,4 @@ class FixedLagLandmarkSLAM(_LandmarkSmootherBase):
                 landmarks[lid] = value
                 if cov is not None:
                     landmark_covs[lid] = cov
-        return poses, covs, landmarks, landmark_covs, {"lag_s": self.config.lag_s}
+        return poses, covs, landmarks, landmark_covs, {"lag_s": self.config.lag_s, **self._scale_extras(estimate)}

@@ -19,6 +19,10 @@ Metadata keys (``slamkit.sim.landmark_world`` and the dataset readers write them
 * ``range_bearing_sigma`` = (sigma_range_m, sigma_bearing_rad);
 * ``initial_pose_sigma`` = (x_m, y_m, theta_rad): the standard deviations of the start pose;
 * ``range_gate_m``: the range-only outlier gate (:meth:`NoiseParams.range_rejected`);
+* ``range_scale_sigma``: > 0 when the ranges carry an unknown scale s (measured = s * true range,
+  e.g. a ranging radio's clock rate): every range-only estimator then estimates s jointly, with
+  a prior N(1, range_scale_sigma^2) (issue 12 follow-up); 0 (default) takes the ranges as
+  calibrated;
 * or the field names of :class:`NoiseParams` directly (``sigma_v_mps`` ...).
 """
 
@@ -53,10 +57,16 @@ class NoiseParams:
     #: prediction exceeds this is rejected and counted (the same rule in every estimator;
     #: inf keeps every range)
     range_gate_m: float = float("inf")
+    #: > 0: the ranges are s * the true range with s unknown; the range-only estimators estimate
+    #: s from a prior N(1, range_scale_sigma^2). 0: ranges calibrated (s = 1, not estimated)
+    range_scale_sigma: float = 0.0
 
     def __post_init__(self) -> None:
         if not self.range_gate_m > 0:
             raise ConfigError(f"NoiseParams.range_gate_m must be positive, got {self.range_gate_m}")
+        if not (np.isfinite(self.range_scale_sigma) and self.range_scale_sigma >= 0):
+            raise ConfigError(f"NoiseParams.range_scale_sigma must be finite and >= 0, got "
+                              f"{self.range_scale_sigma}")
         for name in SENSOR_SIGMAS:
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0):
@@ -98,7 +108,7 @@ class NoiseParams:
                 values[key] = tuple(given.tolist())
             else:
                 values.update(zip(names, given.tolist()))
-        for name in (*SENSOR_SIGMAS, "range_gate_m"):
+        for name in (*SENSOR_SIGMAS, "range_gate_m", "range_scale_sigma"):
             if metadata.get(name) is not None:
                 values[name] = float(metadata[name])
         values.update(overrides)

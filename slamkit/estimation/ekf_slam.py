@@ -7,6 +7,10 @@ Thrun, Burgard & Fox, *Probabilistic Robotics*, Table 10.1 (known correspondence
 Table 10.2 (maximum-likelihood correspondences, Mahalanobis gate with a new-landmark threshold).
 
 State: x = (x_r, y_r, theta_r, m_1x, m_1y, ..., m_Lx, m_Ly), covariance P (n x n, n = 3 + 2L).
+When the sequence declares its ranges' scale unknown (``NoiseParams.range_scale_sigma`` > 0, range-only
+beacons: r = s |m - p|), s joins the state after the robot, x = (x_r, y_r, theta_r, s, m_1, ...),
+starting at 1 with that sigma; it is static in the prediction and correlated with everything by the
+range updates.
 
 Cost per step (why it is not the textbook form):
 
@@ -95,14 +99,20 @@ def sparse_update(x: np.ndarray, P: np.ndarray, n: int, j: int, z: np.ndarray, R
 
 
 def sparse_range_update(x: np.ndarray, P: np.ndarray, n: int, j: int, r: float, variance: float,
-                        ) -> tuple[float, float]:
+                        scale_index: int | None = None) -> tuple[float, float]:
     """In-place EKF update of x[:n], P[:n, :n] with one range r to the landmark at index j:
-    H is non-zero in the robot's (x, y) and the landmark's 2 columns, so it is the same O(n^2)
-    rank-1 update as :func:`sparse_update`. Returns (nu, S) for NIS."""
-    Hp, Hm = range_only.observe_jacobians(x[:2], x[j:j + 2])
+    H is non-zero in the robot's (x, y) and the landmark's 2 columns (and the range scale's,
+    r = s |m - p|, when ``scale_index`` holds s), so it is the same O(n^2) rank-1 update as
+    :func:`sparse_update`. Returns (nu, S) for NIS."""
+    s = 1.0 if scale_index is None else float(x[scale_index])
+    Hp, Hm, distance = range_only.observe_scaled_jacobians(x[:2], x[j:j + 2], s)
     PHt = P[:n, :2] @ Hp + P[:n, j:j + 2] @ Hm               # (n,)
+    if scale_index is not None:
+        PHt += P[:n, scale_index] * distance
     S = float(Hp @ PHt[:2] + Hm @ PHt[j:j + 2] + variance)
-    nu = float(r - range_only.observe(x[:2], x[j:j + 2]))
+    if scale_index is not None:
+        S += float(distance * PHt[scale_index])
+    nu = float(r - s * distance)
     W = PHt / np.sqrt(S)
     x[:n] += W * (nu / np.sqrt(S))
     x[2] = wrap_angle(x[2])
@@ -140,12 +150,17 @@ class EKFSLAM(FilterBase):
 
     # -- state storage ---------------------------------------------------------------------
     def _reset(self, prior: Prior) -> None:
-        cap = 3 + 2 * max(self.config.initial_capacity_landmarks, 1)
+        cap = 4 + 2 * max(self.config.initial_capacity_landmarks, 1)
         self.x = np.zeros(cap)
         self.P = np.zeros((cap, cap))
         self.x[:3] = prior.world_xytheta_body
         self.P[:3, :3] = prior.covariance
-        self.n = 3
+        # the unknown range scale (when declared) sits after the robot; landmarks from _m0 on
+        self._scale_index = 3 if self.noise.range_scale_sigma > 0 else None
+        self._m0 = 3 if self._scale_index is None else 4
+        if self._scale_index is not None:
+            self.x[3], self.P[3, 3] = 1.0, self.noise.range_scale_sigma**2
+        self.n = self._m0
         self.slot_ids: list[int] = []        # landmark id of each slot
         self._slot_of: dict[int, int] = {}   # known id -> slot
         # ids for landmarks found by association; clear of the sequence's ids when those are used
@@ -159,7 +174,7 @@ class EKFSLAM(FilterBase):
         cap = len(self.x)
         if self.n + 2 <= cap:
             return
-        new_cap = 3 + 2 * (2 * ((cap - 3) // 2))
+        new_cap = self._m0 + 2 * (2 * ((cap - self._m0) // 2))
         x = np.zeros(new_cap)
         P = np.zeros((new_cap, new_cap))
         x[:self.n] = self.x[:self.n]
@@ -168,7 +183,7 @@ class EKFSLAM(FilterBase):
 
     @property
     def num_landmarks(self) -> int:
-        return (self.n - 3) // 2
+        return (self.n - self._m0) // 2
 
     # -- filter steps ------------------------------------------------------------------------
     def _predict(self, odometry: Odometry) -> None:
@@ -201,14 +216,15 @@ class EKFSLAM(FilterBase):
         log|S| (L,), vectorised over landmarks from the 2 x 2 and 3 x 2 covariance blocks."""
         L = self.num_landmarks
         n, xr = self.n, self.x[:3]
-        lm = self.x[3:n].reshape(L, 2)
+        m0 = self._m0
+        lm = self.x[m0:n].reshape(L, 2)
         z_hat = range_bearing.observe(np.broadcast_to(xr, (L, 3)), lm)
         Hr, Hm = range_bearing.observe_jacobians(np.broadcast_to(xr, (L, 3)), lm)
         P = self.P
         Prr = P[:3, :3]
-        Prm = P[:3, 3:n].reshape(3, L, 2).transpose(1, 0, 2)               # (L, 3, 2)
+        Prm = P[:3, m0:n].reshape(3, L, 2).transpose(1, 0, 2)              # (L, 3, 2)
         k = np.arange(L)
-        Pmm = P[3:n, 3:n].reshape(L, 2, L, 2)[k, :, k, :]                   # (L, 2, 2)
+        Pmm = P[m0:n, m0:n].reshape(L, 2, L, 2)[k, :, k, :]                 # (L, 2, 2)
         cross = Hr @ Prm @ Hm.transpose(0, 2, 1)
         S = (Hr @ Prr @ Hr.transpose(0, 2, 1) + cross + cross.transpose(0, 2, 1)
              + Hm @ Pmm @ Hm.transpose(0, 2, 1) + self.noise.range_bearing_cov)
@@ -230,7 +246,7 @@ class EKFSLAM(FilterBase):
                 slot = self._associate(z)
                 if slot is None:
                     continue
-            nu, S = sparse_update(self.x, self.P, self.n, 3 + 2 * slot, z, R)
+            nu, S = sparse_update(self.x, self.P, self.n, self._m0 + 2 * slot, z, R)
             self._record_nis(nu, S)
 
     def _update_range(self, event: Range) -> None:
@@ -241,6 +257,7 @@ class EKFSLAM(FilterBase):
         poses the filter no longer holds)."""
         ids, ranges = range_rows(event)
         var = self.noise.sigma_range_m**2
+        scale = 1.0 if self._scale_index is None else float(self.x[self._scale_index])
         for lid, r in zip(ids.tolist(), ranges.tolist()):
             if lid < 0:
                 # range-only needs the beacon's identity (no association from a range alone)
@@ -248,23 +265,37 @@ class EKFSLAM(FilterBase):
                 continue
             slot = self._slot_of.get(lid)
             if slot is None:
-                fix = self._beacons.add(lid, self.x[:2], r)
+                fix = self._beacons.add(lid, self.x[:2], r / scale)
                 if fix is not None:
-                    self._add_beacon(lid, fix.trilateration.world_p_landmark, fix.covariance)
+                    self._add_beacon(lid, fix)
                 continue
-            j = 3 + 2 * slot
-            if self.noise.range_rejected(r - range_only.observe(self.x[:2], self.x[j:j + 2])):
+            j = self._m0 + 2 * slot
+            if self.noise.range_rejected(r - scale * range_only.observe(self.x[:2], self.x[j:j + 2])):
                 self._rejected_ranges += 1
                 continue
-            nu, S = sparse_range_update(self.x, self.P, self.n, j, r, var)
+            nu, S = sparse_range_update(self.x, self.P, self.n, j, r, var, self._scale_index)
+            scale = 1.0 if self._scale_index is None else float(self.x[self._scale_index])
             self._record_nis(np.array([nu]), np.array([[S]]))
 
-    def _add_beacon(self, lid: int, world_p: np.ndarray, cov: np.ndarray) -> None:
+    def _add_beacon(self, lid: int, fix) -> None:
+        """A trilaterated beacon enters the state (see :meth:`_update_range`). With an estimated
+        range scale s the trilateration used the ranges divided by s, m = g(s): the beacon is
+        correlated with s (and through it with the rest) by G_s = dm/ds = (J^T J)^-1 J^T d(r/s)/ds,
+        J the range Jacobians at the beacon, d(r/s)/ds = -(r/s)/s."""
         self._grow()
         n = self.n
+        world_p = fix.trilateration.world_p_landmark
         self.P[n:n + 2, :n] = 0.0
         self.P[:n, n:n + 2] = 0.0
-        self.P[n:n + 2, n:n + 2] = cov + self.P[:2, :2]
+        self.P[n:n + 2, n:n + 2] = fix.covariance + self.P[:2, :2]
+        si = self._scale_index
+        if si is not None:
+            J = range_only.observe_jacobians(fix.world_p_body, world_p)[1]          # (K, 2)
+            G_s = np.linalg.pinv(J) @ (-fix.range_m / self.x[si])                  # (2,)
+            cross = G_s[:, None] * self.P[si, :n][None, :]                          # (2, n)
+            self.P[n:n + 2, :n] = cross
+            self.P[:n, n:n + 2] = cross.T
+            self.P[n:n + 2, n:n + 2] += np.outer(G_s, G_s) * self.P[si, si]
         self.x[n:n + 2] = world_p
         self.n = n + 2
         self._slot_of[lid] = len(self.slot_ids)
@@ -293,7 +324,7 @@ class EKFSLAM(FilterBase):
     def _landmarks(self) -> tuple[dict[int, np.ndarray], dict[int, np.ndarray]]:
         pos, cov = {}, {}
         for k, lid in enumerate(self.slot_ids):
-            j = 3 + 2 * k
+            j = self._m0 + 2 * k
             pos[int(lid)] = self.x[j:j + 2].copy()
             cov[int(lid)] = self.P[j:j + 2, j:j + 2].copy()
         return pos, cov
@@ -301,4 +332,5 @@ class EKFSLAM(FilterBase):
     def _extras(self) -> dict:
         return {"num_landmarks": self.num_landmarks, "ambiguous_measurements": self._ambiguous,
                 "rejected_ranges": self._rejected_ranges,
-                "uninitialised_beacons": len(self._beacons.pending())}
+                "uninitialised_beacons": len(self._beacons.pending()),
+                **({} if self._scale_index is None else {"range_scale": float(self.x[self._scale_index])})}

@@ -437,6 +437,8 @@ class ParticleFilterLocalization(FilterBase):
     association over the whole map."""
 
     name = "pf"
+    #: per-particle range scale when it is estimated (None: ranges calibrated; MCL never sets it)
+    scales: np.ndarray | None = None
 
     def __init__(self, world_p_landmarks: Mapping[int, np.ndarray], noise: NoiseParams = NoiseParams(),
                  config: ParticleFilterConfig = ParticleFilterConfig(),
@@ -456,6 +458,10 @@ class ParticleFilterLocalization(FilterBase):
         self.log_w = np.full(n, -np.log(n))
         self.n_resamples = 0
         self._rejected_ranges = 0
+        # an unknown range scale (r = s |m - p|, NoiseParams.range_scale_sigma > 0): each particle
+        # carries its own s, drawn from the prior N(1, sigma^2) and resampled with its pose
+        sigma_s = self.noise.range_scale_sigma
+        self.scales = 1.0 + sigma_s * self.rng.standard_normal(n) if sigma_s > 0 else None
 
     def _predict(self, odometry: Odometry) -> None:
         u = np.array([odometry.v_mps, odometry.omega_radps])
@@ -495,14 +501,17 @@ class ParticleFilterLocalization(FilterBase):
         on its residual against the weighted mean pose (the rule every estimator applies)."""
         ids, ranges = range_rows(event)
         mean = self._pose_and_covariance()[0]
+        scale = 1.0 if self.scales is None else float(np.exp(self.log_w) @ self.scales)
         rows = [(self._index[i], r) for i, r in zip(ids.tolist(), ranges.tolist()) if i in self._index
-                and not self.noise.range_rejected(r - range_only.observe(mean[:2], self.landmarks[self._index[i]]))]
+                and not self.noise.range_rejected(
+                    r - scale * range_only.observe(mean[:2], self.landmarks[self._index[i]]))]
         self._rejected_ranges += len(ids) - len(rows)
         if not rows:
             return
         lm = self.landmarks[[k for k, _ in rows]]
         z = np.array([r for _, r in rows])
-        residual = z[None, :] - range_only.observe(self.particles[:, None, :2], lm[None])   # (N, m)
+        predicted = range_only.observe(self.particles[:, None, :2], lm[None])           # (N, m)
+        residual = z[None, :] - (predicted if self.scales is None else self.scales[:, None] * predicted)
         var = self.noise.sigma_range_m**2
         w = np.exp(self.log_w)
         nu = w @ residual                                       # predictive innovation (m,)
@@ -526,6 +535,10 @@ class ParticleFilterLocalization(FilterBase):
         w = np.exp(self.log_w)
         if effective_sample_size(w) < self.config.ess_threshold * len(w):
             idx = resample(self.config.resampling, w, self.rng)
+            if self.scales is not None:
+                # copies of one scale stay apart by a jitter of 1% of the prior sigma
+                self.scales = self.scales[idx] + (0.01 * self.noise.range_scale_sigma
+                                                  * self.rng.standard_normal(len(idx)))
             self.particles = roughen(self.particles[idx], self.config.roughening_k, self.rng, _POSE_ANGLES)
             if prior_cov is not None:
                 self.particles = regularize(self.particles, prior_cov, self.rng)
@@ -537,4 +550,5 @@ class ParticleFilterLocalization(FilterBase):
 
     def _extras(self) -> dict:
         return {"n_resamples": self.n_resamples, "n_particles_final": len(self.particles),
-                "rejected_ranges": self._rejected_ranges}
+                "rejected_ranges": self._rejected_ranges,
+                **({} if self.scales is None else {"range_scale": float(np.exp(self.log_w) @ self.scales)})}

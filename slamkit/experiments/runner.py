@@ -285,6 +285,9 @@ def score(run: EstimatorRun, reference: Trajectory | None,
     if "rejected_ranges" in est.extras:
         # range-only estimators: how many ranges the shared range gate rejected
         metrics["rejected_ranges"] = float(est.extras["rejected_ranges"])
+    if "range_scale" in est.extras:
+        # range-only estimators that estimated the ranges' unknown scale (no ground truth used)
+        metrics["range_scale"] = float(est.extras["range_scale"])
     if world_p_landmarks and est.world_p_landmarks:
         metrics["landmark_rmse_m"] = landmark_rmse_m(est.world_p_landmarks, world_p_landmarks,
                                                      2 if planar else 3)

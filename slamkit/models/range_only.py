@@ -1,5 +1,6 @@
 """Range-only sensor (ranging radios, UWB beacons): r = |m - p| from the body origin p to a
-beacon m, its Jacobians, and trilateration of an unknown beacon from ranges taken over a
+beacon m, its Jacobians, the same with an unknown scale s (r = s |m - p|: a radio whose ranges
+are a few percent long, as Plaza's are 7%; :func:`observe_scaled_jacobians`), and trilateration of an unknown beacon from ranges taken over a
 baseline.
 
 Trilateration (delayed landmark initialisation, Djugash & Singh, "Range-only SLAM for robots
@@ -39,6 +40,14 @@ def observe_jacobians(world_p_body: np.ndarray, world_p_landmark: np.ndarray
     r = np.hypot(d[..., 0], d[..., 1])[..., None]
     u = np.divide(d, r, out=np.zeros_like(d), where=r > 0)
     return -u, u
+
+
+def observe_scaled_jacobians(world_p_body: np.ndarray, world_p_landmark: np.ndarray, scale: float
+                             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Jacobians of the scaled range r = s |m - p|: (dr/dp (..., 2), dr/dm (..., 2),
+    dr/ds (...,)) = (-s u, s u, |m - p|) with u the unit vector from the body to the landmark."""
+    Jp, Jm = observe_jacobians(world_p_body, world_p_landmark)
+    return scale * Jp, scale * Jm, observe(world_p_body, world_p_landmark)
 
 
 class Trilateration(NamedTuple):

@@ -10,6 +10,7 @@ from slamkit.data import registry
 from slamkit.data.formats.plaza import load_plaza_sequence
 from slamkit.data.noise import NoiseParams
 from slamkit.data.sequence import Odometry, Range
+from slamkit.errors import DataError
 
 pytestmark = pytest.mark.skipif(not registry.is_available(registry.get("plaza1")),
                                 reason="the gtsam wheel's Plaza files are not available")
@@ -86,6 +87,19 @@ def test_range_scale_fit_and_calibration(plaza1, plaza2):
     scaled = load_plaza_sequence("plaza2", range_scale=2.0, max_duration_s=5.0)
     assert scaled.of_type(Range)[0].range_m[0] == pytest.approx(47.260574538515279 / 2.0)
     assert max(e.stamp_s for e in scaled) <= 5.0
+    assert scaled.metadata["range_scale_sigma"] == 0.0     # a number: calibrated, s not estimated
+
+
+def test_range_scale_estimate_mode():
+    """``range_scale: estimate``: the ranges as recorded, the scale declared unknown (prior sigma
+    0.1), which every range-only estimator reads through NoiseParams."""
+    seq = load_plaza_sequence("plaza2", range_scale="estimate", max_duration_s=5.0)
+    assert seq.of_type(Range)[0].range_m[0] == pytest.approx(47.260574538515279)
+    assert seq.metadata["range_scale"] == "estimate"
+    assert NoiseParams.from_metadata(seq.metadata).range_scale_sigma == 0.1
+    for bad in ("estimated", -1.0):
+        with pytest.raises(DataError, match="range_scale"):
+            load_plaza_sequence("plaza2", range_scale=bad, max_duration_s=5.0)
 
 
 def test_noise_metadata_reaches_every_estimator(plaza2):

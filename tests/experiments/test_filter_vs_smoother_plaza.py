@@ -1,8 +1,10 @@
 """filter_vs_smoother on the real range-only recordings Plaza 1 and 2 (issue 12).
 
-Default run: the first 60 s of Plaza 2 through the pipeline (every estimator, the report's
-localisation / SLAM separation, the range gate's counts, the one-run NEES label). Under
-``slow``: the whole runs and the issue's accuracy goals."""
+Default run: the first 60 s of Plaza 2 through the pipeline, with the ranges calibrated against
+the ground truth (every estimator, the report's localisation / SLAM separation, the one-run NEES
+label) and with the range scale estimated (``range_scale: estimate``, no ground truth: the
+scale each estimator finds, the range gate's counts). Under ``slow``: the whole runs and the
+issue's accuracy goals in the estimate mode (``make run``'s)."""
 
 from __future__ import annotations
 
@@ -65,13 +67,25 @@ def test_plaza2_first_minute_through_the_pipeline():
     assert "1 (one run, no Monte Carlo)" in report
 
 
-def test_raw_ranges_are_gated_and_counted():
-    """Without the calibration half the ranges lie > 2 m from the truth's prediction: the
-    localisation filters' 3 m gate rejects the same kind of range in each (counted, not hidden)."""
-    output = _run([{"dataset": "plaza2", "params": {"max_duration_s": 60.0}, "estimators": SMOOTHER_OVERRIDES}])
-    for name in ("ekf", "ukf", "pf"):
-        rejected, _ = _metric(output, "plaza2", name, "rejected_ranges")
-        assert rejected > 0, name
+def test_estimated_range_scale_first_minute():
+    """The ranges as recorded, their scale declared unknown: the SLAM estimators and the pf
+    estimate it (the ground-truth fit over the whole run is 1.0696) and stay accurate; the EKF
+    and UKF do not estimate it, so their 3 m gate rejects the ranges the 7% error pushes out
+    (counted, not hidden). Measured on this slice: s (ATE) pf 1.0708 (0.32 m), ekf_slam 1.0669
+    (0.24 m), batch and isam2 1.0716 (0.20 m); ekf / ukf 1.40 m with 94 ranges gated. The 5 s
+    fixed-lag smoother is not asserted: its s stays at 1.024 and it ends 0.93 m off (an open
+    problem: the scale's information leaves with the marginalised ranges)."""
+    output = _run([{"dataset": "plaza2", "params": {"range_scale": "estimate", "max_duration_s": 60.0},
+                    "estimators": SMOOTHER_OVERRIDES}])
+    for name in ("pf", "ekf_slam", "batch", "isam2"):
+        scale, params = _metric(output, "plaza2", name, "range_scale")
+        assert "failed" not in params, params
+        assert 1.04 < scale < 1.10, (name, scale)
+        assert _metric(output, "plaza2", name, "ate_rmse_m")[0] < 0.45, name
+    for name in ("ekf", "ukf"):
+        assert _metric(output, "plaza2", name, "range_scale")[0] is None
+        assert _metric(output, "plaza2", name, "rejected_ranges")[0] > 0, name
+    assert "range scale **estimated**" in output.report_md
 
 
 def test_scenario_estimator_overrides_are_validated(tmp_path):
@@ -89,17 +103,20 @@ def test_scenario_estimator_overrides_are_validated(tmp_path):
 
 @pytest.mark.slow
 def test_plaza_goals():
-    """The issue's goals on the whole runs (measured: Plaza 2 iSAM2 0.238 m vs EKF-SLAM 0.514 m,
-    Plaza 1 iSAM2 0.251 m vs EKF-SLAM 0.327 m; the beacons of EKF-SLAM, batch and iSAM2 within
-    0.07 m RMS after alignment; the 5 s fixed-lag smoother re-initialises Plaza 1's beacons (the
-    vehicle needs ~10 s for a 10 m baseline) and ends 0.37 m off there, not asserted)."""
-    output = _run([{"dataset": "plaza1", "params": {"range_scale": 1.0694}, "estimators": SMOOTHER_OVERRIDES},
-                   {"dataset": "plaza2", "params": {"range_scale": 1.0696}, "estimators": SMOOTHER_OVERRIDES}])
+    """The issue's goals on the whole runs, the range scale estimated (no ground truth; measured
+    Plaza 2: iSAM2 0.245 m, s 1.0669 (ground-truth fit 1.0696) vs EKF-SLAM 0.523 m, s 1.0656;
+    Plaza 1: iSAM2 0.259 m, s 1.0658 (fit 1.0694) vs EKF-SLAM 0.396 m, s 1.0649, 1.5x: the 2x
+    goal is asserted on Plaza 2 only, as before; beacons within 0.21 m RMS after alignment)."""
+    params = {"range_scale": "estimate"}
+    output = _run([{"dataset": "plaza1", "params": params, "estimators": SMOOTHER_OVERRIDES},
+                   {"dataset": "plaza2", "params": params, "estimators": SMOOTHER_OVERRIDES}])
     for scenario in ("plaza1", "plaza2"):
         isam2 = _metric(output, scenario, "isam2", "ate_rmse_m")[0]
         assert isam2 < 0.5, (scenario, isam2)
+        for name in ("batch", "isam2"):
+            assert _metric(output, scenario, name, "range_scale")[0] == pytest.approx(1.0695, abs=0.01)
         for name in ("ekf_slam", "batch", "isam2"):
-            assert _metric(output, scenario, name, "landmark_rmse_m")[0] < 0.15, (scenario, name)
+            assert _metric(output, scenario, name, "landmark_rmse_m")[0] < 0.25, (scenario, name)
     # Plaza 2: iSAM2 at least twice as accurate as EKF-SLAM (on Plaza 1 it is 1.3x: not claimed)
     assert 2.0 * _metric(output, "plaza2", "isam2", "ate_rmse_m")[0] <= _metric(output, "plaza2", "ekf_slam",
                                                                                  "ate_rmse_m")[0]

@@ -114,6 +114,10 @@ CASES = [
     Case("range_only.observe", lambda p, m: np.atleast_1d(ro.observe(p, m)),
          lambda p, m: tuple(J[None] for J in ro.observe_jacobians(p, m)),
          (np.array([1.0, 2.0]), np.array([-3.0, 5.0])), (0, 1)),
+    Case("range_only.observe_scaled_jacobians", lambda p, m, s: s * np.atleast_1d(ro.observe(p, m)),
+         lambda p, m, s: (lambda Jp, Jm, d: (Jp[None], Jm[None], np.array([[d]])))(
+             *ro.observe_scaled_jacobians(p, m, s[0])),
+         (np.array([1.0, 2.0]), np.array([-3.0, 5.0]), np.array([1.07])), (0, 1, 2)),
     Case("strapdown.error_transition and noise_jacobian (one IMU step)", _strapdown_error, _strapdown_jacobians,
          (np.zeros(15), np.zeros(12)), (0, 1), tol=1e-8),
 ]
@@ -152,7 +156,7 @@ COVERED = {
     "bicycle.Bicycle.motion_jacobians", "tracked.Tracked.motion_jacobians",
     "omni.Omni3.motion_jacobians", "mecanum.Mecanum.motion_jacobians",
     "range_bearing.observe_jacobians", "range_bearing.inverse_observe_jacobians",
-    "range_only.observe_jacobians", "gps.observe_jacobian", "lidar.scan_endpoints_jacobian",
+    "range_only.observe_jacobians", "range_only.observe_scaled_jacobians", "gps.observe_jacobian", "lidar.scan_endpoints_jacobian",
     "camera.PinholeCamera.project_jacobian", "camera.PinholeCamera.distort_jacobian",
     "camera.PinholeCamera.project_world_jacobians",
     "stereo.StereoCamera.project_jacobian", "stereo.StereoCamera.triangulate_jacobian",

@@ -28,8 +28,13 @@ Measured facts about these files that the reader records rather than hides (``me
 * The ranges are ~7% longer than the GT geometry: a least-squares fit ``range = a * |GT - TL|
   + b`` over every range gives a = 1.0694, b = 0.03 m (Plaza 1) and a = 1.0696, b = 0.01 m
   (Plaza 2), residual std 0.54 and 0.56 m; the per-beacon scales agree to 0.003. The fit is
-  recomputed on every read (``range_scale_fit``, ``range_offset_fit_m``) and ``range_scale``
-  (default 1: the ranges as recorded) divides the ranges when a config wants them calibrated.
+  recomputed on every read (``range_scale_fit``, ``range_offset_fit_m``: a figure to compare
+  with, fitted against the ground truth). ``range_scale`` says what the estimators do about it:
+  a number divides the ranges by it (1, the default: the ranges as recorded; 1.0696: the
+  "calibrated" mode, a calibration taken from the ground truth of the run being scored), and
+  ``"estimate"`` keeps the ranges as recorded and declares the scale unknown
+  (``metadata['range_scale_sigma']`` = ``range_scale_sigma``, default 0.1), so every range-only
+  estimator estimates it jointly from a prior N(1, 0.1^2), with no ground truth.
 
 The noise estimators should assume is the reader's argument (the dataset publishes none) and is
 stored in ``metadata`` (``odometry_sigma``, ``sigma_range_m``, ``range_gate_m``).
@@ -48,6 +53,8 @@ from slamkit.errors import DataError
 from slamkit.geometry.angles import wrap_angle
 
 PLAZA_DATASETS = ("plaza1", "plaza2")
+#: ``range_scale`` value that asks the estimators to estimate the range scale
+RANGE_SCALE_ESTIMATE = "estimate"
 
 #: GT steps shorter than this (m) do not vote on the heading convention
 _MOVING_STEP_M = 0.05
@@ -100,16 +107,22 @@ def range_scale_fit(stamps_s: np.ndarray, ids: np.ndarray, ranges_m: np.ndarray,
 
 def read_plaza_sequence(mat_path: str | Path, dr_path: str | Path, td_path: str | Path,
                         name: str = "plaza", max_duration_s: float | None = None,
-                        range_scale: float = 1.0,
+                        range_scale: float | str = 1.0, range_scale_sigma: float = 0.1,
                         odometry_sigma: tuple[float, float] = (0.1, 0.02),
                         sigma_range_m: float = 0.6, range_gate_m: float = 3.0) -> Sequence:
     """One Plaza run as a Sequence (see the module docstring). ``max_duration_s`` keeps the
-    first seconds only; ``range_scale`` divides every range; ``odometry_sigma`` (v m/s, omega
+    first seconds only; ``range_scale`` divides every range, or is ``"estimate"`` (ranges as
+    recorded, scale declared unknown with prior sigma ``range_scale_sigma``); ``odometry_sigma`` (v m/s, omega
     rad/s), ``sigma_range_m`` and ``range_gate_m`` are the noise and outlier gate the
     estimators should assume, stored in the metadata."""
     mat_path, dr_path, td_path = Path(mat_path), Path(dr_path), Path(td_path)
-    if not (np.isfinite(range_scale) and range_scale > 0):
-        raise DataError(f"range_scale must be positive, got {range_scale}", td_path)
+    estimate_scale = range_scale == RANGE_SCALE_ESTIMATE
+    divisor = 1.0 if estimate_scale else range_scale
+    if isinstance(divisor, str) or not (np.isfinite(divisor) and divisor > 0):
+        raise DataError(f"range_scale must be a positive number or {RANGE_SCALE_ESTIMATE!r}, got "
+                        f"{range_scale!r}", td_path)
+    if estimate_scale and not (np.isfinite(range_scale_sigma) and range_scale_sigma > 0):
+        raise DataError(f"range_scale_sigma must be positive, got {range_scale_sigma}", td_path)
     gt, tl = _mat_tables(mat_path)
     dr = number_rows(dr_path, 3, "no dead-reckoning rows")[1]
     td = number_rows(td_path, 4, "no range rows")[1]
@@ -136,7 +149,7 @@ def read_plaza_sequence(mat_path: str | Path, dr_path: str | Path, td_path: str 
     a, b = range_scale_fit(td_t, td[:, 2], td[:, 3], ground_truth, beacons)
     events: list[Event] = [Odometry(float(t), float(h), float(d / h), float(w / h))
                            for t, h, d, w in zip(dr_t, dt, dr[:, 1], dr[:, 2])]
-    events += [Range(float(t), np.array([int(i)], dtype=np.int64), np.array([r / range_scale]))
+    events += [Range(float(t), np.array([int(i)], dtype=np.int64), np.array([r / divisor]))
                for t, i, r in zip(td_t, td[:, 2], td[:, 3])]
     return Sequence.from_events(
         name, events, ground_truth=ground_truth, world_p_landmarks=beacons,
@@ -144,7 +157,8 @@ def read_plaza_sequence(mat_path: str | Path, dr_path: str | Path, td_path: str 
         metadata={"source": str(mat_path), "format": "plaza", "time_offset_s": t0,
                   "units": "SI (m, s, rad)", "known_correspondences": True, "range_only": True,
                   "ground_truth_heading_offset_rad": flip, "heading_offset_median_rad": offset,
-                  "range_scale": range_scale, "range_scale_fit": a, "range_offset_fit_m": b,
+                  "range_scale": range_scale,
+                  "range_scale_sigma": range_scale_sigma if estimate_scale else 0.0, "range_scale_fit": a, "range_offset_fit_m": b,
                   "odometry_sigma": list(odometry_sigma), "sigma_range_m": sigma_range_m,
                   "range_gate_m": range_gate_m, "initial_pose_sigma": [1e-3, 1e-3, 1e-3],
                   "noise_note": "assumed noise: the dataset publishes none"})

@@ -35,6 +35,8 @@ def report_markdown(config: Mapping[str, Any], summary: list[dict[str, Any]], co
         params = ", ".join(f"{k}={v}" for k, v in s.params.items())
         lines.append(f"- **{s.name}**: {what}{' (' + params + ')' if params else ''}, {seeds[s.name]} run(s), "
                      f"reference: {references.get(s.name, 'none')}")
+        if "range_scale" in s.params:
+            lines[-1] += "; " + range_scale_mode(s.params["range_scale"])
     text += "## Scenarios\n\n" + "\n".join(lines) + "\n\n"
     text += "## Metrics\n\n" + by_setting(summary, setting, summary_markdown)
     paired = [r for r in paired or () if r["metric"] in PAIRED_REPORT_METRICS]
@@ -64,6 +66,15 @@ def report_markdown(config: Mapping[str, Any], summary: list[dict[str, Any]], co
     if notes:
         text += "## Notes\n\n" + "\n".join(f"- {n}" for n in notes[:50]) + "\n"
     return text
+
+
+def range_scale_mode(range_scale: Any) -> str:
+    """How a range-only dataset's range scale was handled (the report says which mode ran)."""
+    if range_scale == "estimate":
+        return ("range scale **estimated** by every range-only estimator (prior N(1, 0.1^2), no "
+                "ground truth; column `range_scale`)")
+    return (f"ranges divided by range_scale = {range_scale} (**calibrated** mode: a scale fitted "
+            f"against the ground truth of the run being scored, when not 1)")
 
 
 def by_setting(rows: list[dict[str, Any]], setting, render) -> str:
