@@ -2,10 +2,11 @@
 (``kitti-vo-a``), the issue's speed goal (>= 10 frames/s on 2 cores), and its parts.
 
 ``mono_vo_frontend_fps``: frames per second of :class:`slamkit.systems.visual_odometry.VisualOdometry`
-without bundle adjustment (ORB detection, Hamming matching with ratio test and cross-check,
-5-point RANSAC, PnP RANSAC, triangulation), images already decoded. The parts are timed on the
-same consecutive frame pairs: ORB detection per image, matching per pair, essential-matrix RANSAC
-per pair. The cases carry a goal, not a same-run reference (the OpenCV pipeline that would be the
+without bundle adjustment (ORB detection, guided Hamming matching with ratio test and
+cross-check, 5-point RANSAC, PnP RANSAC, triangulation), images already decoded. The parts are
+timed on the same consecutive frame pairs: ORB detection per image, brute-force and guided
+(``match_window_px``) matching per pair (the guided case's reference is the brute force),
+essential-matrix RANSAC per pair. The cases carry a goal, not a same-run reference (the OpenCV pipeline that would be the
 reference may only be imported by slamkit.vision.orb); ``bundle_adjustment_ms`` is the 10-frame
 window's cost per frame. Speed is measured here, never asserted in the tests.
 """
@@ -19,7 +20,7 @@ import numpy as np
 from slamkit.bench.cases import BenchCase, best_of
 from slamkit.data.formats.image import read_image
 from slamkit.systems.visual_odometry import VisualOdometry, VisualOdometryConfig
-from slamkit.vision.orb import detect_orb, match_descriptors
+from slamkit.vision.orb import detect_orb, match_descriptors, match_descriptors_windowed
 from slamkit.vision.two_view import ransac_essential
 
 
@@ -41,6 +42,9 @@ def run(quick: bool = False) -> list[BenchCase]:
     orb_s, _ = best_of(lambda: [detect_orb(img, cfg.orb) for img in images[:4]], repeat=2)
     match_s, matches = best_of(lambda: [match_descriptors(a.descriptors, b.descriptors, cfg.match_ratio)
                                         for a, b in zip(feats, feats[1:])], repeat=2)
+    guided_s, guided = best_of(lambda: [match_descriptors_windowed(a.uv, a.descriptors, b.uv, b.descriptors,
+                                                                   cfg.match_window_px, cfg.match_ratio)
+                                        for a, b in zip(feats, feats[1:])], repeat=2)
     x = [(seq.camera.unproject(a.uv[m[:, 0]])[:, :2], seq.camera.unproject(b.uv[m[:, 1]])[:, :2])
          for a, b, m in zip(feats, feats[1:], matches)]
     ess_s, _ = best_of(lambda: [ransac_essential(x1, x2, cfg.ransac_threshold_px / seq.camera.fx,
@@ -56,6 +60,10 @@ def run(quick: bool = False) -> list[BenchCase]:
         BenchCase("orb_detect_1226x370", 1e3 * orb_s / 4, "ms", extra={"features": int(np.mean([len(f) for f in feats]))}),
         BenchCase("orb_match_ratio_cross_check", 1e3 * match_s / pairs, "ms",
                   extra={"matches": int(np.mean([len(m) for m in matches]))}),
+        BenchCase("orb_match_guided_window", 1e3 * guided_s / len(guided), "ms",
+                  reference="orb_match_ratio_cross_check (brute force)", reference_value=1e3 * match_s / pairs,
+                  ratio=match_s / guided_s,
+                  extra={"matches": int(np.mean([len(m) for m in guided])), "window_px": cfg.match_window_px}),
         BenchCase("essential_5pt_ransac", 1e3 * ess_s / pairs, "ms"),
         BenchCase("bundle_adjustment_window10", float(np.median(ba_ms[2:])), "ms",
                   extra={"vo_with_ba_fps": n / total_s}),

@@ -5,8 +5,9 @@ IEEE RAM 18(4), 2011, Algorithm 1 / the course's Example 3.1; the tracking and l
 of PTAM and ORB-SLAM, Mur-Artal et al., IEEE T-RO 31(5), 2015):
 
 1. Features: ORB keypoints and descriptors on every frame (``slamkit.vision.orb``), matched to
-   the previous frame's by brute-force Hamming with the ratio test and cross-check (the
-   putative matches). The second front-end (``frontend: klt``) tracks Shi-Tomasi corners with
+   the previous frame's by Hamming distance with the ratio test and cross-check (the putative
+   matches), guided: a keypoint is compared only with those within ``match_window_px`` of it
+   (the frame-to-frame image motion is small), brute force over all when that finds too few. The second front-end (``frontend: klt``) tracks Shi-Tomasi corners with
    pyramidal Lucas-Kanade (``slamkit.vision.klt``) and tops them up with new corners away from
    the tracked ones; a track is a putative match.
 2. Outlier rejection: the essential matrix by Nister's 5-point RANSAC
@@ -46,7 +47,7 @@ from slamkit.geometry import se3
 from slamkit.models.camera import PinholeCamera
 from slamkit.vision.image import good_features_to_track
 from slamkit.vision.klt import KltConfig, track_klt
-from slamkit.vision.orb import Features, OrbConfig, detect_orb, match_descriptors
+from slamkit.vision.orb import Features, OrbConfig, detect_orb, match_descriptors, match_descriptors_windowed
 from slamkit.vision.pnp import pnp_ransac, reprojection_errors
 from slamkit.vision.two_view import ransac_essential, recover_pose, triangulate
 
@@ -60,6 +61,10 @@ class VisualOdometryConfig:
     frontend: Literal["orb", "klt"] = "orb"
     orb: OrbConfig = OrbConfig(num_features=3000, grid_cols=8, grid_rows=2, fast_threshold=10)
     match_ratio: float = 0.8
+    #: guided matching: a keypoint is compared only with the next frame's keypoints within about
+    #: this many pixels (``match_descriptors_windowed``); brute force over all of them when that
+    #: finds fewer than ``min_pnp_points`` matches (tracking lost) or when 0
+    match_window_px: float = 80.0
     klt: KltConfig = KltConfig(window=15, iterations=20)
     klt_max_corners: int = 1000
     klt_min_distance_px: float = 10.0
@@ -84,6 +89,8 @@ class VisualOdometryConfig:
             raise ConfigError(f"VisualOdometryConfig.frontend must be 'orb' or 'klt', got {self.frontend!r}")
         if self.klt_max_corners < 8 or not self.klt_min_distance_px >= 0:
             raise ConfigError("VisualOdometryConfig needs klt_max_corners >= 8 and klt_min_distance_px >= 0")
+        if not self.match_window_px >= 0:
+            raise ConfigError(f"VisualOdometryConfig.match_window_px must be >= 0, got {self.match_window_px}")
         if self.min_pnp_points < 6:
             raise ConfigError("VisualOdometryConfig.min_pnp_points must be >= 6")
 
@@ -200,8 +207,7 @@ class VisualOdometry:
         prev = self._frames[k - 1] if k else None
         if cfg.frontend == "orb":
             feats = detect_orb(image, cfg.orb)
-            matches = (np.empty((0, 2), int) if prev is None else
-                       match_descriptors(prev.features.descriptors, feats.descriptors, ratio=cfg.match_ratio))
+            matches = np.empty((0, 2), int) if prev is None else self._match(prev.features, feats)
         else:
             feats, matches = self._klt_frontend(prev, image)
         cur = _Frame(float(stamp_s), feats, self._normalised(feats.uv), -np.ones(len(feats), dtype=int),
@@ -258,6 +264,16 @@ class VisualOdometry:
             self._bundle_adjust(k)
         return self._finish(k, cur, matches, inl, tracked, new, method, t0, (time.perf_counter() - t1) * 1e3,
                             frontend_ms)
+
+    def _match(self, prev: Features, cur: Features) -> np.ndarray:
+        """Guided (windowed) matching, brute force when it finds too few (tracking lost)."""
+        cfg = self.config
+        if cfg.match_window_px > 0:
+            matches = match_descriptors_windowed(prev.uv, prev.descriptors, cur.uv, cur.descriptors,
+                                                 cfg.match_window_px, ratio=cfg.match_ratio)
+            if len(matches) >= cfg.min_pnp_points:
+                return matches
+        return match_descriptors(prev.descriptors, cur.descriptors, ratio=cfg.match_ratio)
 
     def _klt_frontend(self, prev: _Frame | None, image) -> tuple[Features, np.ndarray]:
         """Track the previous keypoints with pyramidal LK (``slamkit.vision.klt``), then top the

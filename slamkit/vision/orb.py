@@ -1,4 +1,5 @@
-"""ORB features (OpenCV) and brute-force Hamming matching with the ratio test and cross-check.
+"""ORB features (OpenCV) and Hamming matching (brute force, or guided within a pixel window) with
+the ratio test and cross-check.
 
 Rublee, Rabaud, Konolige & Bradski, "ORB: an efficient alternative to SIFT or SURF", ICCV 2011:
 FAST corners on a scale pyramid ranked by the Harris response, an intensity-centroid
@@ -21,7 +22,8 @@ import numpy as np
 
 from slamkit.errors import ConfigError
 
-__all__ = ["OrbConfig", "Features", "detect_orb", "match_descriptors", "hamming_distances"]
+__all__ = ["OrbConfig", "Features", "detect_orb", "match_descriptors", "match_descriptors_windowed",
+           "hamming_distances"]
 
 
 @dataclass(frozen=True)
@@ -131,6 +133,63 @@ def _two_nearest(desc_a: np.ndarray, desc_b: np.ndarray) -> tuple[np.ndarray, np
     best = np.array([m[0].distance for m in knn], dtype=float)
     second = np.array([m[1].distance if len(m) > 1 else np.inf for m in knn], dtype=float)
     return first, best, second
+
+
+def _two_nearest_in_cells(uv_a, desc_a, uv_b, desc_b, cell_px: float):
+    """``_two_nearest`` restricted to a window: the rows of a in one cell of a ``cell_px`` grid
+    are compared (``cv2.batchDistance``, K = 2) with the rows of b in that cell and its 8
+    neighbours only. Returns (index into b or -1, best, second) per row of a."""
+    import cv2
+
+    n = len(desc_a)
+    first = np.full(n, -1)
+    best = np.full(n, np.inf)
+    second = np.full(n, np.inf)
+    cell_a = np.floor(uv_a / cell_px).astype(int)
+    cell_b = np.floor(uv_b / cell_px).astype(int)
+    cols = int(max(cell_a[:, 0].max(), cell_b[:, 0].max())) + 3
+    key_a = (cell_a[:, 1] + 1) * cols + cell_a[:, 0] + 1
+    key_b = (cell_b[:, 1] + 1) * cols + cell_b[:, 0] + 1
+    order_b = np.argsort(key_b, kind="stable")
+    sorted_b = key_b[order_b]
+    for key in np.unique(key_a):
+        rows = np.flatnonzero(key_a == key)
+        near = np.concatenate([order_b[np.searchsorted(sorted_b, key + dv * cols - 1):
+                                       np.searchsorted(sorted_b, key + dv * cols + 1, side="right")]
+                               for dv in (-1, 0, 1)])
+        if len(near) == 0:
+            continue
+        k = min(2, len(near))
+        dist, nidx = cv2.batchDistance(desc_a[rows], desc_b[near], cv2.CV_32S, normType=cv2.NORM_HAMMING, K=k)
+        first[rows] = near[nidx[:, 0]]
+        best[rows] = dist[:, 0]
+        if k == 2:
+            second[rows] = dist[:, 1]
+    return first, best, second
+
+
+def match_descriptors_windowed(uv_a: np.ndarray, desc_a: np.ndarray, uv_b: np.ndarray, desc_b: np.ndarray,
+                               window_px: float, ratio: float = 0.8, max_distance: int = 64) -> np.ndarray:
+    """``match_descriptors`` (ratio test, cross-check, ``max_distance``) with every keypoint of a
+    compared only with the keypoints of b near it (guided matching): both sets are bucketed in
+    a grid of ``window_px`` cells and a keypoint's candidates are those of its cell and the 8
+    around it, so every pair closer than ``window_px`` in u and v is compared (and none farther
+    than 2 ``window_px``). The neighbourhood is symmetric, so the cross-check runs the same search
+    from b. Used frame to frame, where the image motion is small; (M, 2) pairs sorted by i."""
+    if len(desc_a) == 0 or len(desc_b) == 0:
+        return np.empty((0, 2), dtype=int)
+    uv_a, uv_b = np.asarray(uv_a, float), np.asarray(uv_b, float)
+    desc_a, desc_b = np.ascontiguousarray(desc_a, np.uint8), np.ascontiguousarray(desc_b, np.uint8)
+    first, best, second = _two_nearest_in_cells(uv_a, desc_a, uv_b, desc_b, window_px)
+    keep = (first >= 0) & (best < ratio * second) & (best <= max_distance)
+    if keep.any():
+        targets = np.unique(first[keep])
+        back, _, _ = _two_nearest_in_cells(uv_b[targets], desc_b[targets], uv_a, desc_a, window_px)
+        nearest_in_a = np.full(len(desc_b), -1)
+        nearest_in_a[targets] = back
+        keep &= nearest_in_a[np.maximum(first, 0)] == np.arange(len(desc_a))
+    ia = np.flatnonzero(keep)
+    return np.stack([ia, first[ia]], axis=1)
 
 
 def match_descriptors(desc_a: np.ndarray, desc_b: np.ndarray, ratio: float = 0.8, cross_check: bool = True,
