@@ -147,8 +147,9 @@ class ScenarioEntry(BaseModel):
     scenario: str | None = None
     name: str | None = None
     params: dict[str, Any] = {}
-    #: estimator label -> params overriding the pipeline's for this scenario only
-    estimators: dict[str, dict[str, Any]] = {}
+    #: estimator label -> params overriding the pipeline's for this scenario only, or false to
+    #: leave that estimator out on this scenario
+    estimators: dict[str, Union[dict[str, Any], Literal[False]]] = {}
 
 
 class FilterVsSmootherPipeline(PipelineConfig):
@@ -379,7 +380,7 @@ def _check_scenarios(model: FilterVsSmootherPipeline, doc: YamlDocument | None, 
                 raise ConfigError(f"{where}: scenarios.{k}.estimators: {unknown} are not estimators of this "
                                   f"pipeline ({', '.join(pipeline_estimators)})")
             _check_estimators({label: {**pipeline_estimators[label], **params}
-                               for label, params in entry.estimators.items()},
+                               for label, params in entry.estimators.items() if params is not False},
                               doc, source, ("scenarios", k, "estimators"))
             if entry.preset is not None:
                 scenario = InertialScenario if entry.preset in INERTIAL_PRESETS else LandmarkScenario

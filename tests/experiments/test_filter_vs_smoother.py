@@ -89,6 +89,22 @@ def test_config_errors_name_the_field() -> None:
     assert [c.label for c in parse_estimators({"estimators": ["ekf", {"pf": {"n_particles": 10}}]})] == ["ekf", "pf"]
 
 
+def test_a_scenario_may_leave_out_an_estimator_and_override_another() -> None:
+    from slamkit.experiments.config_models import check_pipeline
+
+    config = {"pipeline": "filter_vs_smoother", "estimators": {"ekf": {}, "batch": {}, "isam2": {}},
+              "scenarios": ["mild", {"preset": "strong", "estimators": {"batch": False, "isam2": {"update_every": 5}}}]}
+    check_pipeline(config)
+    mild, strong = parse_scenarios(config)
+    choices = parse_estimators(config)
+    assert [c.label for c in mild.estimator_choices(choices)] == ["ekf", "batch", "isam2"]
+    assert [(c.label, dict(c.params)) for c in strong.estimator_choices(choices)] == [
+        ("ekf", {}), ("isam2", {"update_every": 5})]
+    with pytest.raises(ConfigError, match=r"scenarios\.1\.ScenarioEntry\.estimators\.batch\.literal\[False\]: "
+                                          r"Input should be False"):
+        check_pipeline({**config, "scenarios": ["mild", {"preset": "strong", "estimators": {"batch": True}}]})
+
+
 def test_scenario_files_with_overrides_are_checked_before_running() -> None:
     from slamkit.experiments.config_models import check_pipeline
 

@@ -40,11 +40,14 @@ class ScenarioSpec:
     scenario: str | None = None
     #: estimator label -> params overriding the pipeline's on this scenario
     estimator_params: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+    #: labels of the pipeline's estimators not run on this scenario (``label: false`` in the config)
+    skipped_estimators: frozenset[str] = frozenset()
 
     def estimator_choices(self, choices: list["EstimatorChoice"]) -> tuple["EstimatorChoice", ...]:
-        """The pipeline's estimators with this scenario's overrides merged into their params."""
+        """The pipeline's estimators with this scenario's overrides merged into their params,
+        without the ones this scenario skips."""
         return tuple(EstimatorChoice(c.label, c.type, {**c.params, **self.estimator_params.get(c.label, {})})
-                     for c in choices)
+                     for c in choices if c.label not in self.skipped_estimators)
 
     @property
     def simulated(self) -> bool:
@@ -77,9 +80,11 @@ def parse_scenarios(config: Mapping[str, Any]) -> list[ScenarioSpec]:
                               f"got {item['preset']!r}")
         default_name = item.get("preset") or item.get("dataset") or Path(str(item.get("scenario"))).stem
         name = path_component(str(item.get("name") or default_name), f"filter_vs_smoother: scenarios[{k}] name")
-        overrides = {str(k): dict(v or {}) for k, v in (item.get("estimators") or {}).items()}
+        entries = item.get("estimators") or {}
+        overrides = {str(k): dict(v or {}) for k, v in entries.items() if v is not False}
+        skipped = frozenset(str(k) for k, v in entries.items() if v is False)
         out.append(ScenarioSpec(name, item.get("preset"), item.get("dataset"), dict(item.get("params") or {}),
-                                item.get("scenario"), overrides))
+                                item.get("scenario"), overrides, skipped))
     names = [s.name for s in out]
     if len(set(names)) != len(names):
         raise ConfigError(f"filter_vs_smoother: scenario names must be unique, got {names} (set 'name')")
