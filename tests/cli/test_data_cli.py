@@ -17,7 +17,10 @@ from slamkit.data import registry
 runner = CliRunner()
 
 
-def test_list_json_shows_local_datasets_with_counts(shared_datasets):
+def test_list_json_shows_local_datasets_with_counts(shared_datasets, monkeypatch):
+    # the folder beside the checkout is found by itself and labelled "shared" (with SLAMKIT_DATA
+    # pointing at it, the same files would be labelled by that variable instead)
+    monkeypatch.delenv("SLAMKIT_DATA", raising=False)
     result = runner.invoke(app, ["data", "list", "--json"])
     assert result.exit_code == 0, result.output
     out = json.loads(result.stdout)
