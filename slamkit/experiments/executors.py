@@ -81,7 +81,32 @@ def exit_with_parent(parent_pid: int, period_s: float = 0.5) -> None:
     threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
 
 
-class LocalExecutor:
+class _Backlogged:
+    """The bounded submission both executors share: ``submit`` queues, and at most
+    ``self._in_flight`` tasks are started (``self._start(fn, arg)`` returns the handle
+    ``as_completed`` waits on); ``_top_up`` starts more as tasks finish."""
+
+    _in_flight: int
+
+    def _init_backlog(self, in_flight: int) -> None:
+        self._pending: dict[Any, Any] = {}
+        self._backlog: deque[tuple[Callable[[Any], Any], Any]] = deque()
+        self._in_flight = in_flight
+
+    def _start(self, fn: Callable[[Any], Any], arg: Any) -> Any:
+        raise NotImplementedError
+
+    def submit(self, fn: Callable[[Any], Any], arg: Any) -> None:
+        self._backlog.append((fn, arg))
+        self._top_up()
+
+    def _top_up(self) -> None:
+        while self._backlog and len(self._pending) < self._in_flight:
+            fn, arg = self._backlog.popleft()
+            self._pending[self._start(fn, arg)] = arg
+
+
+class LocalExecutor(_Backlogged):
     """A ``spawn`` process pool of ``workers`` processes with BLAS pinned to one thread each."""
 
     def __init__(self, workers: int | None = None):
@@ -96,18 +121,10 @@ class LocalExecutor:
         os.environ.update(ONE_THREAD_ENV)
         self._pool = ProcessPoolExecutor(self.workers, mp_context=multiprocessing.get_context("spawn"),
                                          initializer=exit_with_parent, initargs=(os.getpid(),))
-        self._pending: dict[Future, Any] = {}
-        self._backlog: deque[tuple[Callable[[Any], Any], Any]] = deque()
-        self._in_flight = IN_FLIGHT_PER_WORKER * self.workers
+        self._init_backlog(IN_FLIGHT_PER_WORKER * self.workers)
 
-    def submit(self, fn: Callable[[Any], Any], arg: Any) -> None:
-        self._backlog.append((fn, arg))
-        self._top_up()
-
-    def _top_up(self) -> None:
-        while self._backlog and len(self._pending) < self._in_flight:
-            fn, arg = self._backlog.popleft()
-            self._pending[self._pool.submit(fn, arg)] = arg
+    def _start(self, fn: Callable[[Any], Any], arg: Any) -> Future:
+        return self._pool.submit(fn, arg)
 
     def as_completed(self) -> Iterator[tuple[Any, Any]]:
         while self._pending:
@@ -136,7 +153,7 @@ class LocalExecutor:
         self.close()
 
 
-class RayExecutor:
+class RayExecutor(_Backlogged):
     """Ray tasks of one CPU each, with the same one-thread BLAS environment as the local pool.
 
     Uses the Ray connection the process already has (``ray.init`` called by the user or a test);
@@ -156,25 +173,16 @@ class RayExecutor:
                 self._token_set = start_local_ray()
             else:
                 ray.init(address=address, include_dashboard=False, log_to_driver=False)
-        self._pending: dict[Any, Any] = {}
         self._remote: dict[Callable, Any] = {}
-        self._backlog: deque[tuple[Callable[[Any], Any], Any]] = deque()
         # the cluster's CPUs when the sweep starts (an autoscaler adding nodes later is not seen)
-        cpus = int(ray.cluster_resources().get("CPU", 1))
-        self._in_flight = IN_FLIGHT_PER_WORKER * max(1, cpus)
+        self._init_backlog(IN_FLIGHT_PER_WORKER * max(1, int(ray.cluster_resources().get("CPU", 1))))
 
-    def submit(self, fn: Callable[[Any], Any], arg: Any) -> None:
-        self._backlog.append((fn, arg))
-        self._top_up()
-
-    def _top_up(self) -> None:
-        while self._backlog and len(self._pending) < self._in_flight:
-            fn, arg = self._backlog.popleft()
-            if fn not in self._remote:
-                # env_vars merge into the job's runtime environment (a user's PYTHONPATH stays)
-                self._remote[fn] = self._ray.remote(num_cpus=1, max_retries=0,
-                                                    runtime_env={"env_vars": dict(ONE_THREAD_ENV)})(fn)
-            self._pending[self._remote[fn].remote(arg)] = arg
+    def _start(self, fn: Callable[[Any], Any], arg: Any) -> Any:
+        if fn not in self._remote:
+            # env_vars merge into the job's runtime environment (a user's PYTHONPATH stays)
+            self._remote[fn] = self._ray.remote(num_cpus=1, max_retries=0,
+                                                runtime_env={"env_vars": dict(ONE_THREAD_ENV)})(fn)
+        return self._remote[fn].remote(arg)
 
     def as_completed(self) -> Iterator[tuple[Any, Any]]:
         ray = self._ray
