@@ -220,28 +220,40 @@ def _plot(plots: Path, runs: list[VoRun]) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from slamkit.metrics.alignment import align
+    from slamkit.metrics.ate import ate
 
     for name in dict.fromkeys(r.sequence.name for r in runs):
         mine = [r for r in runs if r.sequence.name == name]
         gt = mine[0].sequence.ground_truth
-        fig, ax = plt.subplots(figsize=(6, 6))
+        # a car's path is long and nearly straight: an equal-aspect top view shows one line, so
+        # the lateral offset is drawn on its own scale beside the per-frame error
+        fig, (top, err) = plt.subplots(1, 2, figsize=(11, 4.5))
         if gt is not None:
-            ax.plot(gt.world_t_body[:, 0], gt.world_t_body[:, 2], color="tab:green", label="ground truth")
+            top.plot(gt.world_t_body[:, 2], gt.world_t_body[:, 0], color="tab:green", lw=2.5, label="ground truth")
         for r in mine:
             est = r.trajectory()
-            if gt is not None:
-                est = align(est, gt, "sim3").aligned
-            ax.plot(est.world_t_body[:, 0], est.world_t_body[:, 2], label=f"{r.label} (Sim(3) aligned)")
-        ax.set_xlabel("x (m)")
-        ax.set_ylabel("z (m, forward)")
-        ax.set_aspect("equal")
-        ax.legend(fontsize=8)
-        ax.set_title(name)
+            if gt is None:
+                top.plot(est.world_t_body[:, 2], est.world_t_body[:, 0], label=r.label)
+                continue
+            result = ate(gt, est, "sim3")
+            aligned = result.alignment.aligned
+            top.plot(aligned.world_t_body[:, 2], aligned.world_t_body[:, 0],
+                     label=f"{r.label} (Sim(3) aligned)")
+            err.plot(result.errors_m, label=f"{r.label}: RMSE {result.translation_m.rmse:.3f} m")
+        top.set_xlabel("z (m, forward)")
+        top.set_ylabel("x (m, lateral; not to scale)")
+        top.set_title(f"{name}: top view")
+        top.legend(fontsize=8)
+        err.set_xlabel("frame")
+        err.set_ylabel("position error after Sim(3) alignment (m)")
+        err.set_title("ATE per frame")
+        if gt is not None:
+            err.legend(fontsize=8)
+        for ax in (top, err):
+            ax.grid(alpha=0.3)
         fig.tight_layout()
         fig.savefig(file_in(plots, f"trajectory_{name}", ".png", "sequence name"), dpi=110)
         plt.close(fig)
-
 
 PIPELINE: Pipeline[VoPayload] = Pipeline(
     "visual_odometry", run, VisualOdometryPipeline, VoPayload,
