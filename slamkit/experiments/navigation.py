@@ -317,33 +317,41 @@ def report_markdown(config: Mapping[str, Any], episodes: list[Episode], summary:
 
 
 def plot(plots: Path, episodes: list[Episode], scenarios: Mapping[str, NavigationScenario]) -> None:
+    """``trajectory.png``: per world, its first scenario on the whole map (truth and estimate of
+    every variant, the crossing obstacles' lines, start and goal) above the localisation error
+    along the run."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    e = episodes[0]
-    sc = scenarios[e.scenario]
-    g = sc.grid
-    fig, ax = plt.subplots(figsize=(7, 7))
-    extent = (g.origin_xy_m[0], g.origin_xy_m[0] + g.width * g.resolution_m,
-              g.origin_xy_m[1], g.origin_xy_m[1] + g.height * g.resolution_m)
-    ax.imshow(g.occupied, origin="lower", extent=extent, cmap="Greys", alpha=0.8)
-    for ep in episodes:
-        if ep.scenario == e.scenario:
+    firsts = list({e.world: e.scenario for e in reversed(episodes)}.items())[::-1]
+    fig, axes = plt.subplots(2, len(firsts), figsize=(5.5 * len(firsts), 8.5), squeeze=False,
+                             gridspec_kw={"height_ratios": [3, 1]})
+    for col, (world, name) in enumerate(firsts):
+        sc, ax, err = scenarios[name], axes[0, col], axes[1, col]
+        g = sc.grid
+        extent = (g.origin_xy_m[0], g.origin_xy_m[0] + g.width * g.resolution_m,
+                  g.origin_xy_m[1], g.origin_xy_m[1] + g.height * g.resolution_m)
+        ax.imshow(g.occupied, origin="lower", extent=extent, cmap="Greys", alpha=0.8)
+        for ep in (e for e in episodes if e.scenario == name):
             ax.plot(ep.true_xytheta[:, 0], ep.true_xytheta[:, 1], lw=1.5, label=f"{ep.variant} truth")
-            ax.plot(ep.estimated_xytheta[:, 0], ep.estimated_xytheta[:, 1], "--", lw=1, label=f"{ep.variant} estimate")
-    for a, b in zip(sc.obstacles.a_xy_m, sc.obstacles.b_xy_m):
-        ax.plot([a[0], b[0]], [a[1], b[1]], color="tab:red", lw=3, alpha=0.4)
-    ax.plot(*sc.goal_xytheta[:2], "g*", ms=12)
-    lo = np.minimum(e.true_xytheta[:, :2].min(axis=0), sc.goal_xytheta[:2]) - 2.0
-    hi = np.maximum(e.true_xytheta[:, :2].max(axis=0), sc.goal_xytheta[:2]) + 2.0
-    ax.set_xlim(lo[0], hi[0])
-    ax.set_ylim(lo[1], hi[1])
-    ax.legend(loc="best", fontsize=8)
-    ax.set_title(f"{e.scenario}: truth and estimate (red: crossing obstacles)")
-    ax.set_aspect("equal")
-    fig.savefig(plots / "trajectory.png", dpi=110, bbox_inches="tight")
+            ax.plot(ep.estimated_xytheta[:, 0], ep.estimated_xytheta[:, 1], "--", lw=1,
+                    label=f"{ep.variant} estimate")
+            err.plot(ep.t_s, 100.0 * np.linalg.norm(ep.estimated_xytheta[:, :2] - ep.true_xytheta[:, :2], axis=1),
+                     lw=1, label=ep.variant)
+        for a, b in zip(sc.obstacles.a_xy_m, sc.obstacles.b_xy_m):
+            ax.plot([a[0], b[0]], [a[1], b[1]], color="tab:red", lw=3, alpha=0.4)
+        ax.plot(*sc.start_xytheta[:2], "bo", ms=7)
+        ax.plot(*sc.goal_xytheta[:2], "g*", ms=12)
+        ax.set_title(f"{name}: truth and estimate (red: crossing obstacles)", fontsize=9)
+        ax.set_aspect("equal")
+        ax.legend(loc="best", fontsize=7)
+        err.set_xlabel("time (s)")
+        err.set_ylabel("position error (cm)")
+        err.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(plots / "trajectory.png", dpi=100)
     plt.close(fig)
 
 
