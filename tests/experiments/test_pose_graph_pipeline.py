@@ -116,3 +116,18 @@ def test_an_uncertified_local_minimum_is_retried_from_lago(tmp_path) -> None:
     assert retry.final_error < 1e-9 and retry.certificate.objective < 1e-9
     summary = report.summary()
     assert summary["certified"] is False and summary["retry"]["certified"] is True
+
+
+def test_the_report_puts_sesyncs_published_optimum_beside_the_certified_one(shared_datasets, tmp_path) -> None:
+    from slamkit.experiments.pose_graph import published_fstar
+
+    # the registry's SE-Sync references (IJRR 2019, Tables 1-2); files and graphs without one: None
+    assert (published_fstar("csail"), published_fstar("sphere2500")) == (31.70, 1687.0)
+    assert published_fstar("ring") is None and published_fstar(str(tmp_path / "x.g2o")) is None
+    config = {"pipeline": "pose_graph", "name": "t", "datasets": ["csail"], "solvers": ["lm"], "inits": ["file"]}
+    report = (run_pipeline(config, tmp_path / "pg", progress=False).out_dir / "report.md").read_text()
+    row = next(line for line in report.splitlines() if line.startswith("| csail | lm | file |"))
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    # certified F 31.7037 beside f* 31.70: ratio 1.0001 (f* has 4 significant digits)
+    assert cells[10] == "yes" and float(cells[12]) == 31.7
+    assert float(cells[13]) == pytest.approx(31.7037 / 31.70, abs=2e-5)
