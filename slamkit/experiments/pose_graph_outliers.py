@@ -33,18 +33,8 @@ from slamkit.experiments.pose_graph import ate_against
 from slamkit.experiments.results import ResultsFolder, RunRecord, markdown_table, summarise
 from slamkit.metrics.evaluate import trajectory_from_pose_graph
 from slamkit.sim.outliers import CorruptedGraph, OutlierConfig, add_outliers
+from slamkit.metrics.outliers import detection_scores
 from slamkit.timing import Stopwatch
-
-
-def detection_scores(is_outlier: np.ndarray, inlier: np.ndarray) -> dict[str, float]:
-    """Outlier recall and precision and inlier recall of a back-end's verdict (NaN where undefined)."""
-    rejected = ~np.asarray(inlier, dtype=bool)
-    out = np.asarray(is_outlier, dtype=bool)
-    hits = int(np.count_nonzero(rejected & out))
-    return {"outlier_recall": hits / out.sum() if out.any() else float("nan"),
-            "outlier_precision": hits / rejected.sum() if rejected.any() else float("nan"),
-            "inlier_recall": float(np.count_nonzero(~rejected & ~out) / max(int((~out).sum()), 1)),
-            "outliers_rejected": float(hits), "inliers_rejected": float(np.count_nonzero(rejected & ~out))}
 
 
 def _trajectory(graph: PoseGraph, poses: np.ndarray):

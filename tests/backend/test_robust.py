@@ -10,7 +10,8 @@ import pytest
 from slamkit.backend.robust import ROBUST_BACKENDS, RobustSolveConfig, solve_robust
 from slamkit.errors import ConfigError
 from slamkit.experiments.pose_graph import ate_against
-from slamkit.experiments.pose_graph_outliers import _trajectory, detection_scores
+from slamkit.experiments.pose_graph_outliers import _trajectory
+from slamkit.metrics.outliers import detection_scores
 from slamkit.sim.outliers import OutlierConfig, add_outliers
 
 

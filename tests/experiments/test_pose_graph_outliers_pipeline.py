@@ -53,7 +53,8 @@ def _goal(dataset: str, backend: str):
 
     from slamkit.data import registry
     from slamkit.experiments.pose_graph import ate_against
-    from slamkit.experiments.pose_graph_outliers import _solve, _trajectory, detection_scores
+    from slamkit.experiments.pose_graph_outliers import _solve, _trajectory
+    from slamkit.metrics.outliers import detection_scores
     from slamkit.sim.outliers import OutlierConfig, add_outliers
 
     graph, entry = registry.load_pose_graph_source(dataset)
