@@ -409,7 +409,11 @@ def refine(problem: SESyncProblem, R: np.ndarray, t: np.ndarray, max_iterations:
     Newton steps (``_newton_system``), which converge quadratically where Gauss-Newton is only
     linear (F's residual is not zero: sphere2500 from GTSAM's optimum, GN needs 9 steps for a
     1e-6 relative decrease, ratio ~0.72 per step); a Newton step that does not decrease F is
-    replaced by a Gauss-Newton one. Stops when the relative decrease is below ``rel_tol``."""
+    replaced by a Gauss-Newton one. Stops when the relative decrease is below ``rel_tol``, or
+    after a Newton step whose relative decrease is below sqrt(``rel_tol``): Newton converges
+    quadratically, so the next decrease would be below ``rel_tol``, and confirming it costs one
+    more factorisation for nothing (city10000: 2 steps instead of 4, F within 6e-10 relative of
+    the 4-step value, lambda_min -1.7e-12 instead of -7.7e-15)."""
     dm = data_matrix(problem) if dm is None else dm
     f = sesync_value(problem, R, t)
     mu = 0.0
@@ -417,13 +421,14 @@ def refine(problem: SESyncProblem, R: np.ndarray, t: np.ndarray, max_iterations:
     newton = False
     for it in range(1, int(max_iterations) + 1):
         step_found = False
+        newton_step = False
         if newton:
             H, g = _newton_system(problem, dm, R, t)
             step = _solve(H, g)
             if step is not None:
                 R_new, t_new = _retract(R, t, step)
                 f_new = sesync_value(problem, R_new, t_new)
-                step_found = f_new <= f
+                step_found = newton_step = f_new <= f
         if not step_found:
             J = _jacobian(problem, R)
             r = _weighted_residual(problem, R, t)
@@ -444,6 +449,8 @@ def refine(problem: SESyncProblem, R: np.ndarray, t: np.ndarray, max_iterations:
         decrease = f - f_new
         R, t, f = R_new, t_new, f_new
         if decrease <= rel_tol * max(f, 1e-300):
+            break
+        if newton_step and decrease <= math.sqrt(rel_tol) * max(f, 1e-300):
             break
         newton = True  # after one Gauss-Newton step; a Newton step that fails falls back to GN
     return R, t, it
