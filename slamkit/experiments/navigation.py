@@ -197,6 +197,7 @@ def run_episode(scenario: NavigationScenario, nav_config: NavigationConfig = Nav
         "localisation_error_max_m": float(loc_err.max()),
         "kidnapped": float(kidnapped),
         "replans": float(stack.replans),
+        "plan_expansions_median": float(np.median(stack.plan_expansions)) if stack.plan_expansions else 0.0,
         "recoveries": float(stack.recoveries),
         "no_safe_stop_cycles": float(stack.no_safe_stop_cycles),
         **layer_timing_summary(stack.timings_s),
