@@ -67,8 +67,9 @@ class MapSourceConfig:
     tour_goals: int = 10
     tour_duration_s: float = 300.0
     tour_speed_mps: float = 0.6
-    #: the routes keep this far from walls (0.45 m, the grid world's default, shuts the tour out
-    #: of rooms behind 1.2 m doors; measured on office seed 0: free coverage 0.82 -> see report)
+    #: the routes keep this far from walls: 0.45 m, the grid world's default, shuts the tour out
+    #: of rooms behind 1 m doors (office seed 0, 8 goals, share of the true free cells the map
+    #: observed: 0.75 random goals at 0.45 m, 0.82 spread at 0.45 m, 0.97 spread at 0.3 m)
     tour_clearance_m: float = 0.3
     #: the robot's map resolution
     resolution_m: float = 0.05
