@@ -230,11 +230,15 @@ class NavigationPipeline(PipelineConfig):
     episode: dict[str, Any] = {}
     variants: Annotated[list[NavigationVariant], Field(min_length=1)] = [NavigationVariant(name="nominal")]
     record_scenarios: Annotated[int, Field(ge=0, le=1000)] = 1
+    #: the robot's map: MapSourceConfig fields (slamkit.experiments.navigation_map)
+    map: dict[str, Any] = {}
 
     def check_options(self, config: dict[str, Any], doc: YamlDocument | None, source: str) -> None:
         from slamkit.experiments.navigation import _variants
+        from slamkit.experiments.navigation_map import map_source_config
 
         _variants(config)  # builds every variant's configs: unknown keys and bad values are errors
+        map_source_config(config.get("map"))
 
 
 # --- lidar_slam ----------------------------------------------------------------------------------

@@ -12,8 +12,9 @@ reached the goal pose, on a collision, or after ``max_time_s``.
 Scenarios (:func:`make_navigation_scenario`): a seeded map (generated 20 m office or warehouse at
 5 cm, or the real Willow Garage map at 10 cm), start and goal poses 6-14 m apart with an A* path
 on the costmap, and ``n_obstacles`` discs (people, a forklift) crossing that path timed to meet
-the robot. The robot's map is the world's grid (the issue's "map built offline by slamkit's lidar
-SLAM" is not wired in: see the report).
+the robot. The robot's map (``map: {source: ...}``, :mod:`slamkit.experiments.navigation_map`) is
+the world's grid (``truth``) or built offline by slamkit's lidar SLAM on a mapping tour of the
+world (``slam_tour``, 5 cm); the simulator keeps the true world either way.
 
 Metrics per episode (units in the names): ``success`` (the stack stopped within
 ``goal_tolerance_m`` of the goal position and ``heading_tolerance_rad`` of its heading, by the
@@ -38,12 +39,14 @@ import numpy as np
 from slamkit.errors import ConfigError
 from slamkit.experiments.closed_loop import start_goal_draws
 from slamkit.experiments.config_models import NavigationPipeline, seed_list
+from slamkit.experiments.navigation_map import RobotMap, map_source_config, robot_map
 from slamkit.experiments.observers import PipelineObserver
 from slamkit.experiments.pipeline import Pipeline, PipelineOutput, StepProgress
 from slamkit.experiments.results import ResultsFolder, RunRecord, markdown_table, summarise, summary_markdown
 from slamkit.geometry.angles import wrap_angle
 from slamkit.maps.distance_field import distance_field_m
 from slamkit.maps.inflation import costmap
+from slamkit.maps.occupancy_grid import OccupancyGrid
 from slamkit.planning.grid_search import costmap_to_cell_cost
 from slamkit.sim.moving_obstacles import crossing_obstacles
 from slamkit.sim.navigation_world import WORLDS, NavigationPlant, NavigationScenario, world_map
@@ -126,12 +129,14 @@ class Episode:
 
 def run_episode(scenario: NavigationScenario, nav_config: NavigationConfig = NavigationConfig(),
                 config: EpisodeConfig = EpisodeConfig(), variant: str = "",
-                on_step: Callable[[NavigationStack, NavigationPlant, float, NavigationCommand], None] | None = None
-                ) -> Episode:
+                on_step: Callable[[NavigationStack, NavigationPlant, float, NavigationCommand], None] | None = None,
+                robot_map: OccupancyGrid | None = None) -> Episode:
     """One closed-loop episode (see the module docstring); ``on_step(stack, plant, t, decision)``
-    is called after every cycle (the recorder)."""
+    is called after every cycle (the recorder). The stack localises and plans on ``robot_map``
+    (default: the world's grid); the plant and the scoring always use the world's grid."""
     rng = np.random.default_rng([scenario.seed, 1])
-    stack = NavigationStack(scenario.grid, nav_config, np.random.default_rng([scenario.seed, 2]))
+    stack = NavigationStack(scenario.grid if robot_map is None else robot_map, nav_config,
+                            np.random.default_rng([scenario.seed, 2]))
     plant = NavigationPlant(scenario, rng, odometry_sigma_v_mps=config.odometry_sigma_v_mps,
                             odometry_sigma_omega_radps=config.odometry_sigma_omega_radps)
     sig = np.array([config.initial_sigma_xy_m, config.initial_sigma_xy_m, config.initial_sigma_theta_rad])
@@ -192,6 +197,7 @@ def run_episode(scenario: NavigationScenario, nav_config: NavigationConfig = Nav
         "localisation_error_max_m": float(loc_err.max()),
         "kidnapped": float(kidnapped),
         "replans": float(stack.replans),
+        "plan_expansions_median": float(np.median(stack.plan_expansions)) if stack.plan_expansions else 0.0,
         "recoveries": float(stack.recoveries),
         "no_safe_stop_cycles": float(stack.no_safe_stop_cycles),
         **layer_timing_summary(stack.timings_s),
@@ -301,12 +307,14 @@ def runs_of(episodes: list[Episode]) -> list[RunRecord]:
             for e in episodes]
 
 
-def report_markdown(config: Mapping[str, Any], episodes: list[Episode], summary: list[dict]) -> str:
+def report_markdown(config: Mapping[str, Any], episodes: list[Episode], summary: list[dict],
+                    maps: Mapping[str, RobotMap] | None = None) -> str:
     text = f"# Navigation: {config.get('name', 'navigation')}\n\n"
     text += ("MCL (likelihood field, 500 particles) on simulated lidar and wheel odometry, A* global "
              "planning, the local planner on the estimated pose among lidar-tracked obstacles. "
              "Success: stopped within the goal tolerance (position and heading, by the truth) "
              "without a collision. Mean ± half the 95% CI over seeds, per world and variant.\n\n")
+    text += map_source_markdown(maps or {})
     text += summary_markdown(summary) + "\n\n## Runs\n\n"
     rows = [[e.scenario, e.variant, e.metrics["success"], e.metrics["final_position_error_m"],
              e.metrics["collision_static"], e.metrics["collision_moving"], e.metrics["time_s"],
@@ -314,6 +322,21 @@ def report_markdown(config: Mapping[str, Any], episodes: list[Episode], summary:
     text += markdown_table(["scenario", "variant", "success", "final error (m)", "static hit", "moving hit",
                             "time (s)", "max loc. error (m)", "replans"], rows) + "\n"
     return text
+
+
+def map_source_markdown(maps: Mapping[str, RobotMap]) -> str:
+    """The robot's map: its source and, for a built map, its scores per scenario."""
+    sources = sorted({m.source for m in maps.values()})
+    if not maps or sources == ["truth"]:
+        return "Robot's map: the world's own grid (the ground truth; Willow: the ROS map).\n\n"
+    text = (f"Robot's map: {', '.join(sources)} (slamkit.experiments.navigation_map): lidar SLAM on a "
+            "seeded mapping tour of each world, rasterised at 5 cm in SLAM's own frame; the simulator "
+            "keeps the true world. Occupied cells matched within one cell on the observed cells:\n\n")
+    keys = ("map_precision_1cell", "map_recall_1cell", "map_free_coverage", "map_tour_ate_m",
+            "map_tour_error_max_m", "map_tour_length_m", "map_build_s")
+    rows = [[name] + [m.metrics.get(k, float("nan")) for k in keys] for name, m in maps.items()]
+    return markdown_table(["scenario", "precision", "recall", "free coverage", "tour ATE (m)",
+                           "tour max error (m)", "tour length (m)", "build (s)"], rows) + "\n\n"
 
 
 def plot(plots: Path, episodes: list[Episode], scenarios: Mapping[str, NavigationScenario]) -> None:
@@ -374,20 +397,24 @@ def run(config: Mapping[str, Any], folder: ResultsFolder, progress: StepProgress
         observer: PipelineObserver | None = None) -> PipelineOutput[list[Episode]]:
     """Pipeline ``navigation``: worlds x seeds x variants -> runs, summary, report, plots."""
     variants = _variants(config)
+    map_config = map_source_config(config.get("map"))
     scenarios = scenarios_of(config)
     advance = progress.task("navigation episodes", len(scenarios) * len(variants))
     watch = observer is not None and observer.wants_steps
     n_record = int(config.get("record_scenarios", 1))
     episodes = []
+    maps: dict[str, RobotMap] = {}
     for i, sc in enumerate(scenarios):
+        maps[sc.name] = robot = robot_map(sc, map_config, folder.path / "maps")
         for name, nav, ep in variants:
             hook = _snapshots(observer, f"{name}/{sc.name}", sc) if watch and i < n_record else None
-            episodes.append(run_episode(sc, nav, ep, name, hook))
+            episode = run_episode(sc, nav, ep, name, hook, robot.grid)
+            episodes.append(dataclasses.replace(episode, metrics={**episode.metrics, **robot.metrics}))
             advance(1)
     runs = runs_of(episodes)
     summary = summarise(runs)
     plot(folder.plots, episodes, {s.name: s for s in scenarios})
-    return PipelineOutput(runs, report_markdown(config, episodes, summary), summary, payload=episodes)
+    return PipelineOutput(runs, report_markdown(config, episodes, summary, maps), summary, payload=episodes)
 
 
 PIPELINE: Pipeline[list[Episode]] = Pipeline(

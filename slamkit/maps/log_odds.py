@@ -34,6 +34,10 @@ p > ``occupied_probability``), the ground truth is resampled onto the estimated 
 and both are compared *on the observed cells only* (cells whose log-odds was changed by at
 least one update). Precision = TP / (TP + FP), recall = TP / (TP + FN), IoU = TP / (TP + FP + FN).
 Unobserved cells (wall interiors, rooms never entered) carry no information and are excluded.
+With ``tolerance_cells`` = t > 0 an occupied cell of either map counts as matched when the other
+map has an occupied cell within t cells (Chebyshev distance): precision = estimated occupied cells
+with a true one within t / estimated occupied cells; recall = true occupied cells with an
+estimated one within t / true occupied cells; TP (in IoU) counts the matched true cells.
 """
 
 from __future__ import annotations
@@ -244,18 +248,27 @@ class MapQuality:
 
 
 def map_quality(estimate: LogOddsMap, truth: OccupancyGrid,
-                occupied_probability: float | None = None) -> MapQuality:
+                occupied_probability: float | None = None, tolerance_cells: int = 0) -> MapQuality:
     """Precision, recall and IoU of the thresholded ``estimate`` against ``truth`` on the cells
-    ``estimate`` observed."""
+    ``estimate`` observed, a match allowed ``tolerance_cells`` away (see the module docstring)."""
+    if tolerance_cells < 0:
+        raise ConfigError(f"map_quality: tolerance_cells must be >= 0, got {tolerance_cells}")
     pred = estimate.occupancy_grid(occupied_probability).occupied
     gt = resample_to(truth, estimate.shape, estimate.origin_xy_m, estimate.resolution_m)
     obs = estimate.observed
-    tp = int(np.sum(pred & gt & obs))
-    fp = int(np.sum(pred & ~gt & obs))
-    fn = int(np.sum(~pred & gt & obs))
+    near_gt, near_pred = gt, pred
+    if tolerance_cells:
+        from scipy.ndimage import binary_dilation
+
+        window = np.ones((2 * tolerance_cells + 1,) * 2, dtype=bool)
+        near_gt, near_pred = binary_dilation(gt, window), binary_dilation(pred, window)
+    matched_pred = int(np.sum(pred & near_gt & obs))
+    tp = int(np.sum(gt & near_pred & obs))
+    fp = int(np.sum(pred & ~near_gt & obs))
+    fn = int(np.sum(gt & ~near_pred & obs))
     nan = float("nan")
     return MapQuality(
-        precision=tp / (tp + fp) if tp + fp else nan,
+        precision=matched_pred / (matched_pred + fp) if matched_pred + fp else nan,
         recall=tp / (tp + fn) if tp + fn else nan,
         iou=tp / (tp + fp + fn) if tp + fp + fn else nan,
         true_positives=tp, false_positives=fp, false_negatives=fn, observed_cells=int(obs.sum()),

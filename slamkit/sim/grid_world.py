@@ -92,6 +92,9 @@ class GridScenario:
     world_size_m: tuple[float, float] = (30.0, 30.0)
     world_resolution_m: float = 0.05
     num_goals: int = 4
+    #: ``random``: goals drawn uniformly among the routing cells; ``spread``: a mapping tour --
+    #: each goal the routing cell farthest (along the routes) from the start and the goals so far
+    goal_choice: str = "random"
     clearance_m: float = 0.45
     duration_s: float = 120.0
     speed_mps: float = 0.8
@@ -127,6 +130,8 @@ class GridScenario:
         for name in ("control_rate_hz", "duration_s", "speed_mps", "world_resolution_m"):
             if not getattr(self, name) > 0:
                 raise ConfigError(f"GridScenario.{name} must be > 0, got {getattr(self, name)}")
+        if self.goal_choice not in ("random", "spread"):
+            raise ConfigError(f"GridScenario.goal_choice: {self.goal_choice!r} (random, spread)")
         if self.num_goals < 1:
             raise ConfigError(f"GridScenario.num_goals must be >= 1, got {self.num_goals}")
         if not self.wheel_radius_error > -1.0:
@@ -185,9 +190,12 @@ def make_world(config: GridScenario, rng: np.random.Generator) -> OccupancyGrid:
 
 
 def route(grid: OccupancyGrid, rng: np.random.Generator, num_goals: int, clearance_m: float,
-          cell_m: float = 0.25) -> np.ndarray:
-    """(K, 2) waypoints: a start and ``num_goals`` goals drawn among routing cells that keep
-    ``clearance_m`` from obstacles, joined by shortest 8-connected routes (Dijkstra)."""
+          cell_m: float = 0.25, goal_choice: str = "random") -> np.ndarray:
+    """(K, 2) waypoints: a start and ``num_goals`` goals among routing cells that keep
+    ``clearance_m`` from obstacles, joined by shortest 8-connected routes (Dijkstra). Goals are
+    drawn uniformly (``random``) or, after a random start, each is the cell farthest along the
+    routes from the start and the goals before it (``spread``: farthest-point sampling, so a
+    few goals reach every room), visited nearest first."""
     factor = max(1, int(round(cell_m / grid.resolution_m)))
     dist = distance_field_m(grid)
     h, w = (grid.height // factor) * factor, (grid.width // factor) * factor
@@ -217,7 +225,10 @@ def route(grid: OccupancyGrid, rng: np.random.Generator, num_goals: int, clearan
     r, c, d = np.concatenate(rows), np.concatenate(cols), np.concatenate(costs)
     graph = coo_matrix((np.concatenate([d, d]), (np.concatenate([r, c]), np.concatenate([c, r]))),
                        shape=(len(iy), len(iy))).tocsr()
-    picks = rng.choice(len(iy), size=num_goals + 1, replace=len(iy) < num_goals + 1)
+    if goal_choice == "spread":
+        picks = _spread_goals(graph, int(rng.integers(len(iy))), num_goals)
+    else:
+        picks = rng.choice(len(iy), size=num_goals + 1, replace=len(iy) < num_goals + 1)
     centres = grid.origin_xy_m + (np.column_stack([ix, iy]) + 0.5) * factor * grid.resolution_m
     pts = [centres[picks[0]]]
     for a, b in zip(picks[:-1], picks[1:]):
@@ -227,6 +238,26 @@ def route(grid: OccupancyGrid, rng: np.random.Generator, num_goals: int, clearan
             chain.append(int(pred[chain[-1]]))
         pts.extend(centres[chain[::-1][1:]])
     return np.asarray(pts)
+
+
+def _spread_goals(graph, start: int, num_goals: int) -> list[int]:
+    """Farthest-point sampling along the routes from ``start``, then the goals reordered into a
+    nearest-neighbour tour from the start (the route distances of the graph)."""
+    chosen = [start]
+    nearest = dijkstra(graph, indices=start)
+    for _ in range(num_goals):
+        far = int(np.argmax(np.where(np.isfinite(nearest), nearest, -1.0)))
+        if nearest[far] <= 0.0:
+            break
+        chosen.append(far)
+        nearest = np.minimum(nearest, dijkstra(graph, indices=far))
+    dist = dijkstra(graph, indices=chosen)[:, chosen]
+    order, left = [0], set(range(1, len(chosen)))
+    while left:
+        nxt = min(left, key=lambda j: dist[order[-1], j])
+        order.append(nxt)
+        left.remove(nxt)
+    return [chosen[i] for i in order]
 
 
 # ---------------------------------------------------------------------------------------------
@@ -245,7 +276,7 @@ def simulate_grid_sequence(config: GridScenario, rng: np.random.Generator,
     world_rng, route_rng, odo_rng, enc_rng, imu_rng, lidar_rng, gps_rng, obs_rng, slip_rng = rng.spawn(9)
     if grid is None:
         grid = make_world(config, world_rng)
-    waypoints = route(grid, route_rng, config.num_goals, config.clearance_m)
+    waypoints = route(grid, route_rng, config.num_goals, config.clearance_m, goal_choice=config.goal_choice)
     dt = 1.0 / config.control_rate_hz
     drive = paths.pure_pursuit(waypoints, False, config.duration_s, dt,
                                paths.PurePursuit(config.speed_mps, config.lookahead_m,

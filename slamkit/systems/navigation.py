@@ -11,8 +11,10 @@ Layers, each timed per call (``timings_s``):
 * ``perception`` -- moving obstacles from the scan itself: end points the static map does not
   explain, clustered and tracked with a constant-velocity filter
   (:mod:`slamkit.estimation.obstacle_tracker`).
-* ``global_planner`` -- A* (or any grid planner of the registry, e.g. D* Lite) on the Nav2
-  costmap of the map, from the estimated pose to the goal, every ``replan_period_s`` or at once
+* ``global_planner`` -- A* (or any grid planner of the registry) on the Nav2 costmap of the
+  map, from the estimated pose to the goal; D* Lite (``global_planner: dstar_lite``) searches
+  once and then repairs its search incrementally (the cells whose cost changed and the moved
+  start, :meth:`NavigationStack._search`). Every ``replan_period_s`` or at once
   when the path is blocked (a confirmed, slow track within reach of the path ahead, whose disc
   is then blocked in the costmap) or the robot has made no progress for ``stuck_s`` (then a
   recovery turns it towards the path and creeps on for ``recovery_s``).
@@ -51,7 +53,7 @@ import numpy as np
 from slamkit.control.chance_constraints import tightened_distance, tightened_world, worst_sigma_m
 from slamkit.control.protocols import (ControlOutput, ControlStatus, DistanceGrid, LocalWorld, Reference,
                                        RobotState)
-from slamkit.control.registry import make_controller
+from slamkit.control.registry import CONTROLLERS, make_controller
 from slamkit.control.rollout import rollout_arcs
 from slamkit.data.estimate import Estimate, Prior
 from slamkit.data.noise import NoiseParams
@@ -67,7 +69,7 @@ from slamkit.maps.inflation import chance_sigma_multiplier, costmap
 from slamkit.maps.occupancy_grid import OccupancyGrid
 from slamkit.models.lidar import LikelihoodFieldModel
 from slamkit.planning.grid_search import costmap_to_cell_cost
-from slamkit.planning.protocols import PlanningProblem
+from slamkit.planning.protocols import PlanResult, PlanningProblem
 from slamkit.planning.registry import GRID_PLANNERS, canonical, make_planner
 
 LAYERS = ("localisation", "perception", "global_planner", "local_planner")
@@ -119,7 +121,9 @@ class NavigationConfig:
     recovery_margin_m: float = 0.05
     # -- local planning
     controller: str = "dwa"
-    controller_params: Mapping[str, Any] = field(default_factory=_course_dwa)
+    #: the controller's config fields; None: :func:`default_controller_params` (DWA's course
+    #: weights would be unknown keys to the MPC)
+    controller_params: Mapping[str, Any] | None = None
     cruise_speed_mps: float = 0.5
     #: extra clearance the local planner keeps from tracks moving faster than
     #: ``blocking_speed_mps`` (people and forklifts do not avoid the robot)
@@ -150,6 +154,18 @@ class NavigationConfig:
                      "stop_tolerance_m", "heading_tolerance_rad", "brake_decel_mps2"):
             if not getattr(self, name) > 0:
                 raise ConfigError(f"NavigationConfig.{name} must be > 0, got {getattr(self, name)}")
+
+
+def default_controller_params(config: NavigationConfig) -> dict[str, Any]:
+    """The local planner's config when ``controller_params`` is None: the course's DWA objective
+    for the sampling controllers (``dwa``, ``rollout``: same fields), the MPC's own defaults for
+    ``mpc`` (and its solver variants); both with the stack's robot radius."""
+    name = CONTROLLERS.canonical(config.controller)
+    if name in ("dwa", "rollout"):
+        return {**_course_dwa(), "robot_radius_m": config.robot_radius_m}
+    if name.startswith("mpc"):
+        return {"robot_radius_m": config.robot_radius_m}
+    return {}
 
 
 @dataclass(frozen=True)
@@ -185,7 +201,8 @@ class NavigationStack:
         self.distance = DistanceGrid(np.maximum(self._field_m - 0.5 * grid.resolution_m, 0.0),
                                      grid.resolution_m, grid.origin_xy_m)
         self.tracker = ConstantVelocityTracker(c.tracker)
-        self.controller = make_controller(c.controller, dict(c.controller_params))
+        params = default_controller_params(c) if c.controller_params is None else c.controller_params
+        self.controller = make_controller(c.controller, dict(params))
         self.planner = make_planner(c.global_planner)
         self._tightened: dict[int, DistanceGrid] = {}
         self._cell_cost: dict[int, np.ndarray] = {}
@@ -207,6 +224,9 @@ class NavigationStack:
         self.recoveries = 0
         self._phase = "driving"
         self.replans = 0
+        self._searched_cost: np.ndarray | None = None
+        #: grid cells each global search expanded (a D* Lite repair: only the changed part)
+        self.plan_expansions: list[int] = []
         self.no_safe_stop_cycles = 0
         self.timings_s: dict[str, list[float]] = {k: [] for k in LAYERS}
         self.last_scan_points = np.zeros((0, 2))
@@ -217,6 +237,7 @@ class NavigationStack:
         self.path = None
         self._last_plan_s = -math.inf
         self._phase = "driving"
+        self._searched_cost = None
 
     def current_pose(self) -> tuple[np.ndarray, np.ndarray]:
         """(3,) estimated world_xytheta_body and its (3, 3) covariance."""
@@ -299,11 +320,12 @@ class NavigationStack:
             d = np.linalg.norm(centres[:, None, :] - tracks.xy_m[block][None], axis=2)
             hit = (d <= tracks.radius_m[block] + self.config.robot_radius_m).any(axis=1)
             cost[hit.reshape(g.height, g.width)] = np.inf
-        res = self.planner.plan(PlanningProblem(self.grid, pose[:2], self.goal[:2], cell_cost=cost))
+        res = self._search(pose[:2], cost)
         if not res.solved:
             # the start may sit inside the inflated margin (after a brush past a wall or a jump
             # of the estimate): plan on the bare map's free cells instead
             res = self.planner.plan(PlanningProblem(self.grid, pose[:2], self.goal[:2]))
+            self._searched_cost = None
         self.timings_s["global_planner"].append(time.perf_counter() - t0)
         self._last_plan_s = self._t_s
         if not res.solved:
@@ -311,6 +333,24 @@ class NavigationStack:
         self.path = res.path[:, :2]
         self.replans += 1
         return True
+
+    def _search(self, start_xy: np.ndarray, cost: np.ndarray) -> PlanResult:
+        """The global search on ``cost``: from scratch, or -- for an incremental planner (D* Lite,
+        ``update``) that has searched this goal before -- a repair of its last search: only the
+        cells whose cost changed since (tracks that blocked or freed the path, a new k sigma
+        margin) and the moved start. Any failed search is forgotten, so the next one is fresh."""
+        held = self._searched_cost
+        if held is not None and hasattr(self.planner, "update"):
+            changed = np.flatnonzero(cost.ravel() != held.ravel())
+            new = cost.ravel()[changed]
+            cells = np.column_stack([changed % self.grid.width, changed // self.grid.width])
+            res = self.planner.update(cells, ~np.isfinite(new), start_xy=start_xy,
+                                      cell_cost=np.where(np.isfinite(new), new, 1.0))
+        else:
+            res = self.planner.plan(PlanningProblem(self.grid, start_xy, self.goal[:2], cell_cost=cost))
+        self._searched_cost = cost if res.solved else None
+        self.plan_expansions.append(res.stats.expansions)
+        return res
 
     # ------------------------------------------------------------------ control
     def command(self, t_s: float | None = None) -> NavigationCommand:

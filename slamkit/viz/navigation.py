@@ -2,7 +2,9 @@
 
 Entity tree under ``<variant>/<scenario>/`` (2D, world frame, metres; timeline ``sim_time``):
 
-* ``world/map``              occupied cells of the robot's map (static)
+* ``world/map``              occupied cells of the robot's map (static): the world's grid, or the
+                             map SLAM built on a mapping tour (``map: {source: slam_tour}``)
+* ``world/map_true``         the world's own grid, when the robot's map is another (static)
 * ``world/costmap``          the A* costmap (cells the inflated robot may not enter; static)
 * ``world/goal``             the goal pose (static)
 * ``world/ground_truth``     the true robot disc and heading (scoring only: the stack never sees it)
@@ -10,7 +12,8 @@ Entity tree under ``<variant>/<scenario>/`` (2D, world frame, metres; timeline `
 * ``world/global_path``      the current A* path
 * ``world/candidates``       DWA / rollout candidates (subsample) and ``chosen``; ``mpc_horizon``
 * ``world/scan_unexplained`` scan end points the map does not explain
-* ``world/tracks``           tracked obstacles (discs) with velocity arrows; ``world/obstacles_true``
+* ``world/tracks``           tracked obstacles (discs, labelled by track id) with velocity arrows and
+                             ``trails`` (each live track's estimated positions so far); ``world/obstacles_true``
 * ``plots/localisation_error_m``, ``plots/speed_mps``, ``plots/sigma_xy_m``
 """
 
@@ -41,6 +44,13 @@ def ellipse_xy(mean_xy: np.ndarray, cov_xy: np.ndarray, n_sigma: float = 3.0, n:
     return mean_xy + circle @ vecs.T
 
 
+def _log_cells(stream, entity: str, grid, mask: np.ndarray, color) -> None:
+    """The cells of ``grid`` where ``mask`` holds, as static points of half a cell's radius."""
+    iy, ix = np.nonzero(mask)
+    stream.log(entity, rr.Points2D(grid.cell_to_world(np.column_stack([ix, iy])), radii=[0.5 * grid.resolution_m],
+                                   colors=[color]), static=True)
+
+
 class NavigationObserver:
     """The ``navigation`` pipeline's recorder (registered in ``slamkit.viz.pipelines``): its
     step snapshots carry the scenario, the variant, the stack and the plant of one cycle."""
@@ -56,19 +66,17 @@ class NavigationObserver:
         self._prefixes: list[str] = []
 
     def _start(self, prefix: str, scenario, stack) -> None:
-        s, g = self.stream, scenario.grid
-        iy, ix = np.nonzero(g.occupied)
-        s.log(f"{prefix}world/map", rr.Points2D(g.cell_to_world(np.column_stack([ix, iy])),
-                                                radii=[0.5 * g.resolution_m], colors=[(60, 60, 60)]), static=True)
-        blocked = ~np.isfinite(stack.cell_cost(0)) & ~g.occupied
-        iy, ix = np.nonzero(blocked)
-        s.log(f"{prefix}world/costmap", rr.Points2D(g.cell_to_world(np.column_stack([ix, iy])),
-                                                    radii=[0.5 * g.resolution_m], colors=[(230, 200, 120, 90)]),
-              static=True)
+        s, g = self.stream, stack.grid
+        _log_cells(s, f"{prefix}world/map", g, g.occupied, (60, 60, 60))
+        truth = scenario.grid
+        if truth is not g and (truth.shape != g.shape or not np.array_equal(truth.occupied, g.occupied)):
+            _log_cells(s, f"{prefix}world/map_true", truth, truth.occupied, (40, 120, 220, 110))
+        _log_cells(s, f"{prefix}world/costmap", g, ~np.isfinite(stack.cell_cost(0)) & ~g.occupied,
+                   (230, 200, 120, 90))
         goal = scenario.goal_xytheta
         s.log(f"{prefix}world/goal", rr.Arrows2D(origins=[goal[:2]], vectors=[0.4 * np.array([np.cos(goal[2]), np.sin(goal[2])])],
                                                  colors=[(0, 160, 0)]), static=True)
-        self._trail: list[np.ndarray] = []
+        self._track_trails: dict[int, list[np.ndarray]] = {}
 
     def on_step(self, snapshot) -> None:
         st = snapshot.state
@@ -105,6 +113,13 @@ class NavigationObserver:
         s.log(f"{p}world/tracks", rr.Points2D(tr.xy_m, radii=tr.radius_m, colors=[(255, 140, 0, 110)],
                                               labels=[str(i) for i in tr.ids]))
         s.log(f"{p}world/tracks/velocity", rr.Arrows2D(origins=tr.xy_m, vectors=tr.velocity_mps))
+        live = {int(i): xy for i, xy in zip(tr.ids, tr.xy_m)}
+        self._track_trails = {i: self._track_trails.get(i, []) for i in live}  # ended tracks drop out
+        for i, xy in live.items():
+            self._track_trails[i].append(xy.copy())
+        trails = [(i, np.array(t)) for i, t in self._track_trails.items() if len(t) >= 2]
+        s.log(f"{p}world/tracks/trails", rr.LineStrips2D([t for _, t in trails], labels=[str(i) for i, _ in trails],
+                                                         colors=[(255, 140, 0)], radii=[0.01]))
         obs = scenario.obstacles
         if len(obs):
             s.log(f"{p}world/obstacles_true", rr.Points2D(obs.position_at(snapshot.stamp_s), radii=obs.radius_m,

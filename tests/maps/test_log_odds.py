@@ -91,6 +91,16 @@ def test_map_quality_counts():
     assert (q.true_positives, q.false_positives, q.false_negatives) == (2, 2, 1)
     assert q.precision == pytest.approx(0.5) and q.recall == pytest.approx(2 / 3)
     assert q.iou == pytest.approx(0.4) and q.observed_cells == 9
+    # within one cell: (1,0) and (2,2) touch true (0,0)/(1,1), and true (1,1) touches (0,1)
+    near = map_quality(m, OccupancyGrid(truth, 1.0), tolerance_cells=1)
+    assert (near.true_positives, near.false_positives, near.false_negatives) == (3, 0, 0)
+    assert near.precision == 1.0 and near.recall == 1.0 and near.iou == 1.0
+    # a false wall two cells from every true one stays false within one cell
+    m.log_odds[3, 0], m.observed[3, 0] = 2.0, True
+    far = map_quality(m, OccupancyGrid(truth, 1.0), tolerance_cells=1)
+    assert (far.true_positives, far.false_positives) == (3, 1) and far.precision == pytest.approx(0.8)
+    with pytest.raises(ConfigError):
+        map_quality(m, OccupancyGrid(truth, 1.0), tolerance_cells=-1)
 
 
 def test_resample_to_max_pools():

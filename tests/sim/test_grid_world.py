@@ -11,6 +11,7 @@ from slamkit.data.formats.sequence import save_sequence
 from slamkit.data.sequence import Gps, Imu, Odometry, Scan, WheelEncoders
 from slamkit.errors import ConfigError
 from slamkit.maps.distance_field import distance_at, distance_field_m
+from slamkit.maps.occupancy_grid import OccupancyGrid
 from slamkit.maps.raycast import RayCaster
 from slamkit.models.diff_drive import integrate_odometry, odometry_from_ticks
 from slamkit.models.imu import ImuNoise
@@ -200,3 +201,27 @@ def test_random_slip_episodes_are_seeded():
     assert w.shape == (2, 2) and np.allclose(w[:, 1] - w[:, 0], 1.5)
     assert np.all(w[:, 0] >= 0) and np.all(w[:, 1] <= a.ground_truth.stamps_s[-1] + 1e-9)
     assert a.metadata["truth"] == b.metadata["truth"]
+
+
+def test_spread_goals_reach_the_far_end_of_a_corridor():
+    """A mapping tour: farthest-point goals along the routes. In a 20 m x 1.5 m corridor the
+    first goal is the end farthest from the start, the next the farthest from both; with 4
+    goals every point of the corridor is within 20 / 4 m of a waypoint."""
+    from slamkit.sim.grid_world import route
+
+    occ = np.zeros((30, 400), bool)  # 20 m x 1.5 m at 5 cm, walls one cell thick
+    occ[0, :] = occ[-1, :] = occ[:, 0] = occ[:, -1] = True
+    grid = OccupancyGrid(occ, 0.05)
+    for seed in range(3):
+        way = route(grid, np.random.default_rng(seed), 4, 0.3, goal_choice="spread")
+        start_x = way[0, 0]
+        # the routing cells span x in [0.625, 19.375] (0.25 m cells whose every fine cell keeps 0.3 m
+        # from the centres of the wall cells)
+        assert np.abs(way[:, 0] - start_x).max() == pytest.approx(max(start_x - 0.625, 19.375 - start_x), abs=1e-9)
+        assert way[:, 0].min() < 0.625 + 5.0 and way[:, 0].max() > 19.375 - 5.0
+    # random goals leave the same rng stream untouched (older sequences do not change)
+    a = route(grid, np.random.default_rng(0), 2, 0.3)
+    b = route(grid, np.random.default_rng(0), 2, 0.3, goal_choice="random")
+    np.testing.assert_array_equal(a, b)
+    with pytest.raises(ConfigError, match="goal_choice"):
+        GridScenario(goal_choice="everywhere")

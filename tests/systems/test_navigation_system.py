@@ -98,3 +98,52 @@ def test_plant_clearance_is_the_exact_distance_to_the_wall_squares():
     assert plant.clearance_m(0.0, 0.2, field)[0] == pytest.approx(0.07, abs=1e-9)
     plant.world_xytheta_body[:2] = [0.25, 0.22]  # corner: 0.15 m from the left wall, 0.12 from the bottom
     assert plant.clearance_m(0.0, 0.2, field)[0] == pytest.approx(0.12 - 0.2, abs=1e-9)
+
+
+def test_dstar_lite_repairs_its_search_where_astar_starts_over():
+    """global_planner: dstar_lite searches once, then repairs: a moved start alone expands
+    nothing (measured 0 of the first search's 83), and after a disc blocks half the room the
+    repaired path costs what a fresh A* search on the same costmap costs (measured: the repair
+    expanded 450 cells, a fresh D* Lite 434, A* 561 -- a change next to the robot is no cheaper
+    to repair than to search again)."""
+    from slamkit.planning.registry import make_planner
+    from slamkit.planning.protocols import PlanningProblem
+
+    stack = NavigationStack(_room(), NavigationConfig(global_planner="dstar_lite"))
+    stack.reset([1.0, 2.0, 0.0], np.diag([1e-4, 1e-4, 1e-4]))
+    stack.set_goal([5.0, 2.0, 0.0])
+    cost = stack.cell_cost(0)
+    first = stack._search(np.array([1.0, 2.0]), cost)
+    assert first.solved and stack.plan_expansions[-1] == first.stats.expansions > 50
+    moved = stack._search(np.array([1.2, 2.0]), cost)
+    assert moved.solved and moved.stats.expansions == 0
+    blocked = cost.copy()
+    g = stack.grid
+    iy, ix = np.mgrid[0:g.height, 0:g.width]
+    centres = g.cell_to_world(np.column_stack([ix.ravel(), iy.ravel()])).reshape(g.height, g.width, 2)
+    blocked[np.linalg.norm(centres - [3.0, 1.6], axis=2) <= 0.6] = np.inf  # the lower half of the room
+    repaired = stack._search(np.array([1.2, 2.0]), blocked)
+    fresh = make_planner("astar").plan(PlanningProblem(g, np.array([1.2, 2.0]), np.array([5.0, 2.0]), cell_cost=blocked))
+    assert repaired.solved and fresh.solved
+    assert repaired.cost == pytest.approx(fresh.cost, rel=1e-9) and repaired.cost > moved.cost
+    assert stack.plan_expansions == [first.stats.expansions, 0, repaired.stats.expansions]
+    # the path goes round the disc, above it
+    assert np.all(np.linalg.norm(repaired.path - [3.0, 1.6], axis=1) > 0.6)
+
+
+@pytest.mark.parametrize("name", ["dwa", "rollout", "mpc", "mpc_osqp"])
+def test_every_local_planner_builds_in_the_stack_with_its_own_defaults(name):
+    """controller_params None: the course's DWA weights for the sampling controllers, the MPC's
+    own config with the stack's robot radius (the DWA weights were unknown keys to the MPC, so
+    ``controller: mpc`` raised a ConfigError)."""
+    stack = NavigationStack(_room(), NavigationConfig(controller=name, robot_radius_m=0.25))
+    cfg = stack.controller.config
+    assert cfg.robot_radius_m == 0.25
+    if name in ("dwa", "rollout"):
+        assert (cfg.w_heading, cfg.w_clearance, cfg.w_velocity) == (0.8, 0.2, 0.4)
+    else:
+        assert cfg.solver == ("osqp" if name == "mpc_osqp" else "ipopt")
+    stack.reset([1.0, 2.0, 0.0], np.diag([1e-4, 1e-4, 1e-4]))
+    stack.set_goal([4.5, 2.0, 0.0])
+    out = stack.command(0.0)
+    assert out.status == "driving" and out.command[0] >= 0.0

@@ -1,0 +1,56 @@
+"""The robot's map in the navigation pipeline: the true grid, or a map slamkit's lidar SLAM built
+on a mapping tour of the world (issue 14, step 1), cached in the results folder."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from slamkit.errors import ConfigError
+from slamkit.experiments.navigation_map import MapSourceConfig, map_source_config, robot_map
+from slamkit.maps.generators import OfficeConfig, office
+from slamkit.sim.moving_obstacles import MovingObstacles
+from slamkit.sim.navigation_world import NavigationScenario
+
+
+def _scenario() -> NavigationScenario:
+    grid = office(np.random.default_rng(4), OfficeConfig(width_m=12.0, height_m=12.0), name="office")
+    pose = np.array([6.0, 6.0, 0.0])
+    return NavigationScenario("office_4", 4, grid, pose, pose, pose[None, :2], MovingObstacles.empty())
+
+
+def test_map_source_config_is_checked():
+    assert map_source_config(None).source == "truth"
+    with pytest.raises(ConfigError, match="unknown keys"):
+        map_source_config({"sorce": "slam_tour"})
+    with pytest.raises(ConfigError, match="source"):
+        map_source_config({"source": "gmapping"})
+    with pytest.raises(ConfigError, match="tour_goals"):
+        map_source_config({"source": "slam_tour", "tour_goals": 0})
+    with pytest.raises(ConfigError, match="lidar_slam.slam"):
+        map_source_config({"source": "slam_tour", "slam": {"loop_rounds_": 1}})
+
+
+def test_truth_source_is_the_world_grid():
+    sc = _scenario()
+    robot = robot_map(sc, MapSourceConfig())
+    assert robot.grid is sc.grid and robot.source == "truth" and not robot.metrics
+
+
+def test_slam_tour_map_matches_the_world_and_is_cached(tmp_path):
+    sc = _scenario()
+    cfg = MapSourceConfig(source="slam_tour", tour_goals=4, tour_duration_s=90.0)
+    robot = robot_map(sc, cfg, tmp_path / "maps")
+    g, m = robot.grid, robot.metrics
+    assert g.resolution_m == 0.05 and g.shape == sc.grid.shape
+    np.testing.assert_allclose(g.origin_xy_m, sc.grid.origin_xy_m)
+    # measured: precision 1.000, recall 0.998, free coverage 0.95, tour ATE 4 mm (max error 1.5 cm)
+    assert m["map_precision_1cell"] > 0.98 and m["map_recall_1cell"] > 0.98
+    assert m["map_free_coverage"] > 0.85
+    assert m["map_tour_ate_m"] < 0.03 and m["map_tour_error_max_m"] < 0.1
+    # unobserved cells are occupied: the robot's map holds every true wall it saw and no more free space
+    assert np.mean(g.occupied[sc.grid.occupied]) > 0.99
+    (cached,) = (tmp_path / "maps").glob("office_*.npz")
+    again = robot_map(sc, cfg, tmp_path / "maps")
+    np.testing.assert_array_equal(again.grid.occupied, g.occupied)
+    assert again.metrics == pytest.approx(m)

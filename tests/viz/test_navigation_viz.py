@@ -1,0 +1,53 @@
+"""The navigation recording, read back with the rerun CLI: the robot's map (and the true one
+when they differ), costmap, particles and covariance, global path, DWA candidates or the MPC
+horizon, lidar tracks with their trails, the true pose and obstacles, and a blueprint with one
+2D view and one plot view per recorded episode."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+
+import numpy as np
+
+from slamkit.experiments.navigation import EpisodeConfig, _snapshots, make_navigation_scenario, run_episode
+from slamkit.maps.occupancy_grid import OccupancyGrid
+from slamkit.systems.navigation import NavigationConfig
+from slamkit.viz.navigation import NavigationObserver
+
+
+def test_recording_holds_what_the_blueprint_shows(tmp_path, verify_rrd, rerun_cli):
+    sc = make_navigation_scenario(1, "office")
+    # a robot's map that is not the world's (a SLAM map would differ the same way): one more box
+    occ = sc.grid.occupied.copy()
+    occ[10:14, 10:14] = True
+    robot = OccupancyGrid(occ, sc.grid.resolution_m, sc.grid.origin_xy_m)
+    path = tmp_path / "nav.rrd"
+    obs = NavigationObserver(path)
+    ep = EpisodeConfig(max_time_s=12.0)
+    run_episode(sc, NavigationConfig(), ep, "dwa", _snapshots(obs, f"dwa/{sc.name}", sc), robot)
+    # the crossing obstacles are tracked from the first scan on: a trail of one point per cycle
+    # (measured on the world's map: a live track 120 cycles long at 12 s)
+    assert max(len(t) for t in obs._track_trails.values()) >= 100
+    run_episode(sc, NavigationConfig(controller="mpc_osqp"), EpisodeConfig(max_time_s=1.0), "mpc",
+                _snapshots(obs, f"mpc/{sc.name}", sc))
+    obs.close()
+    entities = verify_rrd(path)
+    for run in ("dwa", "mpc"):
+        p = f"/{run}/{sc.name}"
+        for e in ("world/map", "world/costmap", "world/goal", "world/ground_truth", "world/ground_truth/heading",
+                  "world/estimate", "world/estimate/ellipse", "world/estimate/particles", "world/global_path",
+                  "world/scan_unexplained", "world/tracks", "world/tracks/velocity", "world/tracks/trails",
+                  "world/obstacles_true", "plots/localisation_error_m", "plots/sigma_xy_m", "plots/speed_mps"):
+            assert f"{p}/{e}" in entities, (p, e)
+    assert f"/dwa/{sc.name}/world/candidates" in entities and f"/dwa/{sc.name}/world/candidates/chosen" in entities
+    assert f"/mpc/{sc.name}/world/mpc_horizon" in entities
+    # the true map only where the robot's map is another
+    assert f"/dwa/{sc.name}/world/map_true" in entities and f"/mpc/{sc.name}/world/map_true" not in entities
+    # the blueprint: a 2D view on each episode's world/ and a time-series view on its plots/
+    env = dict(os.environ, RERUN_ANALYTICS="0")
+    dump = subprocess.run([rerun_cli, "rrd", "print", "-vvv", str(path)], capture_output=True, text=True,
+                          timeout=120, env=env).stdout
+    for run in ("dwa", "mpc"):
+        assert f"[{run}/{sc.name}/world]" in dump and f"[{run}/{sc.name}/plots]" in dump
+    assert dump.count("[2D]") >= 2 and dump.count("[TimeSeries]") >= 2
