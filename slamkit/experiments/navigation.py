@@ -46,7 +46,6 @@ from slamkit.experiments.results import ResultsFolder, RunRecord, markdown_table
 from slamkit.geometry.angles import wrap_angle
 from slamkit.maps.distance_field import distance_field_m
 from slamkit.maps.inflation import costmap
-from slamkit.maps.occupancy_grid import OccupancyGrid
 from slamkit.planning.grid_search import costmap_to_cell_cost
 from slamkit.sim.moving_obstacles import crossing_obstacles
 from slamkit.sim.navigation_world import WORLDS, NavigationPlant, NavigationScenario, world_map
@@ -130,19 +129,21 @@ class Episode:
 def run_episode(scenario: NavigationScenario, nav_config: NavigationConfig = NavigationConfig(),
                 config: EpisodeConfig = EpisodeConfig(), variant: str = "",
                 on_step: Callable[[NavigationStack, NavigationPlant, float, NavigationCommand], None] | None = None,
-                robot_map: OccupancyGrid | None = None) -> Episode:
+                robot_map: RobotMap | None = None) -> Episode:
     """One closed-loop episode (see the module docstring); ``on_step(stack, plant, t, decision)``
     is called after every cycle (the recorder). The stack localises and plans on ``robot_map``
-    (default: the world's grid); the plant and the scoring always use the world's grid."""
+    (default: the world's grid) and gets its start and goal in that map's frame
+    (``RobotMap.to_map``); the plant and the scoring always use the world's grid and the true goal;
+    the localisation error is the estimate's against the true pose seen in the map's frame."""
     rng = np.random.default_rng([scenario.seed, 1])
-    stack = NavigationStack(scenario.grid if robot_map is None else robot_map, nav_config,
-                            np.random.default_rng([scenario.seed, 2]))
+    robot = RobotMap(scenario.grid, "truth") if robot_map is None else robot_map
+    stack = NavigationStack(robot.grid, nav_config, np.random.default_rng([scenario.seed, 2]))
     plant = NavigationPlant(scenario, rng, odometry_sigma_v_mps=config.odometry_sigma_v_mps,
                             odometry_sigma_omega_radps=config.odometry_sigma_omega_radps)
     sig = np.array([config.initial_sigma_xy_m, config.initial_sigma_xy_m, config.initial_sigma_theta_rad])
-    belief = scenario.start_xytheta + sig * rng.standard_normal(3)
+    belief = robot.to_map(scenario.start_xytheta) + sig * rng.standard_normal(3)
     stack.reset(belief, np.diag(sig**2))
-    stack.set_goal(scenario.goal_xytheta)
+    stack.set_goal(robot.to_map(scenario.goal_xytheta))
     stack.step(plant.scan(0.0))
     field_m = distance_field_m(scenario.grid)
     r = nav_config.robot_radius_m
@@ -180,7 +181,8 @@ def run_episode(scenario: NavigationScenario, nav_config: NavigationConfig = Nav
     collided = hit_static or hit_moving
     success = (stack.reached and not collided and final_err <= config.goal_tolerance_m
                and final_head <= config.heading_tolerance_rad)
-    loc_err = np.linalg.norm(true[:, :2] - est[:, :2], axis=1)
+    true_in_map = true if robot.anchors_world_xytheta is None else np.array([robot.to_map(x) for x in true])
+    loc_err = np.linalg.norm(true_in_map[:, :2] - est[:, :2], axis=1)
     compute_s = sum(sum(v) for v in stack.timings_s.values())
     metrics = {
         "success": float(success),
@@ -408,7 +410,7 @@ def run(config: Mapping[str, Any], folder: ResultsFolder, progress: StepProgress
         maps[sc.name] = robot = robot_map(sc, map_config, folder.path / "maps")
         for name, nav, ep in variants:
             hook = _snapshots(observer, f"{name}/{sc.name}", sc) if watch and i < n_record else None
-            episode = run_episode(sc, nav, ep, name, hook, robot.grid)
+            episode = run_episode(sc, nav, ep, name, hook, robot)
             episodes.append(dataclasses.replace(episode, metrics={**episode.metrics, **robot.metrics}))
             advance(1)
     runs = runs_of(episodes)

@@ -40,6 +40,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from slamkit.errors import ConfigError
+from slamkit.geometry import se2
 from slamkit.experiments.lidar_slam import ate_keyframes_m, run_slam, slam_config_from
 from slamkit.maps.log_odds import map_quality, resample_to
 from slamkit.maps.occupancy_grid import OccupancyGrid
@@ -109,11 +110,30 @@ def map_source_config(values: Mapping[str, Any] | None) -> MapSourceConfig:
 
 @dataclass(frozen=True)
 class RobotMap:
-    """The stack's map and how it compares with the truth (empty for ``truth``)."""
+    """The stack's map and how it compares with the truth (empty for ``truth``).
+
+    ``anchors_world_xytheta`` / ``anchors_map_xytheta`` (K, 3): the mapping tour's keyframes, true
+    and as SLAM placed them in the map (None for ``truth``, whose frame is the world's). A user
+    gives the robot its start and goal *on its map* (RViz's pose estimate and goal): the place on
+    the map where the physical target appears. :meth:`to_map` reproduces that from the nearest
+    keyframe, so a map frame that drifted a few cm from the world does not turn into a missed
+    goal, while success is still scored against the true goal in the world."""
 
     grid: OccupancyGrid
     source: str
     metrics: Mapping[str, float] = field(default_factory=dict)
+    anchors_world_xytheta: np.ndarray | None = field(default=None, repr=False)
+    anchors_map_xytheta: np.ndarray | None = field(default=None, repr=False)
+
+    def to_map(self, world_xytheta: np.ndarray) -> np.ndarray:
+        """A world pose (3,) as it appears in the robot's map: through the transform of the
+        keyframe nearest to it (map_T_world = map_T_key (world_T_key)^-1)."""
+        pose = np.asarray(world_xytheta, dtype=float)
+        if self.anchors_world_xytheta is None:
+            return pose.copy()
+        k = int(np.argmin(np.linalg.norm(self.anchors_world_xytheta[:, :2] - pose[:2], axis=1)))
+        map_T_world = se2.compose(self.anchors_map_xytheta[k], se2.inverse(self.anchors_world_xytheta[k]))
+        return se2.compose(map_T_world, pose)
 
 
 def robot_map(scenario: NavigationScenario, config: MapSourceConfig, cache_dir: Path | None = None) -> RobotMap:
@@ -127,13 +147,17 @@ def robot_map(scenario: NavigationScenario, config: MapSourceConfig, cache_dir: 
         with np.load(path) as z:
             grid = OccupancyGrid(z["occupied"], float(z["resolution_m"]), z["origin_xy_m"],
                                  name=f"{world}_slam_tour")
-            return RobotMap(grid, config.source, json.loads(str(z["metrics"])))
-    grid, metrics = slam_tour_map(scenario.grid, config, seed=int(key[:8], 16), name=f"{world}_slam_tour")
+            return RobotMap(grid, config.source, json.loads(str(z["metrics"])),
+                            z["anchors_world_xytheta"], z["anchors_map_xytheta"])
+    robot = slam_tour_map(scenario.grid, config, seed=int(key[:8], 16), name=f"{world}_slam_tour")
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
-        np.savez_compressed(path, occupied=grid.occupied, resolution_m=grid.resolution_m,
-                            origin_xy_m=grid.origin_xy_m, metrics=json.dumps(metrics))
-    return RobotMap(grid, config.source, metrics)
+        g = robot.grid
+        np.savez_compressed(path, occupied=g.occupied, resolution_m=g.resolution_m,
+                            origin_xy_m=g.origin_xy_m, metrics=json.dumps(robot.metrics),
+                            anchors_world_xytheta=robot.anchors_world_xytheta,
+                            anchors_map_xytheta=robot.anchors_map_xytheta)
+    return robot
 
 
 def _cache_key(truth: OccupancyGrid, config: MapSourceConfig) -> str:
@@ -144,9 +168,10 @@ def _cache_key(truth: OccupancyGrid, config: MapSourceConfig) -> str:
 
 
 def slam_tour_map(truth: OccupancyGrid, config: MapSourceConfig, seed: int,
-                  name: str = "slam_tour") -> tuple[OccupancyGrid, dict[str, float]]:
+                  name: str = "slam_tour") -> RobotMap:
     """Drive a seeded mapping tour through ``truth``, run lidar SLAM on it and return the
-    robot's map (on ``truth``'s extent at ``config.resolution_m``) with its scores."""
+    robot's map (on ``truth``'s extent at ``config.resolution_m``) with its scores and the tour's
+    keyframes as anchors between the world and the map."""
     t0 = time.perf_counter()
     tour = GridScenario(name=name, num_goals=config.tour_goals, goal_choice="spread",
                         clearance_m=config.tour_clearance_m, duration_s=config.tour_duration_s,
@@ -178,5 +203,5 @@ def slam_tour_map(truth: OccupancyGrid, config: MapSourceConfig, seed: int,
         "map_loop_closures": float(result.metrics["num_loop_closures"]),
         "map_build_s": time.perf_counter() - t0,
     }
-    return grid, metrics
+    return RobotMap(grid, config.source, metrics, np.asarray(gt, float), np.asarray(result.optimised_poses, float))
 

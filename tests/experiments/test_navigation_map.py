@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from slamkit.errors import ConfigError
-from slamkit.experiments.navigation_map import MapSourceConfig, map_source_config, robot_map
+from slamkit.experiments.navigation_map import MapSourceConfig, RobotMap, map_source_config, robot_map
 from slamkit.maps.generators import OfficeConfig, office
 from slamkit.sim.moving_obstacles import MovingObstacles
 from slamkit.sim.navigation_world import NavigationScenario
@@ -54,3 +54,18 @@ def test_slam_tour_map_matches_the_world_and_is_cached(tmp_path):
     again = robot_map(sc, cfg, tmp_path / "maps")
     np.testing.assert_array_equal(again.grid.occupied, g.occupied)
     assert again.metrics == pytest.approx(m)
+    np.testing.assert_array_equal(again.anchors_map_xytheta, robot.anchors_map_xytheta)
+    np.testing.assert_array_equal(again.anchors_world_xytheta, robot.anchors_world_xytheta)
+
+
+def test_start_and_goal_reach_the_robot_through_the_nearest_keyframe():
+    # a map frame rotated 90 deg and shifted (1, 2) m from the world near the first keyframe,
+    # and shifted only (0.1, 0) m near the second: each pose goes through its nearest keyframe
+    sc = _scenario()
+    world = np.array([[0.0, 0.0, 0.0], [10.0, 0.0, 0.0]])
+    in_map = np.array([[1.0, 2.0, np.pi / 2], [10.1, 0.0, 0.0]])
+    robot = RobotMap(sc.grid, "slam_tour", {}, world, in_map)
+    np.testing.assert_allclose(robot.to_map(np.array([1.0, 0.0, 0.0])), [1.0, 3.0, np.pi / 2], atol=1e-12)
+    np.testing.assert_allclose(robot.to_map(np.array([9.0, 1.0, 0.3])), [9.1, 1.0, 0.3], atol=1e-12)
+    # the world's own grid: the identity
+    np.testing.assert_allclose(RobotMap(sc.grid, "truth").to_map(np.array([9.0, 1.0, 0.3])), [9.0, 1.0, 0.3])

@@ -11,6 +11,7 @@ import subprocess
 import numpy as np
 
 from slamkit.experiments.navigation import EpisodeConfig, _snapshots, make_navigation_scenario, run_episode
+from slamkit.experiments.navigation_map import RobotMap
 from slamkit.maps.occupancy_grid import OccupancyGrid
 from slamkit.systems.navigation import NavigationConfig
 from slamkit.viz.navigation import NavigationObserver
@@ -21,7 +22,7 @@ def test_recording_holds_what_the_blueprint_shows(tmp_path, verify_rrd, rerun_cl
     # a robot's map that is not the world's (a SLAM map would differ the same way): one more box
     occ = sc.grid.occupied.copy()
     occ[10:14, 10:14] = True
-    robot = OccupancyGrid(occ, sc.grid.resolution_m, sc.grid.origin_xy_m)
+    robot = RobotMap(OccupancyGrid(occ, sc.grid.resolution_m, sc.grid.origin_xy_m), "edited")
     path = tmp_path / "nav.rrd"
     obs = NavigationObserver(path)
     ep = EpisodeConfig(max_time_s=12.0)
