@@ -207,7 +207,7 @@ class LocalPlanningPipeline(PipelineConfig):
 
 class NavigationScenarios(BaseModel):
     model_config = STRICT
-    worlds: Annotated[list[Literal["office", "warehouse", "willow"]], Field(min_length=1)] = ["office"]
+    worlds: Annotated[list[Literal["office", "warehouse", "willow", "passage"]], Field(min_length=1)] = ["office"]
     seeds: Seeds = 3
     n_obstacles: Annotated[int, Field(ge=0, le=20)] = 2
     #: world 'willow': the dataset registry's ``willow`` (default) or a map_server YAML path
