@@ -29,7 +29,13 @@ Planning under uncertainty (``NavigationConfig.uncertainty``):
   k sigma (k = Phi^-1(1 - delta), sigma the largest standard deviation of the position
   covariance; :func:`slamkit.maps.inflation.chance_inflation_m`) and the local planner sees every
   obstacle tightened by k sigma_n (:func:`slamkit.control.chance_constraints.tightened_world`),
-  which for the MPC makes its obstacle rows chance constraints;
+  which for the MPC makes its obstacle rows chance constraints: the walls by the pose
+  covariance, the lidar tracks by their own covariance only (the pose error moves them with the
+  robot). When k sigma leaves no path (a narrow passage, or the estimate inside the margin) the
+  plan uses the largest margin that does, and the stack lowers k for the local planner to match
+  (``chance_k``; ``planned_collision_probability_max`` is the delta that amounts to);
+* ``"local"``: the costmap stays fixed and only the local planner's obstacles are tightened by
+  k sigma_n -- with ``controller: mpc`` the chance-constrained MPC on its own;
 * ``"fixed"``: the margins stay what they are whatever the covariance.
 
 Safe stop: every cycle the stack checks that braking at ``brake_decel_mps2`` from the command it
@@ -71,6 +77,9 @@ from slamkit.planning.protocols import PlanningProblem
 from slamkit.planning.registry import GRID_PLANNERS, canonical, make_planner
 
 LAYERS = ("localisation", "perception", "global_planner", "local_planner")
+#: NavigationConfig.uncertainty: margins fixed, chance margins on the costmap and the local
+#: planner, or on the local planner only (see the module docstring)
+UNCERTAINTY_MODES = ("fixed", "covariance", "local")
 
 
 def _course_dwa() -> dict[str, Any]:
@@ -140,8 +149,8 @@ class NavigationConfig:
     brake_decel_mps2: float = 1.0
 
     def __post_init__(self) -> None:
-        if self.uncertainty not in ("fixed", "covariance"):
-            raise ConfigError(f"NavigationConfig.uncertainty: {self.uncertainty!r} (fixed, covariance)")
+        if self.uncertainty not in UNCERTAINTY_MODES:
+            raise ConfigError(f"NavigationConfig.uncertainty: {self.uncertainty!r} {UNCERTAINTY_MODES}")
         if canonical(self.global_planner) not in GRID_PLANNERS:
             raise ConfigError(f"NavigationConfig.global_planner must be a grid planner {GRID_PLANNERS}, "
                               f"got {self.global_planner!r}")
@@ -208,6 +217,10 @@ class NavigationStack:
         self._phase = "driving"
         self.replans = 0
         self.no_safe_stop_cycles = 0
+        #: the chance-constraint multiplier of the last plan (covariance-aware inflation), its
+        #: smallest value over the run, and how many plans had to lower it (see _plan)
+        self.chance_k = self.chance_k_min = chance_sigma_multiplier(self.config.collision_probability)
+        self.chance_fallbacks = 0
         self.timings_s: dict[str, list[float]] = {k: [] for k in LAYERS}
         self.last_scan_points = np.zeros((0, 2))
         self._ready = True
@@ -266,6 +279,17 @@ class NavigationStack:
         return int(math.ceil(100.0 * chance_sigma_multiplier(self.config.collision_probability)
                              * worst_sigma_m(cov)))
 
+    @property
+    def planned_collision_probability_max(self) -> float:
+        """The weakest chance constraint a plan met so far: 1 - Phi(k) with the smallest k the
+        plans could afford (the configured delta unless the infeasible-k fallback lowered k);
+        nan with fixed inflation."""
+        if self.config.uncertainty == "fixed":
+            return float("nan")
+        from scipy.stats import norm
+
+        return float(norm.sf(self.chance_k_min))
+
     def cell_cost(self, margin_cm: int) -> np.ndarray:
         """A* multipliers of the costmap inflated by robot radius + path margin + ``margin_cm``."""
         if margin_cm not in self._cell_cost:
@@ -289,17 +313,44 @@ class NavigationStack:
         return np.flatnonzero(slow & (d <= tracks.radius_m + c.robot_radius_m))
 
     def _plan(self, pose: np.ndarray, cov: np.ndarray, tracks: Tracks, block: np.ndarray) -> bool:
+        """A* on the costmap inflated by the chance margin k sigma. When no path exists with the
+        full margin (k sigma closes a narrow passage, or the estimate sits inside the margin),
+        the largest margin that leaves one is used instead (feasibility shrinks monotonically
+        as the margin grows, so a bisection over whole centimetres finds it), and ``chance_k``
+        records the k it amounts to, i.e. the collision probability actually planned for."""
         t0 = time.perf_counter()
-        cost = self.cell_cost(self._sigma_key(cov))
+        blocked = None
         if len(block):
-            cost = cost.copy()
             g = self.grid
             iy, ix = np.mgrid[0:g.height, 0:g.width]
             centres = g.cell_to_world(np.column_stack([ix.ravel(), iy.ravel()]))
             d = np.linalg.norm(centres[:, None, :] - tracks.xy_m[block][None], axis=2)
-            hit = (d <= tracks.radius_m[block] + self.config.robot_radius_m).any(axis=1)
-            cost[hit.reshape(g.height, g.width)] = np.inf
-        res = self.planner.plan(PlanningProblem(self.grid, pose[:2], self.goal[:2], cell_cost=cost))
+            blocked = (d <= tracks.radius_m[block] + self.config.robot_radius_m).any(axis=1).reshape(g.height, g.width)
+
+        def plan(margin_cm: int):
+            cost = self.cell_cost(margin_cm)
+            if blocked is not None:
+                cost = np.where(blocked, np.inf, cost)
+            return self.planner.plan(PlanningProblem(self.grid, pose[:2], self.goal[:2], cell_cost=cost))
+
+        want = self._sigma_key(cov)
+        res, got = plan(want), want
+        if not res.solved and want > 0:
+            lo_res = plan(0)
+            if lo_res.solved:
+                res, got, hi = lo_res, 0, want
+                while hi - got > 1:
+                    mid = (got + hi) // 2
+                    mid_res = plan(mid)
+                    if mid_res.solved:
+                        res, got = mid_res, mid
+                    else:
+                        hi = mid
+                self.chance_fallbacks += 1
+        if self.config.uncertainty == "covariance":
+            k = chance_sigma_multiplier(self.config.collision_probability)
+            self.chance_k = k if got >= want else k * got / want
+            self.chance_k_min = min(self.chance_k_min, self.chance_k)
         if not res.solved:
             # the start may sit inside the inflated margin (after a brush past a wall or a jump
             # of the estimate): plan on the bare map's free cells instead
@@ -342,12 +393,17 @@ class NavigationStack:
         moving = np.linalg.norm(tracks.velocity_mps, axis=1) >= c.blocking_speed_mps
         world = LocalWorld(tracks.xy_m, tracks.radius_m + c.moving_margin_m * moving, tracks.velocity_mps,
                            self.distance, t)
-        if c.uncertainty == "covariance":
-            key = self._sigma_key(cov)
+        if c.uncertainty != "fixed":
+            # the k the global plan could afford (the configured one unless the fallback lowered
+            # it): tightening the local planner's obstacles by more would refuse the very gap
+            # the plan leads through
+            key = int(math.ceil(100.0 * self.chance_k * worst_sigma_m(cov)))
             if key not in self._tightened:
-                self._tightened[key] = tightened_distance(self.distance, cov, c.collision_probability)
-            world = tightened_world(world, pose[:2], cov, c.collision_probability,
-                                    tracks.covariance[:, :2, :2], self._tightened[key])
+                self._tightened[key] = tightened_distance(self.distance, cov, k_sigma=self.chance_k)
+            # the tracks were measured from the robot: the pose error moves them with it
+            world = tightened_world(world, pose[:2], cov, circle_cov_xy=tracks.covariance[:, :2, :2],
+                                    distance=self._tightened[key], k_sigma=self.chance_k,
+                                    relative_circles=True)
         state = RobotState(pose, self._last_cmd, t)
         out = self.controller.compute(state, Reference(self.path, speed_mps=c.cruise_speed_mps), world)
         cmd = out.command
