@@ -224,6 +224,8 @@ def run_episode(scenario: NavigationScenario, nav_config: NavigationConfig = Nav
         # a plan settled for, and how many plans lowered k to find a path
         "chance_probability_max": stack.planned_collision_probability_max,
         "chance_fallback_plans": float(stack.chance_fallbacks),
+        #: MCL updates that injected particles (augmented MCL; 0 when it is off)
+        "localisation_injections": float(stack.mcl.injections),
         **layer_timing_summary(stack.timings_s),
         "real_time_factor": float(ts[-1] / max(compute_s, 1e-9)),
     }
