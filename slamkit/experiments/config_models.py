@@ -217,6 +217,8 @@ class NavigationScenarios(BaseModel):
 class NavigationVariant(BaseModel):
     model_config = STRICT
     name: PlainName
+    #: another variant's name: the report adds this one's differences to it, paired by seed
+    paired_with: PlainName | None = None
     navigation: dict[str, Any] = {}
     episode: dict[str, Any] = {}
 

@@ -40,7 +40,8 @@ from slamkit.experiments.closed_loop import start_goal_draws
 from slamkit.experiments.config_models import NavigationPipeline, seed_list
 from slamkit.experiments.observers import PipelineObserver
 from slamkit.experiments.pipeline import Pipeline, PipelineOutput, StepProgress
-from slamkit.experiments.results import ResultsFolder, RunRecord, markdown_table, summarise, summary_markdown
+from slamkit.experiments.results import (ResultsFolder, RunRecord, markdown_table, paired_difference, summarise,
+                                         summary_markdown)
 from slamkit.geometry.angles import wrap_angle
 from slamkit.maps.distance_field import distance_field_m
 from slamkit.maps.inflation import costmap
@@ -277,6 +278,11 @@ def _variants(config: Mapping[str, Any]) -> list[tuple[str, NavigationConfig, Ep
         ep = _build(EpisodeConfig, {**base_ep, **_section(v.get("episode"), f"variants.{name}.episode")},
                     f"variants.{name}.episode")
         out.append((name, nav, ep))
+    names = [n for n, _, _ in out]
+    for v in variants:
+        other = v.get("paired_with") if isinstance(v, Mapping) else None
+        if other is not None and (other not in names or other == v.get("name")):
+            raise ConfigError(f"variants.{v.get('name')}.paired_with: {other!r} is not another variant ({names})")
     return out
 
 
@@ -329,6 +335,33 @@ def scenarios_of(config: Mapping[str, Any]) -> list[NavigationScenario]:
     return [make_navigation_scenario(seed, w, willow, n_obstacles=n_obs) for w in worlds for seed in seeds]
 
 
+#: what the paired table of :func:`paired_variants_markdown` compares
+PAIRED_METRICS = ("success", "collision_static", "collision_moving", "min_clearance_static_m", "time_s",
+                  "path_length_m", "localisation_error_max_m")
+
+
+def paired_variants_markdown(config: Mapping[str, Any], episodes: list[Episode]) -> str:
+    """Per world, every variant with ``paired_with`` minus that variant, paired by seed (both saw
+    the same scenario and noise seed): mean difference, its 95% CI and the Wilcoxon p-value of
+    :func:`slamkit.experiments.results.paired_difference`; time over the seeds both reached."""
+    pairs = [(str(v["name"]), str(v["paired_with"])) for v in config.get("variants", []) or []
+             if isinstance(v, Mapping) and v.get("paired_with")]
+    by = {(e.world, e.variant, e.seed): e.metrics for e in episodes}
+    rows = []
+    for world in dict.fromkeys(e.world for e in episodes):
+        for a, b in pairs:
+            seeds = sorted(s for (w, v, s) in by if w == world and v == a and (w, b, s) in by)
+            for m in PAIRED_METRICS if seeds else ():
+                d = paired_difference([by[world, a, s][m] for s in seeds], [by[world, b, s][m] for s in seeds])
+                lo, hi = d["ci95"]
+                rows.append([world, f"{a} - {b}", m, d["pairs"], d["mean_difference"],
+                             f"[{lo:.3g}, {hi:.3g}]", d["wilcoxon_p"]])
+    if not rows:
+        return ""
+    return "## Paired by seed\n\n" + markdown_table(
+        ["world", "variants", "metric", "pairs", "mean difference", "95% CI", "Wilcoxon p"], rows) + "\n"
+
+
 def runs_of(episodes: list[Episode]) -> list[RunRecord]:
     return [RunRecord(e.world, e.variant, dict(e.metrics), seed=e.seed, params={"scenario": e.scenario})
             for e in episodes]
@@ -340,7 +373,7 @@ def report_markdown(config: Mapping[str, Any], episodes: list[Episode], summary:
              "planning, the local planner on the estimated pose among lidar-tracked obstacles. "
              "Success: stopped within the goal tolerance (position and heading, by the truth) "
              "without a collision. Mean ± half the 95% CI over seeds, per world and variant.\n\n")
-    text += summary_markdown(summary) + "\n\n## Runs\n\n"
+    text += summary_markdown(summary) + "\n\n" + paired_variants_markdown(config, episodes) + "\n## Runs\n\n"
     rows = [[e.scenario, e.variant, e.metrics["success"], e.metrics["final_position_error_m"],
              e.metrics["collision_static"], e.metrics["collision_moving"], e.metrics["time_s"],
              e.metrics["localisation_error_max_m"], e.metrics["replans"]] for e in episodes]

@@ -74,3 +74,22 @@ def test_an_infeasible_chance_margin_falls_back_to_the_largest_feasible_one():
     assert stack.planned_collision_probability_max == pytest.approx(norm.sf(1.644854 * 4 / 17), abs=1e-6)
     assert stack.planned_collision_probability_max == pytest.approx(0.3494, abs=1e-3)
     assert np.isnan(NavigationStack(_wall_with_gap()).planned_collision_probability_max)  # fixed inflation
+
+
+def test_paired_variants_table_differences_by_seed():
+    from slamkit.experiments.navigation import Episode, _variants, paired_variants_markdown
+
+    config = {"variants": [{"name": "fixed"}, {"name": "covariance", "paired_with": "fixed"}]}
+    assert [n for n, _, _ in _variants(config)] == ["fixed", "covariance"]
+    with pytest.raises(ConfigError, match="paired_with"):
+        _variants({"variants": [{"name": "a", "paired_with": "b"}]})
+    base = {m: 0.0 for m in ("success", "collision_static", "collision_moving", "min_clearance_static_m",
+                             "time_s", "path_length_m", "localisation_error_max_m")}
+    eps = [Episode(f"passage_{s}", "passage", s, v, np.zeros(1), np.zeros((1, 3)), np.zeros((1, 3)),
+                   {**base, "path_length_m": length})
+           for s, v, length in ((0, "fixed", 8.0), (0, "covariance", 10.0), (1, "fixed", 8.5),
+                                (1, "covariance", 11.5), (2, "fixed", 9.0))]
+    text = paired_variants_markdown(config, eps)
+    # seeds 0 and 1 are paired (seed 2 has no covariance run): +2.0 and +3.0 m -> mean 2.5
+    row = next(line for line in text.splitlines() if "path_length_m" in line)
+    assert "covariance - fixed" in row and "| 2 |" in row and "2.5" in row
