@@ -93,3 +93,21 @@ def test_paired_variants_table_differences_by_seed():
     # seeds 0 and 1 are paired (seed 2 has no covariance run): +2.0 and +3.0 m -> mean 2.5
     row = next(line for line in text.splitlines() if "path_length_m" in line)
     assert "covariance - fixed" in row and "| 2 |" in row and "2.5" in row
+
+
+def test_local_tightening_never_puts_the_estimate_inside_an_obstacle():
+    from slamkit.control.chance_constraints import worst_sigma_m
+
+    occ = np.zeros((80, 120), bool)  # 6 m x 4 m, walls 2 cells thick: surfaces at x = 0.1 m ...
+    occ[:2, :] = occ[-2:, :] = occ[:, :2] = occ[:, -2:] = True
+    stack = NavigationStack(OccupancyGrid(occ, 0.05), NavigationConfig(uncertainty="covariance"))
+    # ... so an estimate at x = 0.45 m has 0.35 m to the wall: beyond the 0.2 m disc and DWA's
+    # 0.05 m margin, 0.10 m of room. sigma ~ 10 cm wants k sigma = 16 cm: k drops to 0.10 / sigma
+    stack.reset([0.45, 2.0, 0.0], np.diag([0.01, 0.01, 1e-4]))
+    stack.set_goal([5.0, 2.0, 0.0])
+    sigma = worst_sigma_m(stack.current_pose()[1])
+    assert 0.08 < sigma < 0.12
+    stack.command(0.0)
+    # (the particle mean is within a few millimetres of x = 0.45 m)
+    assert stack.chance_k_min == pytest.approx(0.10 / sigma, rel=5e-3)
+    assert stack.planned_collision_probability_max == pytest.approx(norm.sf(stack.chance_k_min), rel=1e-9)
