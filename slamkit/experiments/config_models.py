@@ -207,7 +207,7 @@ class LocalPlanningPipeline(PipelineConfig):
 
 class NavigationScenarios(BaseModel):
     model_config = STRICT
-    worlds: Annotated[list[Literal["office", "warehouse", "willow"]], Field(min_length=1)] = ["office"]
+    worlds: Annotated[list[Literal["office", "warehouse", "willow", "passage"]], Field(min_length=1)] = ["office"]
     seeds: Seeds = 3
     n_obstacles: Annotated[int, Field(ge=0, le=20)] = 2
     #: world 'willow': the dataset registry's ``willow`` (default) or a map_server YAML path
@@ -217,6 +217,8 @@ class NavigationScenarios(BaseModel):
 class NavigationVariant(BaseModel):
     model_config = STRICT
     name: PlainName
+    #: another variant's name: the report adds this one's differences to it, paired by seed
+    paired_with: PlainName | None = None
     navigation: dict[str, Any] = {}
     episode: dict[str, Any] = {}
 

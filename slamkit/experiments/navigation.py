@@ -42,11 +42,14 @@ from slamkit.experiments.config_models import NavigationPipeline, seed_list
 from slamkit.experiments.navigation_map import RobotMap, map_source_config, robot_map
 from slamkit.experiments.observers import PipelineObserver
 from slamkit.experiments.pipeline import Pipeline, PipelineOutput, StepProgress
-from slamkit.experiments.results import ResultsFolder, RunRecord, markdown_table, summarise, summary_markdown
+from slamkit.experiments.results import (ResultsFolder, RunRecord, markdown_table, paired_difference, summarise,
+                                         summary_markdown)
 from slamkit.geometry.angles import wrap_angle
 from slamkit.maps.distance_field import distance_field_m
 from slamkit.maps.inflation import costmap
+from slamkit.planning.astar import AStarPlanner
 from slamkit.planning.grid_search import costmap_to_cell_cost
+from slamkit.planning.protocols import PlanningProblem
 from slamkit.sim.moving_obstacles import crossing_obstacles
 from slamkit.sim.navigation_world import WORLDS, NavigationPlant, NavigationScenario, world_map
 from slamkit.systems.navigation import NavigationCommand, NavigationConfig, NavigationStack, layer_timing_summary
@@ -65,7 +68,9 @@ def make_navigation_scenario(seed: int, kind: str, willow_yaml: str | None = Non
     field_m = distance_field_m(grid)
     inscribed = robot_radius_m + path_margin_m
     cell_cost = costmap_to_cell_cost(costmap(grid, inscribed, max(1.0, inscribed), distance_m=field_m))
-    for poses, res in start_goal_draws(grid, rng, cell_cost, robot_radius_m, distance_m, 300):
+    draws = (_passage_draws(grid, rng, cell_cost, 300) if kind == "passage"
+             else start_goal_draws(grid, rng, cell_cost, robot_radius_m, distance_m, 300))
+    for poses, res in draws:
         path = res.path
         start = poses[0].copy()
         lead = path[min(10, len(path) - 1)] - path[0]
@@ -75,6 +80,19 @@ def make_navigation_scenario(seed: int, kind: str, willow_yaml: str | None = Non
                                        min_side_m=1.0)
         return NavigationScenario(f"{kind}_{seed}", seed, grid, start, poses[1].copy(), path, obstacles)
     raise ConfigError(f"could not draw a start/goal pair with a path in the {kind} map (seed {seed})")
+
+
+def _passage_draws(grid, rng: np.random.Generator, cell_cost: np.ndarray, attempts: int):
+    """Start and goal on either side of the passage hall's partition (1-2.5 m from the end
+    walls, 1.2 m from the side walls), with the A* path between them on ``cell_cost``."""
+    w, h = grid.width * grid.resolution_m, grid.height * grid.resolution_m
+    for _attempt in range(attempts):
+        x = rng.uniform(1.0, 2.5, 2)
+        y = rng.uniform(1.2, h - 1.2, 2)
+        poses = np.array([[x[0], y[0], 0.0], [w - x[1], y[1], rng.uniform(-np.pi, np.pi)]])
+        res = AStarPlanner().plan(PlanningProblem(grid, poses[0, :2], poses[1, :2], cell_cost=cell_cost))
+        if res.solved:
+            yield poses, res
 
 
 @dataclass(frozen=True)
@@ -93,6 +111,9 @@ class EpisodeConfig:
     #: (or the opposite way if that is in a wall; retried every cycle until one is free) (None: none)
     kidnap_at_s: float | None = None
     kidnap_xy_m: tuple[float, float] = (0.3, 0.0)
+    #: boxes (x_min, y_min, x_max, y_max) in the world where the lidar returns nothing, so the
+    #: stack runs on odometry alone there (:class:`NavigationPlant`)
+    lidar_blind_boxes_m: tuple[tuple[float, float, float, float], ...] = ()
 
     def __post_init__(self) -> None:
         for name in ("dt_s", "max_time_s", "goal_tolerance_m", "heading_tolerance_rad"):
@@ -112,6 +133,11 @@ class EpisodeConfig:
         if len(self.kidnap_xy_m) != 2 or not all(isinstance(v, (int, float)) and math.isfinite(v)
                                                  for v in self.kidnap_xy_m):
             raise ConfigError(f"EpisodeConfig.kidnap_xy_m must be two finite numbers, got {self.kidnap_xy_m!r}")
+        for box in self.lidar_blind_boxes_m:
+            if not (len(box) == 4 and all(isinstance(v, (int, float)) and math.isfinite(v) for v in box)
+                    and box[0] < box[2] and box[1] < box[3]):
+                raise ConfigError("EpisodeConfig.lidar_blind_boxes_m: each box is [x_min, y_min, x_max, y_max] "
+                                  f"with min < max, got {box!r}")
 
 
 @dataclass(frozen=True)
@@ -139,7 +165,8 @@ def run_episode(scenario: NavigationScenario, nav_config: NavigationConfig = Nav
     robot = RobotMap(scenario.grid, "truth") if robot_map is None else robot_map
     stack = NavigationStack(robot.grid, nav_config, np.random.default_rng([scenario.seed, 2]))
     plant = NavigationPlant(scenario, rng, odometry_sigma_v_mps=config.odometry_sigma_v_mps,
-                            odometry_sigma_omega_radps=config.odometry_sigma_omega_radps)
+                            odometry_sigma_omega_radps=config.odometry_sigma_omega_radps,
+                            lidar_blind_boxes_m=np.asarray(config.lidar_blind_boxes_m, float).reshape(-1, 4))
     sig = np.array([config.initial_sigma_xy_m, config.initial_sigma_xy_m, config.initial_sigma_theta_rad])
     belief = robot.to_map(scenario.start_xytheta) + sig * rng.standard_normal(3)
     stack.reset(belief, np.diag(sig**2))
@@ -202,6 +229,12 @@ def run_episode(scenario: NavigationScenario, nav_config: NavigationConfig = Nav
         "plan_expansions_median": float(np.median(stack.plan_expansions)) if stack.plan_expansions else 0.0,
         "recoveries": float(stack.recoveries),
         "no_safe_stop_cycles": float(stack.no_safe_stop_cycles),
+        # covariance-aware inflation only (nan with fixed): the largest collision probability
+        # a plan settled for, and how many plans lowered k to find a path
+        "chance_probability_max": stack.planned_collision_probability_max,
+        "chance_fallback_plans": float(stack.chance_fallbacks),
+        #: MCL updates that injected particles (augmented MCL; 0 when it is off)
+        "localisation_injections": float(stack.mcl.injections),
         **layer_timing_summary(stack.timings_s),
         "real_time_factor": float(ts[-1] / max(compute_s, 1e-9)),
     }
@@ -253,6 +286,11 @@ def _variants(config: Mapping[str, Any]) -> list[tuple[str, NavigationConfig, Ep
         ep = _build(EpisodeConfig, {**base_ep, **_section(v.get("episode"), f"variants.{name}.episode")},
                     f"variants.{name}.episode")
         out.append((name, nav, ep))
+    names = [n for n, _, _ in out]
+    for v in variants:
+        other = v.get("paired_with") if isinstance(v, Mapping) else None
+        if other is not None and (other not in names or other == v.get("name")):
+            raise ConfigError(f"variants.{v.get('name')}.paired_with: {other!r} is not another variant ({names})")
     return out
 
 
@@ -274,7 +312,8 @@ def _build(cls, values: Mapping[str, Any], where: str):
                     raise ConfigError(f"{where}.{key}: unknown keys {sorted(map(str, set(nested) - known))}; "
                                       f"known: {sorted(known)}")
                 values[key] = dataclasses.replace(default, **nested)
-        values = {k: tuple(v) if isinstance(v, list) and isinstance(fields[k].default, tuple) else v
+        values = {k: tuple(tuple(x) if isinstance(x, list) else x for x in v)
+                  if isinstance(v, list) and isinstance(fields[k].default, tuple) else v
                   for k, v in values.items()}
         return cls(**values)
     except ConfigError as exc:
@@ -304,6 +343,33 @@ def scenarios_of(config: Mapping[str, Any]) -> list[NavigationScenario]:
     return [make_navigation_scenario(seed, w, willow, n_obstacles=n_obs) for w in worlds for seed in seeds]
 
 
+#: what the paired table of :func:`paired_variants_markdown` compares
+PAIRED_METRICS = ("success", "collision_static", "collision_moving", "min_clearance_static_m", "time_s",
+                  "path_length_m", "localisation_error_max_m")
+
+
+def paired_variants_markdown(config: Mapping[str, Any], episodes: list[Episode]) -> str:
+    """Per world, every variant with ``paired_with`` minus that variant, paired by seed (both saw
+    the same scenario and noise seed): mean difference, its 95% CI and the Wilcoxon p-value of
+    :func:`slamkit.experiments.results.paired_difference`; time over the seeds both reached."""
+    pairs = [(str(v["name"]), str(v["paired_with"])) for v in config.get("variants", []) or []
+             if isinstance(v, Mapping) and v.get("paired_with")]
+    by = {(e.world, e.variant, e.seed): e.metrics for e in episodes}
+    rows = []
+    for world in dict.fromkeys(e.world for e in episodes):
+        for a, b in pairs:
+            seeds = sorted(s for (w, v, s) in by if w == world and v == a and (w, b, s) in by)
+            for m in PAIRED_METRICS if seeds else ():
+                d = paired_difference([by[world, a, s][m] for s in seeds], [by[world, b, s][m] for s in seeds])
+                lo, hi = d["ci95"]
+                rows.append([world, f"{a} - {b}", m, d["pairs"], d["mean_difference"],
+                             f"[{lo:.3g}, {hi:.3g}]", d["wilcoxon_p"]])
+    if not rows:
+        return ""
+    return "## Paired by seed\n\n" + markdown_table(
+        ["world", "variants", "metric", "pairs", "mean difference", "95% CI", "Wilcoxon p"], rows) + "\n"
+
+
 def runs_of(episodes: list[Episode]) -> list[RunRecord]:
     return [RunRecord(e.world, e.variant, dict(e.metrics), seed=e.seed, params={"scenario": e.scenario})
             for e in episodes]
@@ -317,7 +383,7 @@ def report_markdown(config: Mapping[str, Any], episodes: list[Episode], summary:
              "Success: stopped within the goal tolerance (position and heading, by the truth) "
              "without a collision. Mean ± half the 95% CI over seeds, per world and variant.\n\n")
     text += map_source_markdown(maps or {})
-    text += summary_markdown(summary) + "\n\n## Runs\n\n"
+    text += summary_markdown(summary) + "\n\n" + paired_variants_markdown(config, episodes) + "\n## Runs\n\n"
     rows = [[e.scenario, e.variant, e.metrics["success"], e.metrics["final_position_error_m"],
              e.metrics["collision_static"], e.metrics["collision_moving"], e.metrics["time_s"],
              e.metrics["localisation_error_max_m"], e.metrics["replans"]] for e in episodes]

@@ -1,5 +1,6 @@
 """Seeded generators of indoor occupancy grids: offices (rooms, corridors, doors) and
-warehouses (shelf rows, aisles, pallets).
+warehouses (shelf rows, aisles, pallets), and a hall split by a partition with one narrow gap and
+one wide door (planning under localisation uncertainty: the short way is tight, the safe way long).
 
 The layouts are structured rather than noise so that planners, localisation and scan matching
 meet the geometry they meet indoors: long corridors (aliasing), doorways (narrow passages),
@@ -159,6 +160,45 @@ def warehouse(rng: np.random.Generator, config: WarehouseConfig = WarehouseConfi
         px = rng.uniform(t + 1.0, W - t - 1.0 - c.pallet_size_m)
         py = rng.uniform(t + 1.0, y_lo - 1.0 - c.pallet_size_m)
         cv.rect(px, py, px + c.pallet_size_m, py + c.pallet_size_m)
+    return OccupancyGrid(cv.occ, c.resolution_m, np.zeros(2), name=name)
+
+
+@dataclass(frozen=True)
+class PassageHallConfig:
+    width_m: float = 12.0
+    height_m: float = 6.0
+    resolution_m: float = 0.05
+    wall_thickness_m: float = 0.15
+    #: the gap in the partition (x = width / 2), centred at a height drawn in ``narrow_y_m``;
+    #: a whole number of cells, so its width is exact
+    narrow_width_m: float = 0.55
+    narrow_y_m: tuple[float, float] = (2.2, 3.8)
+    #: the door at the end of the partition farther from the gap
+    wide_width_m: float = 1.2
+
+
+def passage_hall(rng: np.random.Generator, config: PassageHallConfig = PassageHallConfig(),
+                 name: str = "passage") -> OccupancyGrid:
+    """A hall split across by a partition wall with a narrow gap near the middle and a wide door
+    near the end farther from it: a robot going from one side to the other either threads the
+    gap or detours through the door (about 2 |y_door - y_gap| longer)."""
+    c = config
+    cells = c.narrow_width_m / c.resolution_m
+    if abs(cells - round(cells)) > 1e-6 or not 0 < c.narrow_width_m < c.wide_width_m:
+        raise DataError(f"PassageHallConfig.narrow_width_m must be a whole number of cells below wide_width_m, "
+                        f"got {c.narrow_width_m}")
+    cv = _Canvas(c.width_m, c.height_m, c.resolution_m)
+    t = c.wall_thickness_m
+    W, H = cv.occ.shape[1] * c.resolution_m, cv.occ.shape[0] * c.resolution_m
+    cv.border(t)
+    x0 = round((W / 2 - t / 2) / c.resolution_m) * c.resolution_m
+    cv.rect(x0, 0, x0 + t, H)
+    y_lo = round((rng.uniform(*c.narrow_y_m) - c.narrow_width_m / 2) / c.resolution_m) * c.resolution_m
+    cv.rect(x0, y_lo, x0 + t, y_lo + c.narrow_width_m, value=False)
+    door = (t + 0.2, t + 0.2 + c.wide_width_m)
+    if y_lo + c.narrow_width_m / 2 < H / 2:
+        door = (H - door[1], H - door[0])
+    cv.rect(x0, door[0], x0 + t, door[1], value=False)
     return OccupancyGrid(cv.occ, c.resolution_m, np.zeros(2), name=name)
 
 

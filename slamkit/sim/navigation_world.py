@@ -21,7 +21,7 @@ import numpy as np
 
 from slamkit.data.sequence import Odometry, Scan
 from slamkit.errors import ConfigError
-from slamkit.maps.generators import OfficeConfig, WarehouseConfig, office, warehouse
+from slamkit.maps.generators import OfficeConfig, PassageHallConfig, WarehouseConfig, office, passage_hall, warehouse
 from slamkit.maps.occupancy_grid import OccupancyGrid
 from slamkit.maps.raycast import RayCaster, cast_circles
 from slamkit.models.diff_drive import motion
@@ -29,7 +29,7 @@ from slamkit.sim.grid_world import Lidar
 from slamkit.sim.moving_obstacles import MovingObstacles
 from slamkit.sim.ros_map import load_ros_map
 
-WORLDS = ("office", "warehouse", "willow")
+WORLDS = ("office", "warehouse", "willow", "passage")
 
 
 @dataclass(frozen=True)
@@ -49,13 +49,16 @@ _MAP_CACHE: dict[tuple[str, str], OccupancyGrid] = {}
 
 def world_map(kind: str, rng: np.random.Generator, willow_yaml: str | None = None,
               resolution_m: float = 0.05, size_m: float = 20.0) -> OccupancyGrid:
-    """The map of a world kind: generated (drawn from ``rng``) or the Willow ROS map."""
+    """The map of a world kind: generated (drawn from ``rng``) or the Willow ROS map. ``passage``
+    is a 12 m x 6 m hall whose partition has a narrow gap and a wide door (``size_m`` unused)."""
     if kind == "office":
         return office(rng, OfficeConfig(width_m=size_m, height_m=size_m, resolution_m=resolution_m), name="office")
     if kind == "warehouse":
         return warehouse(rng, WarehouseConfig(width_m=size_m, height_m=size_m, resolution_m=resolution_m,
                                               shelf_length_m=6.0, dock_depth_m=5.0, num_pallets=4),
                          name="warehouse")
+    if kind == "passage":
+        return passage_hall(rng, PassageHallConfig(resolution_m=resolution_m))
     if kind == "willow":
         if willow_yaml is None:
             raise ConfigError("world 'willow' needs the path of the Willow map YAML (maps_ros)")
@@ -70,8 +73,13 @@ class NavigationPlant:
     """The robot and its sensors in ``scenario`` (see the module docstring)."""
 
     def __init__(self, scenario: NavigationScenario, rng: np.random.Generator, lidar: Lidar = Lidar(),
-                 odometry_sigma_v_mps: float = 0.02, odometry_sigma_omega_radps: float = float(np.deg2rad(1.0))):
+                 odometry_sigma_v_mps: float = 0.02, odometry_sigma_omega_radps: float = float(np.deg2rad(1.0)),
+                 lidar_blind_boxes_m: np.ndarray | None = None):
         self.scenario = scenario
+        #: (B, 4) boxes (x_min, y_min, x_max, y_max): with the robot inside one the lidar returns
+        #: nothing (glass, a featureless hall, a dropout): an odometry-only stretch
+        self.blind_boxes_m = np.zeros((0, 4)) if lidar_blind_boxes_m is None else \
+            np.asarray(lidar_blind_boxes_m, float).reshape(-1, 4)
         self.rng = rng
         self.lidar = lidar
         self.sigma = np.array([odometry_sigma_v_mps, odometry_sigma_omega_radps])
@@ -87,8 +95,16 @@ class NavigationPlant:
         noisy = u + self.sigma * self.rng.standard_normal(2)
         return Odometry(float(t_end_s), float(dt_s), float(noisy[0]), float(noisy[1]))
 
+    def lidar_blind(self) -> bool:
+        """Whether the robot is in a lidar blind box now."""
+        x, y = self.world_xytheta_body[:2]
+        b = self.blind_boxes_m
+        return bool(np.any((b[:, 0] <= x) & (x <= b[:, 2]) & (b[:, 1] <= y) & (y <= b[:, 3])))
+
     def scan(self, t_s: float) -> Scan:
         lid, pose = self.lidar, self.world_xytheta_body
+        if self.lidar_blind():
+            return Scan(float(t_s), self.beams, np.full(len(self.beams), np.nan), lid.max_range_m)
         expected = self.caster.scan(pose, self.beams, lid.max_range_m)[0]
         obs = self.scenario.obstacles
         if len(obs):

@@ -31,7 +31,13 @@ Planning under uncertainty (``NavigationConfig.uncertainty``):
   k sigma (k = Phi^-1(1 - delta), sigma the largest standard deviation of the position
   covariance; :func:`slamkit.maps.inflation.chance_inflation_m`) and the local planner sees every
   obstacle tightened by k sigma_n (:func:`slamkit.control.chance_constraints.tightened_world`),
-  which for the MPC makes its obstacle rows chance constraints;
+  which for the MPC makes its obstacle rows chance constraints: the walls by the pose
+  covariance, the lidar tracks by their own covariance only (the pose error moves them with the
+  robot). When k sigma leaves no path (a narrow passage, or the estimate inside the margin) the
+  plan uses the largest margin that does, and the stack lowers k for the local planner to match
+  (``chance_k``; ``planned_collision_probability_max`` is the delta that amounts to);
+* ``"local"``: the costmap stays fixed and only the local planner's obstacles are tightened by
+  k sigma_n -- with ``controller: mpc`` the chance-constrained MPC on its own;
 * ``"fixed"``: the margins stay what they are whatever the covariance.
 
 Safe stop: every cycle the stack checks that braking at ``brake_decel_mps2`` from the command it
@@ -73,6 +79,9 @@ from slamkit.planning.protocols import PlanResult, PlanningProblem
 from slamkit.planning.registry import GRID_PLANNERS, canonical, make_planner
 
 LAYERS = ("localisation", "perception", "global_planner", "local_planner")
+#: NavigationConfig.uncertainty: margins fixed, chance margins on the costmap and the local
+#: planner, or on the local planner only (see the module docstring)
+UNCERTAINTY_MODES = ("fixed", "covariance", "local")
 
 
 def _course_dwa() -> dict[str, Any]:
@@ -144,8 +153,8 @@ class NavigationConfig:
     brake_decel_mps2: float = 1.0
 
     def __post_init__(self) -> None:
-        if self.uncertainty not in ("fixed", "covariance"):
-            raise ConfigError(f"NavigationConfig.uncertainty: {self.uncertainty!r} (fixed, covariance)")
+        if self.uncertainty not in UNCERTAINTY_MODES:
+            raise ConfigError(f"NavigationConfig.uncertainty: {self.uncertainty!r} {UNCERTAINTY_MODES}")
         if canonical(self.global_planner) not in GRID_PLANNERS:
             raise ConfigError(f"NavigationConfig.global_planner must be a grid planner {GRID_PLANNERS}, "
                               f"got {self.global_planner!r}")
@@ -228,6 +237,10 @@ class NavigationStack:
         #: grid cells each global search expanded (a D* Lite repair: only the changed part)
         self.plan_expansions: list[int] = []
         self.no_safe_stop_cycles = 0
+        #: the chance-constraint multiplier of the last plan (covariance-aware inflation), its
+        #: smallest value over the run, and how many plans had to lower it (see _plan)
+        self.chance_k = self.chance_k_min = chance_sigma_multiplier(self.config.collision_probability)
+        self.chance_fallbacks = 0
         self.timings_s: dict[str, list[float]] = {k: [] for k in LAYERS}
         self.last_scan_points = np.zeros((0, 2))
         self._ready = True
@@ -287,6 +300,17 @@ class NavigationStack:
         return int(math.ceil(100.0 * chance_sigma_multiplier(self.config.collision_probability)
                              * worst_sigma_m(cov)))
 
+    @property
+    def planned_collision_probability_max(self) -> float:
+        """The weakest chance constraint a plan met so far: 1 - Phi(k) with the smallest k the
+        plans could afford (the configured delta unless the infeasible-k fallback lowered k);
+        nan with fixed inflation."""
+        if self.config.uncertainty == "fixed":
+            return float("nan")
+        from scipy.stats import norm
+
+        return float(norm.sf(self.chance_k_min))
+
     def cell_cost(self, margin_cm: int) -> np.ndarray:
         """A* multipliers of the costmap inflated by robot radius + path margin + ``margin_cm``."""
         if margin_cm not in self._cell_cost:
@@ -310,17 +334,55 @@ class NavigationStack:
         return np.flatnonzero(slow & (d <= tracks.radius_m + c.robot_radius_m))
 
     def _plan(self, pose: np.ndarray, cov: np.ndarray, tracks: Tracks, block: np.ndarray) -> bool:
+        """A* on the costmap inflated by the chance margin k sigma. When no path exists with the
+        full margin (k sigma closes a narrow passage, or the estimate sits inside the margin),
+        the largest margin that leaves one is used instead (feasibility shrinks monotonically
+        as the margin grows, so a bisection over whole centimetres finds it), and ``chance_k``
+        records the k it amounts to, i.e. the collision probability actually planned for."""
         t0 = time.perf_counter()
-        cost = self.cell_cost(self._sigma_key(cov))
+        g = self.grid
+        blocked = None
         if len(block):
-            cost = cost.copy()
-            g = self.grid
             iy, ix = np.mgrid[0:g.height, 0:g.width]
             centres = g.cell_to_world(np.column_stack([ix.ravel(), iy.ravel()]))
             d = np.linalg.norm(centres[:, None, :] - tracks.xy_m[block][None], axis=2)
-            hit = (d <= tracks.radius_m[block] + self.config.robot_radius_m).any(axis=1)
-            cost[hit.reshape(g.height, g.width)] = np.inf
-        res = self._search(pose[:2], cost)
+            blocked = (d <= tracks.radius_m[block] + self.config.robot_radius_m).any(axis=1).reshape(g.height, g.width)
+
+        start_cell = g.world_to_cell(pose[None, :2])[0]
+
+        def plan(margin_cm: int):
+            cost = self.cell_cost(margin_cm)
+            if margin_cm > 0:
+                # the estimate itself may sit inside the chance margin (near a wall with a wide
+                # belief): within the margin of the start the fixed costmap applies, so the robot
+                # can plan its way out instead of lowering k for the whole map
+                n = int(math.ceil(0.01 * margin_cm / g.resolution_m)) + 1
+                y0, y1 = max(start_cell[1] - n, 0), min(start_cell[1] + n + 1, g.height)
+                x0, x1 = max(start_cell[0] - n, 0), min(start_cell[0] + n + 1, g.width)
+                cost = cost.copy()
+                cost[y0:y1, x0:x1] = self.cell_cost(0)[y0:y1, x0:x1]
+            if blocked is not None:
+                cost = np.where(blocked, np.inf, cost)
+            return self._search(pose[:2], cost)
+
+        want = self._sigma_key(cov)
+        res, got = plan(want), want
+        if not res.solved and want > 0:
+            lo_res = plan(0)
+            if lo_res.solved:
+                res, got, hi = lo_res, 0, want
+                while hi - got > 1:
+                    mid = (got + hi) // 2
+                    mid_res = plan(mid)
+                    if mid_res.solved:
+                        res, got = mid_res, mid
+                    else:
+                        hi = mid
+                self.chance_fallbacks += 1
+        if self.config.uncertainty == "covariance":
+            k = chance_sigma_multiplier(self.config.collision_probability)
+            self.chance_k = k if got >= want else k * got / want
+            self.chance_k_min = min(self.chance_k_min, self.chance_k)
         if not res.solved:
             # the start may sit inside the inflated margin (after a brush past a wall or a jump
             # of the estimate): plan on the bare map's free cells instead
@@ -382,12 +444,27 @@ class NavigationStack:
         moving = np.linalg.norm(tracks.velocity_mps, axis=1) >= c.blocking_speed_mps
         world = LocalWorld(tracks.xy_m, tracks.radius_m + c.moving_margin_m * moving, tracks.velocity_mps,
                            self.distance, t)
-        if c.uncertainty == "covariance":
-            key = self._sigma_key(cov)
+        if c.uncertainty != "fixed":
+            # the k the global plan could afford (the configured one unless the fallback lowered
+            # it): tightening the local planner's obstacles by more would refuse the very gap
+            # the plan leads through
+            # -- and never by more than the free space around the estimate leaves (beyond the
+            # disc and the controller's own margin): a tightening that puts the robot inside an
+            # obstacle leaves no admissible motion, and a robot that stands still on odometry
+            # alone only grows less certain (measured on passage_11: stalled 45 s, error 2 m)
+            sigma = worst_sigma_m(cov)
+            k = self.chance_k
+            if sigma > 0:
+                room = (float(self.distance.query(pose[None, :2])[0][0]) - c.robot_radius_m
+                        - float(getattr(self.controller.config, "safety_margin_m", 0.0)))
+                k = min(k, max(room, 0.0) / sigma)
+                self.chance_k_min = min(self.chance_k_min, k)
+            key = int(math.ceil(100.0 * k * sigma))
             if key not in self._tightened:
-                self._tightened[key] = tightened_distance(self.distance, cov, c.collision_probability)
-            world = tightened_world(world, pose[:2], cov, c.collision_probability,
-                                    tracks.covariance[:, :2, :2], self._tightened[key])
+                self._tightened[key] = tightened_distance(self.distance, cov, k_sigma=k)
+            # the tracks were measured from the robot: the pose error moves them with it
+            world = tightened_world(world, pose[:2], cov, circle_cov_xy=tracks.covariance[:, :2, :2],
+                                    distance=self._tightened[key], k_sigma=k, relative_circles=True)
         state = RobotState(pose, self._last_cmd, t)
         out = self.controller.compute(state, Reference(self.path, speed_mps=c.cruise_speed_mps), world)
         cmd = out.command

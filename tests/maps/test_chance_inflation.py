@@ -44,3 +44,18 @@ def test_tightened_world_grows_circles_and_shrinks_the_static_field():
                                atol=1e-6)
     np.testing.assert_allclose(tight.distance.distance_m, 1.0 - 1.644854 * 0.04, atol=1e-6)
     np.testing.assert_allclose(tightened_distance(field, np.diag([1.0, 1.0]), 0.05).distance_m, 0.0)
+
+
+def test_a_given_k_and_circles_measured_from_the_robot():
+    cov = np.diag([0.04**2, 0.01**2])
+    field = DistanceGrid(np.full((4, 4), 1.0), 0.5)
+    world = LocalWorld([[3.0, 0.0]], [0.3], [[0.0, 0.0]], field)
+    # k = 0.5 instead of delta's 1.645: circle + 0.5 * 4 cm, field - 0.5 * 4 cm
+    tight = tightened_world(world, [0.0, 0.0], cov, k_sigma=0.5)
+    np.testing.assert_allclose(tight.circle_radius_m, [0.32], atol=1e-12)
+    np.testing.assert_allclose(tight.distance.distance_m, 0.98, atol=1e-12)
+    # a lidar track moves with the pose error: only its own 3 cm along x count
+    rel = tightened_world(world, [0.0, 0.0], cov, 0.05, circle_cov_xy=np.diag([0.03**2, 0.0])[None],
+                          relative_circles=True)
+    np.testing.assert_allclose(rel.circle_radius_m, [0.3 + 1.644854 * 0.03], atol=1e-6)
+    np.testing.assert_allclose(rel.distance.distance_m, 1.0 - 1.644854 * 0.04, atol=1e-6)
