@@ -39,7 +39,8 @@ Estimators (``slamkit.data.estimate`` protocols, registry names ``batch``, ``isa
   (``gtsam.IncrementalFixedLagSmoother`` or ``BatchFixedLagSmoother``); older variables are
   marginalised out and their last estimate (and covariance) before leaving is what it reports.
   A landmark is kept alive while it is being observed; one seen again after it was marginalised
-  is re-initialised as a new variable.
+  is re-initialised as a new variable (``keep_landmarks``: landmarks never leave, only poses
+  do). The range scale s, when estimated, never leaves the window.
 
 Pose covariances are reported, like the filters', in world-frame (x, y, theta): GTSAM's Pose2
 marginals live in the body-frame tangent and are rotated by the heading (first order).
@@ -142,6 +143,10 @@ class FixedLagLandmarkSLAMConfig(Isam2LandmarkSLAMConfig):
 
     lag_s: float = 5.0
     fixed_lag_kind: str = "incremental"  # 'incremental' | 'batch'
+    #: True: landmarks never leave the window (only poses are marginalised), so a landmark
+    #: unobserved for ``lag_s`` is not re-initialised as a new variable when seen again (Plaza 1's
+    #: 4 beacons took 57 variables with a 5 s lag)
+    keep_landmarks: bool = False
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -720,6 +725,11 @@ class FixedLagLandmarkSLAM(_LandmarkSmootherBase):
         if self._scale_key is not None:
             # the range scale concerns every range: it never leaves the window
             stamps[self._scale_key] = max([*stamps.values(), *self._key_stamp.values()])
+        if self.config.keep_landmarks:
+            # the map stays in the window (a sliding window over poses only)
+            newest = max([*stamps.values(), *self._key_stamp.values()])
+            stamps.update({key: newest for key in self._landmark_ids_of_key
+                           if key in self._key_stamp or key in stamps})
         self._key_stamp.update(stamps)
         newest = max(self._key_stamp.values())
         leaving = [k for k, t in self._key_stamp.items() if t < newest - self.config.lag_s]

@@ -104,3 +104,20 @@ def test_an_unknown_range_scale_is_estimated(name, params):
     assert run.estimate.extras["rejected_ranges"] == (2 if name in ("pf", "ekf", "ukf") else 1)
     if name not in ("pf", "ekf", "ukf"):
         assert scored.metrics["landmark_rmse_m"] < 0.1
+
+
+@pytest.mark.parametrize("keep_landmarks", [False, True])
+def test_fixed_lag_keep_landmarks(keep_landmarks):
+    """A 0.3 s lag with one range every 0.2 s to one of three beacons in turn: each beacon
+    leaves the window between its ranges and, ranged again, buffers ranges for a new
+    trilateration and re-enters as a new variable (measured: 18 variables for the 3 beacons),
+    unless the map is kept in the window (3)."""
+    seq = _drive(outlier_at=None)
+    run = run_estimators(seq, {"fixed_lag": factory("fixed_lag", {"lag_s": 0.3, "keep_landmarks": keep_landmarks})})
+    run = run["fixed_lag"]
+    assert run.failed is None
+    if keep_landmarks:
+        assert run.estimate.extras["landmark_variables"] == 3
+    else:
+        assert run.estimate.extras["landmark_variables"] > 3
+    assert sorted(run.estimate.world_p_landmarks) == [0, 1, 2]
