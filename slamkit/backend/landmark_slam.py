@@ -23,8 +23,9 @@ observation of landmark L(j).
   initialisation; when the sequence declares the ranges' scale unknown
   (``NoiseParams.range_scale_sigma`` > 0) a variable s (``RANGE_SCALE_KEY``, prior N(1, sigma^2))
   joins the graph and each range is :func:`scaled_range_factor`, r = s |m - p| (a
-  ``gtsam.CustomFactor`` with analytic Jacobians: a Python call per linearisation, fast enough
-  for Plaza's 1816 and 3529 ranges).
+  ``gtsam.CustomFactor`` with analytic Jacobians: a Python call per evaluation; the batch solve
+  then runs GTSAM's LM driven from Python, :mod:`slamkit.backend.levenberg_marquardt`, which
+  explains why).
 
 Estimators (``slamkit.data.estimate`` protocols, registry names ``batch``, ``isam2``,
 ``fixed_lag``):
@@ -38,7 +39,8 @@ Estimators (``slamkit.data.estimate`` protocols, registry names ``batch``, ``isa
   (``gtsam.IncrementalFixedLagSmoother`` or ``BatchFixedLagSmoother``); older variables are
   marginalised out and their last estimate (and covariance) before leaving is what it reports.
   A landmark is kept alive while it is being observed; one seen again after it was marginalised
-  is re-initialised as a new variable.
+  is re-initialised as a new variable (``keep_landmarks``: landmarks never leave, only poses
+  do). The range scale s, when estimated, never leaves the window.
 
 Pose covariances are reported, like the filters', in world-frame (x, y, theta): GTSAM's Pose2
 marginals live in the body-frame tangent and are rotated by the heading (first order).
@@ -69,6 +71,7 @@ from slamkit.data.sequence import Event, Odometry, Range, RangeBearing, Sequence
 from slamkit.data.trajectory import Trajectory
 from slamkit.geometry import se2
 from slamkit.backend.graph import smoother_config
+from slamkit.backend.levenberg_marquardt import levenberg_marquardt
 from slamkit.errors import ConfigError, EstimationError
 from slamkit.models import diff_drive, range_only
 from slamkit.models.range_only import BeaconInitialiser, DelayedInitConfig
@@ -140,6 +143,10 @@ class FixedLagLandmarkSLAMConfig(Isam2LandmarkSLAMConfig):
 
     lag_s: float = 5.0
     fixed_lag_kind: str = "incremental"  # 'incremental' | 'batch'
+    #: True: landmarks never leave the window (only poses are marginalised), so a landmark
+    #: unobserved for ``lag_s`` is not re-initialised as a new variable when seen again (Plaza 1's
+    #: 4 beacons took 57 variables with a 5 s lag)
+    keep_landmarks: bool = False
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -544,6 +551,15 @@ class BatchLandmarkSLAM(_LandmarkSmootherBase):
 
     def _optimize(self, graph: gtsam.NonlinearFactorGraph, initial: gtsam.Values
                   ) -> tuple[gtsam.Values, int]:
+        if self._scale_key is not None:
+            # the scaled range factors are Python CustomFactors: GTSAM's C++ LM would hand each
+            # callback a copy of all the values (~50 s on Plaza 2); the same LM driven from
+            # Python passes them by reference (slamkit.backend.levenberg_marquardt)
+            result = levenberg_marquardt(graph, initial, max_iterations=self.config.max_iterations,
+                                         relative_error_tol=self.config.relative_error_tol,
+                                         absolute_error_tol=self.config.absolute_error_tol,
+                                         lambda_upper_bound=self.config.lambda_upper_bound)
+            return result.values, result.iterations
         params = gtsam.LevenbergMarquardtParams()
         params.setMaxIterations(self.config.max_iterations)
         params.setRelativeErrorTol(self.config.relative_error_tol)
@@ -709,6 +725,11 @@ class FixedLagLandmarkSLAM(_LandmarkSmootherBase):
         if self._scale_key is not None:
             # the range scale concerns every range: it never leaves the window
             stamps[self._scale_key] = max([*stamps.values(), *self._key_stamp.values()])
+        if self.config.keep_landmarks:
+            # the map stays in the window (a sliding window over poses only)
+            newest = max([*stamps.values(), *self._key_stamp.values()])
+            stamps.update({key: newest for key in self._landmark_ids_of_key
+                           if key in self._key_stamp or key in stamps})
         self._key_stamp.update(stamps)
         newest = max(self._key_stamp.values())
         leaving = [k for k, t in self._key_stamp.items() if t < newest - self.config.lag_s]

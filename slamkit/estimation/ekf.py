@@ -98,10 +98,11 @@ class EKFLocalization(GaussianLocalization):
 
     def _predict(self, odometry: Odometry) -> None:
         u = np.array([odometry.v_mps, odometry.omega_radps])
-        F, L = diff_drive.motion_jacobians(self.x, u, odometry.dt_s)
-        x, self.P = ekf_predict(self.x, self.P, lambda s: diff_drive.motion(s, u, odometry.dt_s), F,
-                                L @ self.noise.control_cov @ L.T)
-        self.x = np.asarray(x, dtype=float).reshape(3)
+        F, L = diff_drive.motion_jacobians(self.x[:3], u, odometry.dt_s)
+        F, Q = self._embed_motion(F, L @ self.noise.control_cov @ L.T)
+        x, self.P = ekf_predict(self.x, self.P, lambda s: np.concatenate(
+            [np.asarray(diff_drive.motion(s[:3], u, odometry.dt_s), dtype=float).reshape(3), s[3:]]), F, Q)
+        self.x = np.asarray(x, dtype=float)
 
     def _update(self, observation: RangeBearing) -> None:
         ids, zs = observation_rows(observation)
@@ -116,10 +117,10 @@ class EKFLocalization(GaussianLocalization):
     def _stacked_update(self, ids: np.ndarray, zs: np.ndarray) -> None:
         m = len(ids)
         lm = self.landmarks[[self._index[int(i)] for i in ids]]
-        pose = np.broadcast_to(self.x, (m, 3))
+        pose = np.broadcast_to(self.x[:3], (m, 3))
         z_hat = range_bearing.observe(pose, lm)
         H_pose, _ = range_bearing.observe_jacobians(pose, lm)
-        H = H_pose.reshape(2 * m, 3)
+        H = self._pad(H_pose.reshape(2 * m, 3))
         R = np.kron(np.eye(m), self.noise.range_bearing_cov)
         nu = range_bearing_residual(zs, z_hat).reshape(2 * m)
         x, self.P, nu, S = ekf_update(self.x, self.P, nu, np.zeros(2 * m), H, R)
@@ -143,10 +144,9 @@ class EKFLocalization(GaussianLocalization):
                 candidates = np.array([k])
             else:
                 candidates = np.arange(len(self.landmarks))
-            z_hat = range_bearing.observe(np.broadcast_to(self.x, (len(candidates), 3)),
-                                          self.landmarks[candidates])
-            H_all, _ = range_bearing.observe_jacobians(np.broadcast_to(self.x, (len(candidates), 3)),
-                                                        self.landmarks[candidates])
+            pose = np.broadcast_to(self.x[:3], (len(candidates), 3))
+            z_hat = range_bearing.observe(pose, self.landmarks[candidates])
+            H_all = self._pad(range_bearing.observe_jacobians(pose, self.landmarks[candidates])[0])
             nu_all = range_bearing_residual(np.broadcast_to(z, z_hat.shape), z_hat)
             S_all = H_all @ self.P @ H_all.transpose(0, 2, 1) + R
             d2 = np.einsum("ni,ni->n", nu_all, np.linalg.solve(S_all, nu_all[..., None])[..., 0])
@@ -165,28 +165,25 @@ class EKFLocalization(GaussianLocalization):
             self.x[2] = wrap_angle(self.x[2])
 
     def _update_range(self, event: Range) -> None:
-        # one scalar update per range, each linearised at the previous posterior
+        # one scalar update per range, each linearised at the previous posterior; with the
+        # range scale in the state, r = s |m - p| and dr/ds = |m - p|
         R = np.array([[self.noise.sigma_range_m**2]])
         for k, r in self._known_ranges(event):
-            m = self.landmarks[k]
-            H = np.zeros((1, 3))
-            H[0, :2] = range_only.observe_jacobians(self.x[:2], m)[0]
-            x, self.P, nu, S = ekf_update(self.x, self.P, np.array([r]),
-                                          np.array([range_only.observe(self.x[:2], m)]), H, R)
+            scale = self._scale()
+            Jp, _, distance = range_only.observe_scaled_jacobians(self.x[:2], self.landmarks[k], scale)
+            H = np.zeros((1, len(self.x)))
+            H[0, :2] = Jp
+            if self._scale_index is not None:
+                H[0, self._scale_index] = distance
+            x, self.P, nu, S = ekf_update(self.x, self.P, np.array([r]), np.array([scale * distance]), H, R)
             self._record_nis(nu, S)
             self.x = np.asarray(x, dtype=float)
             self.x[2] = wrap_angle(self.x[2])
 
     def _update_gps(self, gps: Gps) -> None:
-        H = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+        H = self._pad(np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]))
         R = np.eye(2) * gps.sigma_m**2
         z = np.asarray(gps.world_p_body, dtype=float).reshape(-1)[:2]
         x, self.P, nu, S = ekf_update(self.x, self.P, z, self.x[:2], H, R)
         self._record_nis(nu, S)
         self.x = x
-
-    def _pose_and_covariance(self) -> tuple[np.ndarray, np.ndarray]:
-        return self.x.copy(), self.P.copy()
-
-    def _extras(self) -> dict:
-        return {"rejected_measurements": self._rejected, "rejected_ranges": self._rejected_ranges}

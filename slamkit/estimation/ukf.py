@@ -127,9 +127,6 @@ class UKFLocalizationConfig:
     gate_probability: float = 0.99
 
 
-_POSE_ANGLES = np.array([False, False, True])
-
-
 class UKFLocalization(GaussianLocalization):
     """UKF localization (registry name ``ukf``) on a known landmark map."""
 
@@ -141,17 +138,18 @@ class UKFLocalization(GaussianLocalization):
 
     def _predict(self, odometry: Odometry) -> None:
         u = np.array([odometry.v_mps, odometry.omega_radps])
+        n = len(self.x)
         xa = np.concatenate([self.x, np.zeros(2)])
         Pa = block_diag(self.P, self.noise.control_cov)
-        mask = np.array([False, False, True, False, False])
-        X, Wm, Wc = sigma_points(xa, Pa, self.config.sigma_points, mask)
-        Y = diff_drive.motion(X[:, :3], u + X[:, 3:], odometry.dt_s)
-        self.x, self.P = unscented_transform(np.asarray(Y, float), Wm, Wc, _POSE_ANGLES)
+        X, Wm, Wc = sigma_points(xa, Pa, self.config.sigma_points, np.concatenate([self._angles, [False, False]]))
+        Y = X[:, :n].copy()                       # the range scale (if in the state) is unchanged
+        Y[:, :3] = diff_drive.motion(X[:, :3], u + X[:, n:], odometry.dt_s)
+        self.x, self.P = unscented_transform(Y, Wm, Wc, self._angles)
 
     def _associate(self, X: np.ndarray, Wm, Wc, z: np.ndarray) -> int | None:
         """Maximum-likelihood landmark for one unknown-id measurement, or None outside the gate."""
         K, L = len(X), len(self.landmarks)
-        Z = range_bearing.observe(np.broadcast_to(X[:, None, :], (K, L, 3)),
+        Z = range_bearing.observe(np.broadcast_to(X[:, None, :3], (K, L, 3)),
                                   np.broadcast_to(self.landmarks[None], (K, L, 2)))  # (K, L, 2)
         z_mean = np.empty((L, 2))
         z_mean[:, 0] = Wm @ Z[..., 0]
@@ -167,7 +165,7 @@ class UKFLocalization(GaussianLocalization):
 
     def _update(self, observation: RangeBearing) -> None:
         ids, zs = observation_rows(observation)
-        X, Wm, Wc = sigma_points(self.x, self.P, self.config.sigma_points, _POSE_ANGLES)
+        X, Wm, Wc = sigma_points(self.x, self.P, self.config.sigma_points, self._angles)
         rows, lm_index = [], []
         for row, lid in enumerate(ids):
             k = self._index.get(int(lid)) if lid >= 0 else self._associate(X, Wm, Wc, zs[row])
@@ -180,13 +178,13 @@ class UKFLocalization(GaussianLocalization):
             return
         m = len(rows)
         lm = self.landmarks[np.array(lm_index)]
-        Z = range_bearing.observe(np.broadcast_to(X[:, None, :], (len(X), m, 3)),
+        Z = range_bearing.observe(np.broadcast_to(X[:, None, :3], (len(X), m, 3)),
                                   np.broadcast_to(lm[None], (len(X), m, 2))).reshape(len(X), 2 * m)
         z = zs[np.array(rows)].reshape(2 * m)
         z_mask = np.tile([False, True], m)
         R = np.kron(np.eye(m), self.noise.range_bearing_cov)
         self.x, self.P, nu, S = ukf_update(self.x, self.P, X, Wm, Wc, np.asarray(Z, float), z, R,
-                                           _POSE_ANGLES, z_mask)
+                                           self._angles, z_mask)
         # one NIS per measurement (dof 2) from the diagonal blocks of the joint S, as the EKF
         # records it, so NIS statistics compare across filters
         k = np.arange(m)
@@ -198,22 +196,18 @@ class UKFLocalization(GaussianLocalization):
         if not rows:
             return
         lm = self.landmarks[[k for k, _ in rows]]
-        X, Wm, Wc = sigma_points(self.x, self.P, self.config.sigma_points, _POSE_ANGLES)
+        X, Wm, Wc = sigma_points(self.x, self.P, self.config.sigma_points, self._angles)
         Z = range_only.observe(X[:, None, :2], lm[None])                      # (K, m)
+        if self._scale_index is not None:
+            Z = X[:, self._scale_index, None] * Z                             # r = s |m - p|
         R = np.eye(len(rows)) * self.noise.sigma_range_m**2
         self.x, self.P, nu, S = ukf_update(self.x, self.P, X, Wm, Wc, Z, np.array([r for _, r in rows]), R,
-                                           _POSE_ANGLES, None)
+                                           self._angles, None)
         self._record_nis(nu[:, None], np.diagonal(S)[:, None, None])
 
     def _update_gps(self, gps: Gps) -> None:
-        X, Wm, Wc = sigma_points(self.x, self.P, self.config.sigma_points, _POSE_ANGLES)
+        X, Wm, Wc = sigma_points(self.x, self.P, self.config.sigma_points, self._angles)
         z = np.asarray(gps.world_p_body, dtype=float).reshape(-1)[:2]
         self.x, self.P, nu, S = ukf_update(self.x, self.P, X, Wm, Wc, X[:, :2], z,
-                                           np.eye(2) * gps.sigma_m**2, _POSE_ANGLES, None)
+                                           np.eye(2) * gps.sigma_m**2, self._angles, None)
         self._record_nis(nu, S)
-
-    def _pose_and_covariance(self) -> tuple[np.ndarray, np.ndarray]:
-        return self.x.copy(), self.P.copy()
-
-    def _extras(self) -> dict:
-        return {"rejected_measurements": self._rejected, "rejected_ranges": self._rejected_ranges}

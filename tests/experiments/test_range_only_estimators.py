@@ -85,11 +85,12 @@ def test_localisation_filters_use_the_known_beacons():
 
 
 @pytest.mark.parametrize("name,params", [("ekf_slam", {}), ("batch", {}), ("isam2", {}),
-                                         ("fixed_lag", {"lag_s": 30.0}), ("pf", {})])
+                                         ("fixed_lag", {"lag_s": 30.0}), ("pf", {}), ("ekf", {}),
+                                         ("ukf", {})])
 def test_an_unknown_range_scale_is_estimated(name, params):
     """Ranges 7% long (Plaza's kind of error) declared of unknown scale (prior N(1, 0.1^2)):
-    every range-only estimator recovers s = 1.07 to 0.005 and still finds the beacons and the
-    path (measured: the smoothers 1.0700, ATE 0.0005 m; pf 1.0701, 0.004 m; ekf_slam 1.0681,
+    every range-only estimator (the localisation filters included) recovers s = 1.07 to 0.005
+    and still finds the beacons and the path (measured: the smoothers 1.0700, ATE 0.0005 m; pf 1.0701, 0.004 m; ekf_slam 1.0681,
     0.05 m, beacons 0.03 m)."""
     seq = _drive(range_scale=1.07, range_scale_sigma=0.1)
     run = run_estimators(seq, {name: factory(name, params)})[name]
@@ -97,8 +98,26 @@ def test_an_unknown_range_scale_is_estimated(name, params):
     scored = score(run, seq.ground_truth, seq.world_p_landmarks)
     assert scored.metrics["range_scale"] == pytest.approx(1.07, abs=0.005)
     assert scored.metrics["ate_rmse_m"] < 0.1
-    # the injected outlier; the pf also rejects one early range, before its particles' scales
-    # have converged (the gate uses their weighted mean)
-    assert run.estimate.extras["rejected_ranges"] == (2 if name == "pf" else 1)
-    if name != "pf":
+    # the injected outlier; the localisation filters also reject one early range, before their
+    # scale has converged (the gate uses the current s: the pf's weighted mean, the EKF's and
+    # UKF's state; measured ekf 1.0700, ATE 0.00004 m; ukf 1.0700, 0.0002 m)
+    assert run.estimate.extras["rejected_ranges"] == (2 if name in ("pf", "ekf", "ukf") else 1)
+    if name not in ("pf", "ekf", "ukf"):
         assert scored.metrics["landmark_rmse_m"] < 0.1
+
+
+@pytest.mark.parametrize("keep_landmarks", [False, True])
+def test_fixed_lag_keep_landmarks(keep_landmarks):
+    """A 0.3 s lag with one range every 0.2 s to one of three beacons in turn: each beacon
+    leaves the window between its ranges and, ranged again, buffers ranges for a new
+    trilateration and re-enters as a new variable (measured: 18 variables for the 3 beacons),
+    unless the map is kept in the window (3)."""
+    seq = _drive(outlier_at=None)
+    run = run_estimators(seq, {"fixed_lag": factory("fixed_lag", {"lag_s": 0.3, "keep_landmarks": keep_landmarks})})
+    run = run["fixed_lag"]
+    assert run.failed is None
+    if keep_landmarks:
+        assert run.estimate.extras["landmark_variables"] == 3
+    else:
+        assert run.estimate.extras["landmark_variables"] > 3
+    assert sorted(run.estimate.world_p_landmarks) == [0, 1, 2]
