@@ -405,10 +405,11 @@ def refine(problem: SESyncProblem, R: np.ndarray, t: np.ndarray, max_iterations:
            rel_tol: float, dm: DataMatrix | None = None) -> tuple[np.ndarray, np.ndarray, int]:
     """Minimise F from (R, t) with pose 0 fixed; returns (R, t, iterations).
 
-    One Levenberg-Marquardt step (Gauss-Newton, damped when F would increase), then Riemannian
-    Newton steps (``_newton_system``), which converge quadratically where Gauss-Newton is only
-    linear (F's residual is not zero: sphere2500 from GTSAM's optimum, GN needs 9 steps for a
-    1e-6 relative decrease, ratio ~0.72 per step); a Newton step that does not decrease F is
+    Riemannian Newton steps (``_newton_system``) from the start: the input is a GTSAM optimum,
+    close to F's, where Newton converges quadratically and Gauss-Newton only linearly (F's
+    residual is not zero: sphere2500 from GTSAM's optimum, GN needs 9 steps for a 1e-6 relative
+    decrease, ratio ~0.72 per step; Newton from the first step 3 instead of GN-then-Newton's 4);
+    a Newton step that does not decrease F (an indefinite Hessian far from a minimum) is
     replaced by a Gauss-Newton one. Stops when the relative decrease is below ``rel_tol``, or
     after a Newton step whose relative decrease is below sqrt(``rel_tol``): Newton converges
     quadratically, so the next decrease would be below ``rel_tol``, and confirming it costs one
@@ -418,18 +419,15 @@ def refine(problem: SESyncProblem, R: np.ndarray, t: np.ndarray, max_iterations:
     f = sesync_value(problem, R, t)
     mu = 0.0
     it = 0
-    newton = False
     _solve = _StepSolver()
     for it in range(1, int(max_iterations) + 1):
-        step_found = False
-        newton_step = False
-        if newton:
-            H, g = _newton_system(problem, dm, R, t)
-            step = _solve(H, g)
-            if step is not None:
-                R_new, t_new = _retract(R, t, step)
-                f_new = sesync_value(problem, R_new, t_new)
-                step_found = newton_step = f_new <= f
+        step_found = newton_step = False
+        H, g = _newton_system(problem, dm, R, t)
+        step = _solve(H, g)
+        if step is not None:
+            R_new, t_new = _retract(R, t, step)
+            f_new = sesync_value(problem, R_new, t_new)
+            step_found = newton_step = f_new <= f
         if not step_found:
             J = _jacobian(problem, R)
             r = _weighted_residual(problem, R, t)
@@ -453,7 +451,6 @@ def refine(problem: SESyncProblem, R: np.ndarray, t: np.ndarray, max_iterations:
             break
         if newton_step and decrease <= math.sqrt(rel_tol) * max(f, 1e-300):
             break
-        newton = True  # after one Gauss-Newton step; a Newton step that fails falls back to GN
     return R, t, it
 
 
