@@ -148,8 +148,17 @@ class Episode:
     variant: str
     t_s: np.ndarray
     true_xytheta: np.ndarray
+    #: in the robot's map frame (the world's, unless the map is a SLAM map: ``RobotMap``)
     estimated_xytheta: np.ndarray
     metrics: Mapping[str, float] = field(default_factory=dict)
+    #: (T,) the estimate's position error against the true pose seen in the map's frame;
+    #: None: |estimate - truth| (the map is the world's)
+    localisation_error_m: np.ndarray | None = None
+
+    def position_error_m(self) -> np.ndarray:
+        if self.localisation_error_m is not None:
+            return self.localisation_error_m
+        return np.linalg.norm(self.estimated_xytheta[:, :2] - self.true_xytheta[:, :2], axis=1)
 
 
 def run_episode(scenario: NavigationScenario, nav_config: NavigationConfig = NavigationConfig(),
@@ -239,7 +248,7 @@ def run_episode(scenario: NavigationScenario, nav_config: NavigationConfig = Nav
         "real_time_factor": float(ts[-1] / max(compute_s, 1e-9)),
     }
     return Episode(scenario.name, scenario.name.rsplit("_", 1)[0], scenario.seed, variant,
-                   np.array(ts), true, est, metrics)
+                   np.array(ts), true, est, metrics, loc_err)
 
 
 def _kidnap(plant: NavigationPlant, shift_xy_m: np.ndarray, t_s: float, robot_radius_m: float,
@@ -429,8 +438,7 @@ def plot(plots: Path, episodes: list[Episode], scenarios: Mapping[str, Navigatio
             ax.plot(ep.true_xytheta[:, 0], ep.true_xytheta[:, 1], lw=1.5, label=f"{ep.variant} truth")
             ax.plot(ep.estimated_xytheta[:, 0], ep.estimated_xytheta[:, 1], "--", lw=1,
                     label=f"{ep.variant} estimate")
-            err.plot(ep.t_s, 100.0 * np.linalg.norm(ep.estimated_xytheta[:, :2] - ep.true_xytheta[:, :2], axis=1),
-                     lw=1, label=ep.variant)
+            err.plot(ep.t_s, 100.0 * ep.position_error_m(), lw=1, label=ep.variant)
         for a, b in zip(sc.obstacles.a_xy_m, sc.obstacles.b_xy_m):
             ax.plot([a[0], b[0]], [a[1], b[1]], color="tab:red", lw=3, alpha=0.4)
         ax.plot(*sc.start_xytheta[:2], "bo", ms=7)
