@@ -127,6 +127,14 @@ class NavigationConfig:
     #: when the local planner finds no admissible arc, take the one whose predicted contact
     #: comes latest instead of braking in the path of a moving obstacle
     evade: bool = True
+    #: yielding to crossing traffic: a moving track whose constant-velocity sweep over
+    #: ``yield_horizon_s`` covers the path ``yield_lookahead_m`` ahead within ``yield_slack_s``
+    #: of when the robot (at cruise speed) would be there makes the robot stop short of the
+    #: crossing (decelerating at ``yield_decel_mps2``) and wait until it has passed
+    yield_horizon_s: float = 6.0
+    yield_lookahead_m: float = 3.0
+    yield_slack_s: float = 2.0
+    yield_decel_mps2: float = 0.5
     # -- goal
     approach_radius_m: float = 0.35
     approach_speed_mps: float = 0.15
@@ -353,34 +361,103 @@ class NavigationStack:
         cmd = out.command
         if c.evade and (out.status is ControlStatus.FALLBACK_BRAKE or self._chosen_hits(world, out)):
             cmd = self._evade(state, world, out)
+        v_yield = self._yield_speed_mps(pose, tracks)
+        cmd = _speed_capped(cmd, min(c.cruise_speed_mps, v_yield))
         safe = self.safe_stop_exists(pose, cmd, world)
         if not safe and not self.safe_stop_exists(pose, self._last_cmd, world):
             self.no_safe_stop_cycles += 1
         self.timings_s["local_planner"].append(time.perf_counter() - t0)
         # no progress (braking, a local minimum, or a standstill the objective prefers) for
-        # stuck_s -> replan and recover
-        if out.status in (ControlStatus.FALLBACK_BRAKE, ControlStatus.LOCAL_MINIMUM) or abs(cmd[0]) < 0.02:
+        # stuck_s -> replan and recover; waiting for crossing traffic is not being stuck
+        if v_yield < c.cruise_speed_mps:
+            self._brake_since = None
+        elif out.status in (ControlStatus.FALLBACK_BRAKE, ControlStatus.LOCAL_MINIMUM) or abs(cmd[0]) < 0.02:
             self._brake_since = t if self._brake_since is None else self._brake_since
         else:
             self._brake_since = None
-        return self._send(cmd, "driving" if out.status is ControlStatus.OK else out.status.value, out, safe)
+        status = "yielding" if v_yield < c.cruise_speed_mps else (
+            "driving" if out.status is ControlStatus.OK else out.status.value)
+        return self._send(cmd, status, out, safe)
 
-    def _recover(self, pose: np.ndarray, tracks: Tracks) -> NavigationCommand:
-        """Recovery after being stuck: turn in place towards the path 1 m ahead, then creep
-        along it while the robot's own disc (no margin) stays clear of the map and the tracks."""
-        t0 = time.perf_counter()
+    def _yield_speed_mps(self, pose: np.ndarray, tracks: Tracks) -> float:
+        """The speed that lets the robot stop short of crossing traffic (+inf when nothing to
+        yield to): each moving track's constant-velocity sweep over ``yield_horizon_s`` (its disc
+        grown by the robot radius and ``moving_margin_m``) against the path ``yield_lookahead_m``
+        ahead. A track conflicts when it occupies some point of that path within ``yield_slack_s``
+        of the time the robot would reach it at cruise speed (the robot does not race it), and
+        its sweep does not reach the robot where it stands (then stopping would not help: the
+        local planner's evasion handles it). The robot then brakes at ``yield_decel_mps2`` to
+        stop where the first conflicting sweep begins: v = sqrt(2 a gap)."""
         from slamkit.control.path_following import point_at, project_on_path
 
-        target = point_at(self.path, np.array([project_on_path(self.path, pose[:2]) + 1.0]))[0]
-        bearing = float(wrap_angle(math.atan2(target[1] - pose[1], target[0] - pose[0]) - pose[2]))
-        cmd = np.array([0.0, float(np.clip(1.5 * bearing, -0.8, 0.8))])
-        if abs(bearing) < 0.25:
-            ahead = pose[:2] + np.outer(np.linspace(0.0, 0.3, 4), [math.cos(pose[2]), math.sin(pose[2])])
-            world = LocalWorld(tracks.xy_m, tracks.radius_m, tracks.velocity_mps, self.distance)
-            if np.all(world.clearance_m(ahead) > self.config.robot_radius_m + self.config.recovery_margin_m):
-                cmd = np.array([0.1, float(np.clip(1.5 * bearing, -0.8, 0.8))])
+        c = self.config
+        moving = np.linalg.norm(tracks.velocity_mps, axis=1) >= c.blocking_speed_mps
+        if self.path is None or not moving.any():
+            return math.inf
+        s0 = project_on_path(self.path, pose[:2])
+        s = s0 + np.arange(0.0, c.yield_lookahead_m, 0.5 * self.grid.resolution_m + 0.05)
+        ahead = point_at(self.path, s)  # (S, 2)
+        tau = np.arange(0.0, c.yield_horizon_s + 1e-9, 0.1)  # (T,)
+        centres = tracks.xy_m[moving][None] + tau[:, None, None] * tracks.velocity_mps[moving][None]  # (T, K, 2)
+        reach = tracks.radius_m[moving] + c.robot_radius_m + c.moving_margin_m  # (K,)
+        occupied = np.linalg.norm(ahead[:, None, None, :] - centres[None], axis=-1) <= reach  # (S, T, K)
+        at_robot = (np.linalg.norm(centres - pose[:2], axis=-1) <= reach).any(axis=0)  # (K,)
+        t_robot = (s - s0) / c.cruise_speed_mps
+        meets = occupied & (np.abs(tau[None, :, None] - t_robot[:, None, None]) <= c.yield_slack_s)
+        conflict = meets.any(axis=(0, 1)) & ~at_robot
+        if not conflict.any():
+            return math.inf
+        first = np.argmax(occupied[:, :, conflict].any(axis=1), axis=0)  # first occupied point per track
+        gap = float(s[first.min()] - s0)
+        return math.sqrt(2.0 * c.yield_decel_mps2 * max(gap - 0.05, 0.0))
+
+    def _recover(self, pose: np.ndarray, tracks: Tracks) -> NavigationCommand:
+        """Recovery after being stuck (nav2's back-up, then back to the plan): first back off
+        from the walls -- straight forwards or backwards, whichever side the distance field
+        says is freer, turning in place first when both are worse -- until the disc is
+        ``path_margin_m`` clear (the margin the global path keeps); then turn towards the path
+        1 m ahead of the nearest point and creep along it while the robot's own disc stays
+        clear of the map and the tracks. The stack replans when the recovery ends."""
+        t0 = time.perf_counter()
+        c = self.config
+        world = LocalWorld(tracks.xy_m, tracks.radius_m, tracks.velocity_mps, self.distance)
+        cmd = self._back_off(pose, world)
+        if cmd is None:
+            from slamkit.control.path_following import point_at, project_on_path
+
+            target = point_at(self.path, np.array([project_on_path(self.path, pose[:2]) + 1.0]))[0]
+            bearing = float(wrap_angle(math.atan2(target[1] - pose[1], target[0] - pose[0]) - pose[2]))
+            cmd = np.array([0.0, float(np.clip(1.5 * bearing, -0.8, 0.8))])
+            if abs(bearing) < 0.25:
+                ahead = pose[:2] + np.outer(np.linspace(0.0, 0.3, 4), [math.cos(pose[2]), math.sin(pose[2])])
+                if np.all(world.clearance_m(ahead) > c.robot_radius_m + c.recovery_margin_m):
+                    cmd = np.array([0.1, float(np.clip(1.5 * bearing, -0.8, 0.8))])
+        if self._t_s + 0.1 >= self._recover_until:
+            self._last_plan_s = -math.inf  # replan from where the recovery left the robot
         self.timings_s["local_planner"].append(time.perf_counter() - t0)
         return self._send(cmd, "recovery")
+
+    def _back_off(self, pose: np.ndarray, world: LocalWorld, step_m: float = 0.1) -> np.ndarray | None:
+        """The back-off command of :meth:`_recover` (None once the disc is ``path_margin_m``
+        clear of the walls): 0.1 m/s along +-heading towards the freer side; when neither side
+        gains clearance, turn in place towards the wall distance field's gradient (or away
+        from it, whichever is the smaller turn), then drive along it."""
+        c = self.config
+        here = float(world.clearance_m(pose[:2])[0])
+        if here >= c.robot_radius_m + c.path_margin_m:
+            return None
+        u = np.array([math.cos(pose[2]), math.sin(pose[2])])
+        probes = pose[:2] + np.outer([step_m, -step_m], u)
+        gain = world.clearance_m(probes) - here
+        k = int(np.argmax(gain))
+        if gain[k] > 0.25 * step_m:
+            return np.array([(0.1, -0.1)[k], 0.0])
+        grad = self.distance.query(pose[:2])[1]
+        if not np.linalg.norm(grad) > 0:
+            return None
+        e = float(wrap_angle(math.atan2(grad[1], grad[0]) - pose[2]))
+        e = float(wrap_angle(e - math.pi)) if abs(e) > 0.5 * math.pi else e  # face it or back along it
+        return np.array([0.0, float(np.clip(1.5 * e, -0.8, 0.8))])
 
     def _chosen_hits(self, world: LocalWorld, out: ControlOutput) -> bool:
         """Whether the chosen rollout meets a predicted obstacle within the horizon (standing
@@ -474,6 +551,15 @@ class NavigationStack:
     def reached(self) -> bool:
         """The stack believes it is at the goal pose (and sends zero)."""
         return self._phase == "goal_reached"
+
+
+def _speed_capped(command: np.ndarray, v_max_mps: float) -> np.ndarray:
+    """``command`` (v, omega) slowed to |v| <= ``v_max_mps`` along the same arc (omega scaled
+    with v, so the path the robot drives does not change, only how fast)."""
+    v = abs(float(command[0]))
+    if v <= v_max_mps:
+        return np.asarray(command, float)
+    return np.asarray(command, float) * (v_max_mps / v)
 
 
 def layer_timing_summary(timings_s: Mapping[str, list[float]]) -> dict[str, float]:
