@@ -259,7 +259,11 @@ class NavigationStack:
             t1 = time.perf_counter()
             self.timings_s["localisation"].append(t1 - t0)
             pose, _ = self.current_pose()
-            pts = unexplained_points(pose, event.angles_rad, event.ranges_m, event.max_range_m,
+            # a return from inside the robot's own disc is sensor noise (a short reading), not an
+            # obstacle: nothing can be there without touching the robot (measured: such ghost
+            # tracks made the robot evade backwards into a wall, Willow seed 4)
+            ranges = np.where(np.asarray(event.ranges_m, float) < self.config.robot_radius_m, np.nan, event.ranges_m)
+            pts = unexplained_points(pose, event.angles_rad, ranges, event.max_range_m,
                                      lambda p: self.distance.query(p)[0], self.config.detector.unexplained_m)
             self.last_scan_points = pts
             self.tracker.update(float(event.stamp_s), cluster_points(pts, pose[:2], self.config.detector))
@@ -363,9 +367,7 @@ class NavigationStack:
             cmd = self._evade(state, world, out)
         v_yield = self._yield_speed_mps(pose, tracks)
         cmd = _speed_capped(cmd, min(c.cruise_speed_mps, v_yield))
-        safe = self.safe_stop_exists(pose, cmd, world)
-        if not safe and not self.safe_stop_exists(pose, self._last_cmd, world):
-            self.no_safe_stop_cycles += 1
+        cmd, safe = self._keep_safe_stop(pose, cmd, world)
         self.timings_s["local_planner"].append(time.perf_counter() - t0)
         # no progress (braking, a local minimum, or a standstill the objective prefers) for
         # stuck_s -> replan and recover; waiting for crossing traffic is not being stuck
@@ -489,6 +491,21 @@ class NavigationStack:
         if key[best] > first_still * 1e3 + np.clip(c_still.min(), -1e2, 1e2):
             return cand[best]
         return out.command
+
+    def _keep_safe_stop(self, pose: np.ndarray, cmd: np.ndarray, world: LocalWorld) -> tuple[np.ndarray, bool]:
+        """Acting on the safe-stop check: a command from which no collision-free braking
+        trajectory exists is replaced by braking now (from the previous command, at
+        ``brake_decel_mps2`` along its arc, one 0.1 s cycle) when that braking trajectory is free; when neither is, the
+        cycle counts in ``no_safe_stop_cycles`` and the command stands (braking would not
+        avoid the contact either: the evasion chose it). Returns (command, safe)."""
+        if self.safe_stop_exists(pose, cmd, world):
+            return cmd, True
+        if self.safe_stop_exists(pose, self._last_cmd, world):
+            # the braking that check models: v falling at brake_decel_mps2 along the same arc
+            v_next = max(abs(float(self._last_cmd[0])) - 0.1 * self.config.brake_decel_mps2, 0.0)
+            return _speed_capped(self._last_cmd, v_next), False
+        self.no_safe_stop_cycles += 1
+        return cmd, False
 
     def safe_stop_exists(self, pose: np.ndarray, command: np.ndarray, world: LocalWorld,
                          dt_s: float = 0.1) -> bool:
