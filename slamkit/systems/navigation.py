@@ -387,8 +387,8 @@ class NavigationStack:
         grown by the robot radius and ``moving_margin_m``) against the path ``yield_lookahead_m``
         ahead. A track conflicts when it occupies some point of that path within ``yield_slack_s``
         of the time the robot would reach it at cruise speed (the robot does not race it), and
-        its sweep does not reach the robot where it stands (then stopping would not help: the
-        local planner's evasion handles it). The robot then brakes at ``yield_decel_mps2`` to
+        its sweep would not touch the robot where it stands (then stopping would not help: the
+        local planner's evasion handles it; inside the margin only, the robot stops). The robot then brakes at ``yield_decel_mps2`` to
         stop where the first conflicting sweep begins: v = sqrt(2 a gap)."""
         from slamkit.control.path_following import point_at, project_on_path
 
@@ -403,7 +403,8 @@ class NavigationStack:
         centres = tracks.xy_m[moving][None] + tau[:, None, None] * tracks.velocity_mps[moving][None]  # (T, K, 2)
         reach = tracks.radius_m[moving] + c.robot_radius_m + c.moving_margin_m  # (K,)
         occupied = np.linalg.norm(ahead[:, None, None, :] - centres[None], axis=-1) <= reach  # (S, T, K)
-        at_robot = (np.linalg.norm(centres - pose[:2], axis=-1) <= reach).any(axis=0)  # (K,)
+        contact = tracks.radius_m[moving] + c.robot_radius_m
+        at_robot = (np.linalg.norm(centres - pose[:2], axis=-1) <= contact).any(axis=0)  # (K,)
         t_robot = (s - s0) / c.cruise_speed_mps
         meets = occupied & (np.abs(tau[None, :, None] - t_robot[:, None, None]) <= c.yield_slack_s)
         conflict = meets.any(axis=(0, 1)) & ~at_robot
