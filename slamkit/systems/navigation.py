@@ -15,13 +15,17 @@ Layers, each timed per call (``timings_s``):
   costmap of the map, from the estimated pose to the goal, every ``replan_period_s`` or at once
   when the path is blocked (a confirmed, slow track within reach of the path ahead, whose disc
   is then blocked in the costmap) or the robot has made no progress for ``stuck_s`` (then a
-  recovery turns it towards the path and creeps on for ``recovery_s``).
+  recovery of ``recovery_s``, as nav2's: back off from the walls, return towards the path's
+  centre line, replan).
 * ``local_planner`` -- every :meth:`command` (10 Hz in the experiment): a controller of the
   registry (``dwa`` with the course's alpha 0.8 / beta 0.2 / gamma 0.4, ``rollout``, ``mpc`` ...)
   tracking the global path among the tracked obstacles (constant-velocity prediction) and the
   static distance field. Within ``approach_radius_m`` of the goal a pose regulator takes over
   (drive onto the goal point slowly, then turn to the goal heading), because the local planners
-  stop at a 0.2 m tolerance and the stack is asked for centimetres.
+  stop at a 0.2 m tolerance and the stack is asked for centimetres. Its command is capped at
+  ``cruise_speed_mps`` and, when yielding to crossing traffic (a moving track's predicted sweep
+  meets the path ahead about when the robot would get there), at the speed that stops the
+  robot short of the sweep: it waits rather than races.
 
 Planning under uncertainty (``NavigationConfig.uncertainty``):
 
@@ -33,8 +37,9 @@ Planning under uncertainty (``NavigationConfig.uncertainty``):
 * ``"fixed"``: the margins stay what they are whatever the covariance.
 
 Safe stop: every cycle the stack checks that braking at ``brake_decel_mps2`` from the command it
-is about to send stays clear of the (predicted) obstacles; if not, it tries braking from the
-previous command instead; a cycle where neither is free counts in ``no_safe_stop_cycles``.
+is about to send stays clear of the (predicted) obstacles; if not, and braking now (from the
+previous command) is clear, it brakes instead; a cycle where neither is free counts in
+``no_safe_stop_cycles`` (the command stands: braking would not avoid the contact either).
 
 The stack knows nothing of a simulator or of ground truth.
 """
