@@ -391,9 +391,9 @@ class NavigationStack:
         yield to): each moving track's constant-velocity sweep over ``yield_horizon_s`` (its disc
         grown by the robot radius and ``moving_margin_m``) against the path ``yield_lookahead_m``
         ahead. A track conflicts when it occupies some point of that path within ``yield_slack_s``
-        of the time the robot would reach it at cruise speed (the robot does not race it), and
-        its sweep would not touch the robot where it stands (then stopping would not help: the
-        local planner's evasion handles it; inside the margin only, the robot stops). The robot then brakes at ``yield_decel_mps2`` to
+        of the time the robot would reach it at cruise speed (the robot does not race it), unless
+        some track's sweep would touch the robot where it stands (then stopping would not help:
+        the local planner's evasion handles it; inside the margin only, the robot stops). The robot then brakes at ``yield_decel_mps2`` to
         stop where the first conflicting sweep begins: v = sqrt(2 a gap)."""
         from slamkit.control.path_following import point_at, project_on_path
 
@@ -412,8 +412,8 @@ class NavigationStack:
         at_robot = (np.linalg.norm(centres - pose[:2], axis=-1) <= contact).any(axis=0)  # (K,)
         t_robot = (s - s0) / c.cruise_speed_mps
         meets = occupied & (np.abs(tau[None, :, None] - t_robot[:, None, None]) <= c.yield_slack_s)
-        conflict = meets.any(axis=(0, 1)) & ~at_robot
-        if not conflict.any():
+        conflict = meets.any(axis=(0, 1))
+        if at_robot.any() or not conflict.any():
             return math.inf
         first = np.argmax(occupied[:, :, conflict].any(axis=1), axis=0)  # first occupied point per track
         gap = float(s[first.min()] - s0)
