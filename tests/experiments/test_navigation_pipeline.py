@@ -41,10 +41,15 @@ def test_a_short_run_writes_the_results_folder(tmp_path):
     assert json.loads((tmp_path / "out" / "results.json").read_text())["summary"]
 
 
-#: (world, success rate, static collisions, moving collisions) measured over 30 seeds with
-#: ``slamkit run pipelines/navigation.yaml`` (2026-11-24): office 0.867 / 1 / 2, warehouse 0.90 /
-#: 0 / 0, Willow 0.70 / 4 / 1; mean final error of the runs that stopped 1.66 / 1.89 / 1.39 cm
-MEASURED = (("office", 0.86, 1, 2), ("warehouse", 0.9, 0, 0), ("willow", 0.7, 4, 1))
+#: (world, success rate, static collisions, moving collisions) over 30 seeds of
+#: ``pipelines/navigation.yaml``, each bound the stricter of two measurements (2026-11-24):
+#: before yielding / back-off recovery / acting on the safe stop: office 0.867 / 1 / 2, warehouse
+#: 0.90 / 0 / 0, Willow 0.70 / 4 / 1; with them: office 0.867 / 0 / 3, warehouse 0.867 / 0 / 3,
+#: Willow 0.867 / 0 / 3 (mean final error 1.79 / 1.85 / 1.34 cm). The later stack meets the
+#: static-collision and Willow bounds but not the moving-collision ones (9 vs 3: shuttling
+#: obstacles turning back near the path, which the constant-velocity prediction cannot foresee)
+#: nor warehouse's 0.9, so this test fails on it until that is fixed.
+MEASURED = (("office", 0.86, 0, 2), ("warehouse", 0.9, 0, 0), ("willow", 0.86, 0, 1))
 
 
 @pytest.mark.slow
