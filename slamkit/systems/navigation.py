@@ -479,7 +479,8 @@ class NavigationStack:
     def _evade(self, state: RobotState, world: LocalWorld, out: ControlOutput) -> np.ndarray:
         """No admissible arc: rather than brake where a moving obstacle will run into the
         robot, take the candidate whose first predicted contact comes latest (ties: the larger
-        smallest clearance); the brake if it does as well. Sampling controllers only."""
+        smallest clearance), never one that runs into a wall while another does not; the brake
+        if it does as well. Sampling controllers only."""
         if out.candidates_xytheta is None or not hasattr(self.controller, "candidates"):
             return out.command
         cand = self.controller.candidates(state)
@@ -489,6 +490,12 @@ class NavigationStack:
         hit = clear <= 0.0
         first = np.where(hit.any(axis=1), np.argmax(hit, axis=1), traj.shape[1])
         key = first * 1e3 + np.clip(clear.min(axis=1), -1e2, 1e2)
+        if world.distance is not None:
+            # a wall is certain, a moving obstacle's turn is not: no arc into a wall while one stays clear
+            walls = world.distance.query(traj[..., :2].reshape(-1, 2))[0].reshape(traj.shape[:2])
+            into_wall = (walls <= self.config.robot_radius_m).any(axis=1)
+            if not into_wall.all():
+                key = np.where(into_wall, -np.inf, key)
         best = int(np.argmax(key))
         still = np.repeat(state.world_xytheta_body[None, None, :], traj.shape[1], axis=1)
         c_still = world.clearance_m(still[..., :2], dt * np.arange(traj.shape[1])) - self.config.robot_radius_m

@@ -122,7 +122,7 @@ def test_yielding_stops_short_of_a_crossing_track():
     # a 0.3 m person crossing x = 3 downwards at 0.5 m/s, on the path at t = 3 s: its sweep grown by
     # the robot (0.2) and the moving margin (0.25) covers |x - 3| <= 0.75; the path is sampled every
     # 0.075 m from the robot, so the first covered sample is x = 2.275: gap 0.225 m, stop 5 cm short,
-    # v = sqrt(2 * 0.5 * 0.175) = 0.4183 m/s (the robot at 0.5 m/s would be there within the slack)
+    # v = sqrt(2 * 0.5 * 0.175) = 0.4183 m/s (the robot at cruise speed would be there within the slack)
     crossing = _tracks([[3.0, 3.5]], [[0.0, -0.5]], [0.3])
     assert stack._yield_speed_mps(pose, crossing) == pytest.approx(np.sqrt(0.175), abs=1e-9)
     # the same person 8 m away arrives after the robot has passed (10.5 s > horizon): no yield
@@ -188,3 +188,25 @@ def test_returns_from_inside_the_robot_are_not_obstacles():
     stack.step(Scan(0.1, angles, ranges, 8.0))
     assert len(stack.last_scan_points) == 5
     np.testing.assert_allclose(stack.last_scan_points[:, 1], 1.0, atol=0.01)
+
+
+def test_evasion_never_runs_into_a_wall_while_an_arc_stays_clear():
+    from slamkit.control.protocols import LocalWorld, Reference, RobotState
+    from slamkit.control.rollout import rollout_arcs
+
+    # 0.03 m off the bottom wall (its surface at y = 0.1), driving +x at 0.3 m/s; a forklift (0.4 m
+    # + 0.25 m margin) 0.8 m ahead, 0.42 m to the left, coming at (-0.6, -0.3) m/s: no arc is
+    # admissible. The arc whose predicted contact comes latest is (0.4, -0.3) (contact at step 1,
+    # but it turns 0.19 m into the wall within 2 s); the evasion takes the latest-contact arc
+    # among those that stay clear of the wall instead: (0.4, -0.03)
+    stack = _straight_stack(3.0)
+    pose = np.array([3.0, 0.33, 0.0])
+    stack.path = np.array([[3.0, 0.33], [5.5, 0.33]])
+    world = LocalWorld([[3.8, 0.75]], [0.65], [[-0.6, -0.3]], stack.distance, 0.0)
+    state = RobotState(pose, np.array([0.3, 0.0]), 0.0)
+    out = stack.controller.compute(state, Reference(stack.path, speed_mps=0.5), world)
+    assert out.status.value == "fallback_brake"
+    cmd = stack._evade(state, world, out)
+    assert cmd == pytest.approx([0.4, -0.03], abs=1e-9)
+    arc = rollout_arcs(pose, cmd[None], 0.1, 20)[0]
+    assert stack.distance.query(arc[:, :2])[0].min() > stack.config.robot_radius_m
