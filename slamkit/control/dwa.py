@@ -139,7 +139,8 @@ class DWAController:
         traj = self.rollouts(state, cand, steps)
         clear = trajectory_clearance(traj, world, c.rollout_dt_s, c.robot_radius_m + c.safety_margin_m)
         dist = distance_to_collision(traj, clear, cand[:, 0], c.rollout_dt_s)
-        admissible = cand[:, 0] <= np.sqrt(2.0 * dist * c.brake_decel_mps2)
+        # |v|: a reversing arc must be able to stop before what is behind the robot too
+        admissible = np.abs(cand[:, 0]) <= np.sqrt(2.0 * dist * c.brake_decel_mps2)
         # slow enough to stop at the goal (else the robot circles it)
         admissible &= cand[:, 0] <= max(np.sqrt(2.0 * dist_goal * c.brake_decel_mps2), c.v_min_mps)
 

@@ -41,29 +41,55 @@ def test_a_short_run_writes_the_results_folder(tmp_path):
     assert json.loads((tmp_path / "out" / "results.json").read_text())["summary"]
 
 
-#: (world, success rate, static collisions, moving collisions) measured over 30 seeds with
-#: ``slamkit run pipelines/navigation.yaml`` (2026-11-24): office 0.867 / 1 / 2, warehouse 0.90 /
-#: 0 / 0, Willow 0.70 / 4 / 1; mean final error of the runs that stopped 1.66 / 1.89 / 1.39 cm
-MEASURED = (("office", 0.86, 1, 2), ("warehouse", 0.9, 0, 0), ("willow", 0.7, 4, 1))
+#: (world, success rate, static collisions, moving collisions) over 30 seeds of
+#: ``pipelines/navigation.yaml`` (2026-11-24). Before yielding, the back-off recovery, acting on
+#: the safe stop, the 0.65 m/s cruise cap and the evasion kept off the walls: office 0.867 / 1 /
+#: 2, warehouse 0.90 / 0 / 0, Willow 0.70 / 4 / 1. With them: office 0.90 / 0 / 2, warehouse
+#: 0.933 / 0 / 1, Willow 0.867 / 0 / 3 (mean final error 1.69 / 1.75 / 1.18 cm). Success rose and
+#: the static collisions went to 0 in every world, at the price of more moving collisions in
+#: warehouse and Willow (shuttling obstacles turning back near the path, which the
+#: constant-velocity prediction cannot foresee: 6 of 90 runs against 3 before): the bounds are
+#: the new figures, the trade is in the issue note, and the issue's goals are the xfail below.
+MEASURED = (("office", 0.89, 0, 2), ("warehouse", 0.93, 0, 1), ("willow", 0.86, 0, 3))
+#: the issue's goals: success >= 95 %, no static collision, moving collisions < 2 % of the runs
+GOALS = (0.95, 0, 0.02)
 
 
-@pytest.mark.slow
-def test_shipped_navigation_pipeline_30_seeds_per_world(tmp_path):
-    """The issue's goal figures on pipelines/navigation.yaml (30 seeds x office, warehouse,
-    Willow). The bounds are what was measured (see the issue note), not the issue's goals
-    (success >= 95 %, 0 static collisions, < 2 % moving collisions), which are not all met yet."""
-    import numpy as np
+@pytest.fixture(scope="module")
+def navigation_30_seeds(tmp_path_factory):
     import yaml
     from pathlib import Path
 
     config = yaml.safe_load((Path(__file__).resolve().parents[2] / "pipelines" / "navigation.yaml").read_text())
     config["record"] = False
-    res = run_pipeline(config, tmp_path / "out", progress=False).results
+    res = run_pipeline(config, tmp_path_factory.mktemp("nav30") / "out", progress=False).results
+    return {world: [r["metrics"] for r in res["runs"] if r["dataset"] == world] for world, *_ in MEASURED}
+
+
+@pytest.mark.slow
+def test_shipped_navigation_pipeline_30_seeds_per_world(navigation_30_seeds):
+    """pipelines/navigation.yaml (30 seeds x office, warehouse, Willow) against the measured
+    figures (``MEASURED``)."""
+    import numpy as np
+
     for world, min_success, max_static, max_moving in MEASURED:
-        runs = [r["metrics"] for r in res["runs"] if r["dataset"] == world]
+        runs = navigation_30_seeds[world]
         assert len(runs) == 30
         assert np.mean([m["success"] for m in runs]) >= min_success
         assert sum(m["collision_static"] for m in runs) <= max_static
         assert sum(m["collision_moving"] for m in runs) <= max_moving
         reached = [m["final_position_error_m"] for m in runs if m["reached_by_belief"]]
         assert np.mean(reached) < 0.03
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="issue 14's goals not reached yet: success 0.90 / 0.933 / 0.867 "
+                   "(goal 0.95), moving collisions 2 / 1 / 3 of 30 (goal < 2 %, i.e. 0 of 30)")
+def test_navigation_goals_30_seeds_per_world(navigation_30_seeds):
+    import numpy as np
+
+    min_success, max_static, max_moving_rate = GOALS
+    for world, runs in navigation_30_seeds.items():
+        assert np.mean([m["success"] for m in runs]) >= min_success
+        assert sum(m["collision_static"] for m in runs) <= max_static
+        assert np.mean([m["collision_moving"] for m in runs]) < max_moving_rate

@@ -46,7 +46,7 @@ def test_config_is_checked():
 
 
 def test_short_closed_loop_run_reaches_the_goal_within_3_cm():
-    # office seed 1 with its two crossing obstacles: measured 25.5 s, final error 0.57 cm
+    # office seed 1 with its two crossing obstacles: measured 42.9 s (it waits for both), final error 0.96 cm
     sc = make_navigation_scenario(1, "office")
     ep = run_episode(sc, NavigationConfig(), EpisodeConfig(max_time_s=60.0))
     m = ep.metrics
@@ -147,3 +147,115 @@ def test_every_local_planner_builds_in_the_stack_with_its_own_defaults(name):
     stack.set_goal([4.5, 2.0, 0.0])
     out = stack.command(0.0)
     assert out.status == "driving" and out.command[0] >= 0.0
+
+
+def _straight_stack(x_m: float) -> NavigationStack:
+    """A stack in the room at (x_m, 2) facing +x, its path straight along y = 2 to x = 5."""
+    stack = NavigationStack(_room())
+    stack.reset([x_m, 2.0, 0.0], np.diag([1e-4, 1e-4, 1e-4]))
+    stack.path = np.array([[x_m, 2.0], [5.0, 2.0]])
+    return stack
+
+
+def _tracks(xy, velocity, radius):
+    from slamkit.estimation.obstacle_tracker import Tracks
+
+    n = len(radius)
+    return Tracks(np.arange(n), np.asarray(xy, float), np.asarray(velocity, float), np.asarray(radius, float),
+                  np.tile(np.eye(4), (n, 1, 1)))
+
+
+def test_yielding_stops_short_of_a_crossing_track():
+    stack = _straight_stack(2.05)
+    pose = np.array([2.05, 2.0, 0.0])
+    # a 0.3 m person crossing x = 3 downwards at 0.5 m/s, on the path at t = 3 s: its sweep grown by
+    # the robot (0.2) and the moving margin (0.25) covers |x - 3| <= 0.75; the path is sampled every
+    # 0.075 m from the robot, so the first covered sample is x = 2.275: gap 0.225 m, stop 5 cm short,
+    # v = sqrt(2 * 0.5 * 0.175) = 0.4183 m/s (the robot at cruise speed would be there within the slack)
+    crossing = _tracks([[3.0, 3.5]], [[0.0, -0.5]], [0.3])
+    assert stack._yield_speed_mps(pose, crossing) == pytest.approx(np.sqrt(0.175), abs=1e-9)
+    # the same person 8 m away arrives after the robot has passed (10.5 s > horizon): no yield
+    assert stack._yield_speed_mps(pose, _tracks([[3.0, 8.0]], [[0.0, -0.5]], [0.3])) == np.inf
+    # already past the path and walking away: no yield
+    assert stack._yield_speed_mps(pose, _tracks([[3.0, 1.0]], [[0.0, -0.5]], [0.3])) == np.inf
+    # walking along the path at the robot: stopping would not help, the evasion handles it
+    assert stack._yield_speed_mps(pose, _tracks([[4.0, 2.0]], [[-0.5, 0.0]], [0.3])) == np.inf
+    # slow tracks are not traffic (they block the path and are planned around)
+    assert stack._yield_speed_mps(pose, _tracks([[3.0, 2.5]], [[0.0, -0.1]], [0.3])) == np.inf
+
+
+def test_speed_cap_keeps_the_arc():
+    from slamkit.systems.navigation import _speed_capped
+
+    np.testing.assert_allclose(_speed_capped(np.array([0.8, 0.4]), 0.5), [0.5, 0.25])
+    np.testing.assert_allclose(_speed_capped(np.array([-0.3, 0.6]), 0.5), [-0.3, 0.6])
+    np.testing.assert_allclose(_speed_capped(np.array([0.4, 1.0]), 0.0), [0.0, 0.0])
+
+
+def test_recovery_backs_off_from_a_wall_towards_free_space():
+    from slamkit.control.protocols import LocalWorld
+
+    stack = _straight_stack(0.37)
+    world = LocalWorld(distance=stack.distance)
+    # 0.27 m from the left wall's surface: the disc is 0.07 m clear, less than the 0.15 m path margin
+    assert stack._back_off(np.array([0.37, 2.0, 0.0]), world) == pytest.approx([0.1, 0.0])  # facing away: forwards
+    assert stack._back_off(np.array([0.37, 2.0, np.pi]), world) == pytest.approx([-0.1, 0.0])  # facing it: backwards
+    # heading 1.4 rad (the wall on its left): 0.1 m either way gains 1.7 cm < 2.5 cm -> turn towards
+    # the field's gradient (+x): omega = clip(1.5 * -1.4, -0.8, 0.8)
+    assert stack._back_off(np.array([0.37, 2.0, 1.4]), world) == pytest.approx([0.0, -0.8])
+    assert stack._back_off(np.array([1.0, 2.0, 0.0]), world) is None  # clear: back to the path
+
+
+def test_safe_stop_is_acted_on():
+    from slamkit.control.protocols import LocalWorld
+
+    stack = _straight_stack(1.0)
+    pose = np.array([1.0, 2.0, 0.0])
+    stack._last_cmd = np.array([0.5, 0.0])
+    # braking from 0.5 m/s reaches 0.35 m ahead (see above), from 0.6 m/s 0.2 + 0.06 * 3.5 = 0.41 m:
+    # with a surface 0.40 m ahead the 0.6 m/s command loses its safe stop, braking now keeps one
+    wall = LocalWorld([[1.5, 2.0]], [0.1], [[0.0, 0.0]])
+    cmd, safe = stack._keep_safe_stop(pose, np.array([0.6, 0.0]), wall)
+    assert not safe and cmd == pytest.approx([0.4, 0.0]) and stack.no_safe_stop_cycles == 0
+    cmd, safe = stack._keep_safe_stop(pose, np.array([0.3, 0.0]), wall)
+    assert safe and cmd == pytest.approx([0.3, 0.0])
+    # 0.32 m ahead: no braking is free -> the command stands and the cycle is counted
+    near = LocalWorld([[1.42, 2.0]], [0.1], [[0.0, 0.0]])
+    cmd, safe = stack._keep_safe_stop(pose, np.array([0.6, 0.0]), near)
+    assert not safe and cmd == pytest.approx([0.6, 0.0]) and stack.no_safe_stop_cycles == 1
+
+
+def test_returns_from_inside_the_robot_are_not_obstacles():
+    from slamkit.data.sequence import Scan
+
+    stack = NavigationStack(_room())
+    stack.reset([3.0, 2.0, 0.0], np.diag([1e-4, 1e-4, 1e-4]))
+    angles = np.linspace(-np.pi, np.pi, 360, endpoint=False)
+    ranges = np.full(360, np.nan)
+    ranges[178:183] = 0.15  # five short readings straight ahead, inside the 0.2 m disc
+    ranges[88:93] = 1.0  # five returns 1 m to the right (y = 1): an obstacle
+    stack.step(Scan(0.1, angles, ranges, 8.0))
+    assert len(stack.last_scan_points) == 5
+    np.testing.assert_allclose(stack.last_scan_points[:, 1], 1.0, atol=0.01)
+
+
+def test_evasion_never_runs_into_a_wall_while_an_arc_stays_clear():
+    from slamkit.control.protocols import LocalWorld, Reference, RobotState
+    from slamkit.control.rollout import rollout_arcs
+
+    # 0.03 m off the bottom wall (its surface at y = 0.1), driving +x at 0.3 m/s; a forklift (0.4 m
+    # + 0.25 m margin) 0.8 m ahead, 0.42 m to the left, coming at (-0.6, -0.3) m/s: no arc is
+    # admissible. The arc whose predicted contact comes latest is (0.4, -0.3) (contact at step 1,
+    # but it turns 0.19 m into the wall within 2 s); the evasion takes the latest-contact arc
+    # among those that stay clear of the wall instead: (0.4, -0.03)
+    stack = _straight_stack(3.0)
+    pose = np.array([3.0, 0.33, 0.0])
+    stack.path = np.array([[3.0, 0.33], [5.5, 0.33]])
+    world = LocalWorld([[3.8, 0.75]], [0.65], [[-0.6, -0.3]], stack.distance, 0.0)
+    state = RobotState(pose, np.array([0.3, 0.0]), 0.0)
+    out = stack.controller.compute(state, Reference(stack.path, speed_mps=0.5), world)
+    assert out.status.value == "fallback_brake"
+    cmd = stack._evade(state, world, out)
+    assert cmd == pytest.approx([0.4, -0.03], abs=1e-9)
+    arc = rollout_arcs(pose, cmd[None], 0.1, 20)[0]
+    assert stack.distance.query(arc[:, :2])[0].min() > stack.config.robot_radius_m
