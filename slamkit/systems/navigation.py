@@ -60,8 +60,10 @@ from dataclasses import dataclass, field
 from typing import Any, Mapping
 
 import numpy as np
+from scipy.stats import norm
 
 from slamkit.control.chance_constraints import tightened_distance, tightened_world, worst_sigma_m
+from slamkit.control.path_following import point_at, project_on_path
 from slamkit.control.protocols import (ControlOutput, ControlStatus, DistanceGrid, LocalWorld, Reference,
                                        RobotState)
 from slamkit.control.registry import CONTROLLERS, make_controller
@@ -329,8 +331,6 @@ class NavigationStack:
         nan with fixed inflation."""
         if self.config.uncertainty == "fixed":
             return float("nan")
-        from scipy.stats import norm
-
         return float(norm.sf(self.chance_k_min))
 
     def cell_cost(self, margin_cm: int) -> np.ndarray:
@@ -517,8 +517,6 @@ class NavigationStack:
         some track's sweep would touch the robot where it stands (then stopping would not help:
         the local planner's evasion handles it; inside the margin only, the robot stops). The robot then brakes at ``yield_decel_mps2`` to
         stop where the first conflicting sweep begins: v = sqrt(2 a gap)."""
-        from slamkit.control.path_following import point_at, project_on_path
-
         c = self.config
         moving = np.linalg.norm(tracks.velocity_mps, axis=1) >= c.blocking_speed_mps
         if self.path is None or not moving.any():
@@ -553,8 +551,7 @@ class NavigationStack:
         world = LocalWorld(tracks.xy_m, tracks.radius_m, tracks.velocity_mps, self.distance)
         cmd = self._back_off(pose, world)
         if cmd is None:
-            from slamkit.control.path_following import point_at, project_on_path
-
+    
             target = point_at(self.path, np.array([project_on_path(self.path, pose[:2]) + 1.0]))[0]
             bearing = float(wrap_angle(math.atan2(target[1] - pose[1], target[0] - pose[0]) - pose[2]))
             cmd = np.array([0.0, float(np.clip(1.5 * bearing, -0.8, 0.8))])
