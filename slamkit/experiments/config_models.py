@@ -237,9 +237,12 @@ class NavigationPipeline(PipelineConfig):
 
     def check_options(self, config: dict[str, Any], doc: YamlDocument | None, source: str) -> None:
         from slamkit.experiments.navigation import _variants
-        from slamkit.experiments.navigation_map import map_source_config
+        from slamkit.experiments.navigation_map import MapSourceConfig, map_source_config
 
         _variants(config)  # builds every variant's configs: unknown keys and bad values are errors
+        # the map section's fields checked with their YAML line, then the config built (its
+        # own checks: source, unknown, the nested lidar-SLAM config)
+        _nested(model_of(MapSourceConfig), self.map, doc, source, ("map",))
         map_source_config(config.get("map"))
 
 

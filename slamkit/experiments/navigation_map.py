@@ -5,11 +5,12 @@ scoring; only the stack's map changes.
 Sources (``map: {source: ...}`` in ``pipelines/navigation*.yaml``):
 
 * ``truth`` -- the world's own grid (for ``willow`` that is the ROS map itself);
-* ``slam_tour`` -- built offline by slamkit's own lidar SLAM (:class:`slamkit.systems.lidar_slam.LidarSlam`)
-  on a seeded mapping tour of the world: the grid-world simulator drives the robot through
-  ``tour_goals`` goals spread over the free space (``slamkit.sim.grid_world.simulate_grid_sequence``, its 360-beam lidar and
-  noisy wheel odometry), SLAM runs on the tour, and its log-odds map at ``resolution_m`` (5 cm) is
-  the robot's map. The map's frame is the SLAM estimate's: the robot was put down at the tour's
+* ``slam_tour`` -- built offline by slamkit's own lidar SLAM
+  (:class:`slamkit.systems.lidar_slam.LidarSlam`) on a seeded mapping tour of the world: the
+  grid-world simulator drives the robot through ``tour_goals`` goals spread over the free space
+  (``slamkit.sim.grid_world.simulate_grid_sequence``, its 360-beam lidar and noisy wheel
+  odometry), SLAM runs on the tour, and its log-odds map at ``resolution_m`` (5 cm) is the
+  robot's map. The map's frame is the SLAM estimate's: the robot was put down at the tour's
   known start pose, nothing is aligned to the ground truth afterwards, so any drift SLAM leaves
   is in the map the robot navigates on. Cells no tour scan observed are occupied in the robot's
   map (``unknown: occupied``: the robot only drives where it has mapped) or free
@@ -40,8 +41,8 @@ from typing import Any, Mapping
 import numpy as np
 
 from slamkit.errors import ConfigError
-from slamkit.geometry import se2
 from slamkit.experiments.lidar_slam import ate_keyframes_m, run_slam, slam_config_from
+from slamkit.geometry import se2
 from slamkit.maps.log_odds import map_quality, resample_to
 from slamkit.maps.occupancy_grid import OccupancyGrid
 from slamkit.sim.grid_world import GridScenario, simulate_grid_sequence

@@ -45,6 +45,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.ndimage import binary_dilation
 
 from slamkit.errors import ConfigError, DataError
 from slamkit.maps.occupancy_grid import OccupancyGrid
@@ -258,8 +259,6 @@ def map_quality(estimate: LogOddsMap, truth: OccupancyGrid,
     obs = estimate.observed
     near_gt, near_pred = gt, pred
     if tolerance_cells:
-        from scipy.ndimage import binary_dilation
-
         window = np.ones((2 * tolerance_cells + 1,) * 2, dtype=bool)
         near_gt, near_pred = binary_dilation(gt, window), binary_dilation(pred, window)
     matched_pred = int(np.sum(pred & near_gt & obs))

@@ -202,7 +202,8 @@ class NavigationCommand:
     """One decision: ``command`` (v, omega); ``status`` "driving", "approach", "aligning",
     "goal_reached", "no_goal", "no_path" or the local planner's status on a brake; ``output``
     the local planner's :class:`ControlOutput` (None in the regulator's phases); ``safe_stop``
-    whether a collision-free braking trajectory existed this cycle."""
+    whether the planned command kept a collision-free braking trajectory (False both when the
+    stack braked instead and when no braking was free: ``no_safe_stop_cycles`` counts those)."""
 
     command: np.ndarray
     status: str
@@ -515,8 +516,9 @@ class NavigationStack:
         ahead. A track conflicts when it occupies some point of that path within ``yield_slack_s``
         of the time the robot would reach it at cruise speed (the robot does not race it), unless
         some track's sweep would touch the robot where it stands (then stopping would not help:
-        the local planner's evasion handles it; inside the margin only, the robot stops). The robot then brakes at ``yield_decel_mps2`` to
-        stop where the first conflicting sweep begins: v = sqrt(2 a gap)."""
+        the local planner's evasion handles it; inside the margin only, the robot stops). The
+        robot then brakes at ``yield_decel_mps2`` to stop where the first conflicting sweep
+        begins: v = sqrt(2 a gap)."""
         c = self.config
         moving = np.linalg.norm(tracks.velocity_mps, axis=1) >= c.blocking_speed_mps
         if self.path is None or not moving.any():
@@ -551,7 +553,6 @@ class NavigationStack:
         world = LocalWorld(tracks.xy_m, tracks.radius_m, tracks.velocity_mps, self.distance)
         cmd = self._back_off(pose, world)
         if cmd is None:
-    
             target = point_at(self.path, np.array([project_on_path(self.path, pose[:2]) + 1.0]))[0]
             bearing = float(wrap_angle(math.atan2(target[1] - pose[1], target[0] - pose[0]) - pose[2]))
             cmd = np.array([0.0, float(np.clip(1.5 * bearing, -0.8, 0.8))])
@@ -627,9 +628,10 @@ class NavigationStack:
     def _keep_safe_stop(self, pose: np.ndarray, cmd: np.ndarray, world: LocalWorld) -> tuple[np.ndarray, bool]:
         """Acting on the safe-stop check: a command from which no collision-free braking
         trajectory exists is replaced by braking now (from the previous command, at
-        ``brake_decel_mps2`` along its arc, one 0.1 s cycle) when that braking trajectory is free; when neither is, the
-        cycle counts in ``no_safe_stop_cycles`` and the command stands (braking would not
-        avoid the contact either: the evasion chose it). Returns (command, safe)."""
+        ``brake_decel_mps2`` along its arc, one 0.1 s cycle) when that braking trajectory is
+        free; when neither is, the cycle counts in ``no_safe_stop_cycles`` and the command
+        stands (braking would not avoid the contact either: the evasion chose it). Returns
+        (command, whether the planned command was safe)."""
         if self.safe_stop_exists(pose, cmd, world):
             return cmd, True
         if self.safe_stop_exists(pose, self._last_cmd, world):

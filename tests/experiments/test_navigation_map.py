@@ -31,6 +31,17 @@ def test_map_source_config_is_checked():
         map_source_config({"source": "slam_tour", "slam": {"loop_rounds_": 1}})
 
 
+def test_a_pipeline_file_with_a_misspelt_map_key_names_its_line(tmp_path):
+    from slamkit.config import load_yaml
+    from slamkit.experiments.config_models import check_pipeline
+
+    path = tmp_path / "nav.yaml"
+    path.write_text("pipeline: navigation\nname: x\nmap:\n  source: slam_tour\n  tour_goal: 4\n")
+    doc = load_yaml(path)
+    with pytest.raises(ConfigError, match=r"nav.yaml:5: map.tour_goal: unknown key \(did you mean 'tour_goals'"):
+        check_pipeline(doc.data, doc, str(path))
+
+
 def test_truth_source_is_the_world_grid():
     sc = _scenario()
     robot = robot_map(sc, MapSourceConfig())
