@@ -16,7 +16,9 @@
  *
  * cost       float64[H*W]  traversal multiplier per cell, +inf = blocked (must be >= 0)
  * enter_cost 0 (default): a move costs step * the mean of its two cells' multipliers;
- *            1: step * the multiplier of the cell it enters (the textbook grid model)
+ *            1: step * the multiplier of the cell it enters (the textbook grid model);
+ *            2: step * the multiplier of the cell it leaves: the enter model's graph with every
+ *               edge reversed (D* Lite's backward search from the goal)
  * heuristic  0 zero, 1 euclidean, 2 manhattan, 3 octile, 4 chebyshev  (in cells, times h_scale)
  * g_out      float64[H*W]  cost-to-come of every closed / opened cell (inf elsewhere)
  * parent_out int64[H*W]    predecessor (-1 for none)
@@ -164,7 +166,7 @@ static inline __attribute__((always_inline)) int run(
                         (!isfinite(cost[uy * W + vx]) || !isfinite(cost[vy * W + ux]))) continue;
                     step = M_SQRT2;
                 }
-                const double ng = gu + step * (enter_cost ? cv : 0.5 * (cu + cv));
+                const double ng = gu + step * (enter_cost == 1 ? cv : enter_cost == 2 ? cu : 0.5 * (cu + cv));
                 if (ng < g[v]) {
                     if (g[v] == INFINITY) opened++;
                     g[v] = ng;

@@ -29,6 +29,8 @@ from slamkit.planning import _native
 HEURISTICS = {"zero": 0, "euclidean": 1, "manhattan": 2, "octile": 3, "chebyshev": 4}
 #: how a move is charged: the mean of its two cells' multipliers, or the multiplier of the cell entered
 EDGE_COSTS = ("mean", "enter")
+#: the C core's edge mode for the enter model searched backwards (a move pays the cell it leaves)
+_EDGE_MODE_LEAVE = 2
 
 
 def check_edge_cost(edge_cost: str) -> bool:
@@ -72,14 +74,16 @@ def heuristic_code(name: str) -> int:
 def search(cell_cost: np.ndarray, start_ixy: tuple[int, int], goal_ixy: tuple[int, int],
            connectivity: int = 8, corner_cutting: bool = False, heuristic: str = "octile",
            heuristic_scale: float | None = None, record_order: bool = False,
-           use_native: bool = True, edge_cost: str = "mean") -> SearchOutput:
+           use_native: bool = True, edge_cost: str = "mean", reverse: bool = False) -> SearchOutput:
     """Search ``cell_cost`` (H, W) (multiplier >= 0, inf = blocked) from start to goal cell.
 
     ``heuristic_scale`` multiplies the heuristic in cells; by default the smallest finite
     multiplier, which keeps Euclidean/octile/Chebyshev admissible (Manhattan only on
     4-connected grids). Values > that give weighted A* (faster, suboptimal). ``edge_cost``: see
-    the module docstring."""
-    enter = check_edge_cost(edge_cost)
+    the module docstring. ``reverse`` searches the graph with every edge reversed, so ``g`` is
+    each cell's cost-to-go to ``start_ixy`` (D* Lite's backward search); it matters only for the
+    directed "enter" model, where a reversed move pays the cell it leaves."""
+    mode = _EDGE_MODE_LEAVE if check_edge_cost(edge_cost) and reverse else int(edge_cost == "enter")
     if connectivity not in (4, 8):
         raise PlanningError(f"connectivity must be 4 or 8, got {connectivity}")
     cost = np.ascontiguousarray(cell_cost, dtype=np.float64)
@@ -97,7 +101,7 @@ def search(cell_cost: np.ndarray, start_ixy: tuple[int, int], goal_ixy: tuple[in
     mod = _native.gridsearch() if use_native else None
     if mod is None:
         return search_python(cost, s, t, connectivity, corner_cutting, hkind, heuristic_scale,
-                             record_order, enter)
+                             record_order, mode)
     n = h * w
     g = np.empty(n)
     parent = np.empty(n, dtype=np.int64)
@@ -105,7 +109,7 @@ def search(cell_cost: np.ndarray, start_ixy: tuple[int, int], goal_ixy: tuple[in
     order = np.empty(n, dtype=np.int64) if record_order else None
     goal_cost, path_len, expansions, n_order, opened = mod.search(
         cost.reshape(-1), h, w, s, t, connectivity, int(corner_cutting), hkind,
-        float(heuristic_scale), g, parent, path, order, int(enter))
+        float(heuristic_scale), g, parent, path, order, mode)
     return SearchOutput(goal_cost, path[:path_len].copy(), expansions, g,
                         None if order is None else order[:n_order].copy(), opened)
 
@@ -116,8 +120,9 @@ _DY = (0, 0, 1, -1, 1, -1, 1, -1)
 
 def search_python(cost: np.ndarray, start: int, goal: int, connectivity: int = 8,
                   corner_cutting: bool = False, hkind: int = 3, hscale: float = 1.0,
-                  record_order: bool = False, enter_cost: bool = False) -> SearchOutput:
-    """The same search as the C core, in plain Python with ``heapq`` (flat indices, lists)."""
+                  record_order: bool = False, enter_cost: int = 0) -> SearchOutput:
+    """The same search as the C core, in plain Python with ``heapq`` (flat indices, lists);
+    ``enter_cost`` is the C core's edge mode (0 mean, 1 enter, 2 leave)."""
     h, w = cost.shape
     flat = cost.reshape(-1).tolist()
     free = [math.isfinite(c) for c in flat]
@@ -172,7 +177,7 @@ def search_python(cost: np.ndarray, start: int, goal: int, connectivity: int = 8
                 if not corner_cutting and (not free[uy * w + vx] or not free[vy * w + ux]):
                     continue
                 step = sqrt2
-            ng = gu + step * (flat[v] if enter_cost else 0.5 * (cu + flat[v]))
+            ng = gu + step * (flat[v] if enter_cost == 1 else cu if enter_cost == 2 else 0.5 * (cu + flat[v]))
             if ng < g[v]:
                 g[v] = ng
                 parent[v] = u

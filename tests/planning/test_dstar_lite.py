@@ -115,3 +115,76 @@ def test_random_changes_stay_optimal(seed, h, w, conn):
             assert r.cost == pytest.approx(ref.cost, abs=1e-9)
             cells_path = grid.world_to_cell(r.path)
             assert not grid.occupied[cells_path[:, 1], cells_path[:, 0]].any()
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 2**31 - 1), st.integers(3, 14), st.integers(3, 14), st.sampled_from([4, 8]),
+       st.sampled_from(["mean", "enter"]))
+def test_compiled_first_search_is_the_python_loops_state(seed, h, w, conn, edge_cost):
+    """The first search seeded from the compiled backward A* and D* Lite's own Python loop give
+    the same plan, the same g of every consistent cell, and the same repairs afterwards."""
+    rng = np.random.default_rng(seed)
+    occ = rng.random((h, w)) < 0.25
+    cost = np.where(occ, np.inf, rng.choice([1.0, 1.5, 4.0], size=(h, w)))
+    free = np.argwhere(~occ)
+    if len(free) < 2:
+        return
+    i, j = rng.choice(len(free), 2, replace=False)
+    grid = OccupancyGrid(occ)
+    start, goal = grid.cell_to_world(np.array([free[i][::-1], free[j][::-1]]))
+    problem = PlanningProblem(grid, start, goal, cell_cost=cost)
+    planners = [DStarLitePlanner(DStarLiteConfig(connectivity=conn, edge_cost=edge_cost, use_native=native))
+                for native in (True, False)]
+    seeded, loop = (p.plan(problem) for p in planners)
+    assert seeded.status is loop.status
+    assert seeded.cost == pytest.approx(loop.cost, abs=1e-9) or seeded.cost == loop.cost == math.inf
+    g_seeded, g_loop = (np.asarray(p._g) for p in planners)
+    both = np.isfinite(g_seeded) & np.isfinite(g_loop)
+    np.testing.assert_allclose(g_seeded[both], g_loop[both], atol=1e-9)
+    for _ in range(3):
+        cells = np.column_stack([rng.integers(0, w, 2), rng.integers(0, h, 2)])
+        value = rng.random(2) < 0.5
+        a, b = (p.update(cells, value) for p in planners)
+        assert a.status is b.status
+        if a.solved:
+            assert a.cost == pytest.approx(b.cost, abs=1e-9)
+
+
+def test_compiled_first_search_on_the_navigation_grid_equals_dijkstra(den312d):
+    """The seeded first plan on a real map costs the published optimum, and repairs from it."""
+    grid, scen = den312d
+    s = next(x for x in scen if x.line == 316)
+    start, goal = scenario_problem_points(grid, s)
+    planner = DStarLitePlanner()
+    first = planner.plan(PlanningProblem(grid, start, goal))
+    assert first.cost == pytest.approx(s.optimal_length, abs=1e-3)
+    python = DStarLitePlanner(DStarLiteConfig(use_native=False)).plan(PlanningProblem(grid, start, goal))
+    # the compiled A* breaks ties towards deeper cells: never more expansions than the loop
+    assert first.stats.expansions <= python.stats.expansions
+
+
+def test_a_repair_past_its_budget_becomes_a_fresh_compiled_search():
+    """A costly repair (a weighted 400 x 400 grid: blocking one path cell re-routes ~20k cells,
+    1 s in Python) is abandoned after 1/64 of the first search's expansions for a fresh compiled
+    search; the plan is the same optimum as Dijkstra's on the changed costs."""
+    rng = np.random.default_rng(0)
+    occ = np.zeros((400, 400), bool)
+    for _ in range(60):
+        x, y = rng.integers(0, 380, 2)
+        occ[y:y + rng.integers(2, 40), x:x + 3] = True
+    grid = OccupancyGrid(occ, 0.05)
+    cost = np.where(occ, np.inf, 1 + 3 * rng.random((400, 400)))
+    start, goal = [0.3, 0.3], [19.5, 19.7]
+    planner = DStarLitePlanner()
+    first = planner.plan(PlanningProblem(grid, start, goal, cell_cost=cost))
+    assert first.stats.expansions == 146649     # measured: the compiled backward A*
+    assert planner._repair_budget == 146649 // 64
+    block = grid.world_to_cell(first.path)[len(first.path) // 2][None]
+    repaired = planner.update(block, True)
+    assert planner.abandoned_repairs == 1
+    changed = _with(grid, block, True)
+    ref = DijkstraPlanner().plan(PlanningProblem(changed, start, goal, cell_cost=cost))
+    assert repaired.cost == pytest.approx(ref.cost, abs=1e-9)
+    # freeing the cell again (its own multiplier back) repairs from the fresh search's state
+    back = planner.update(block, False, cell_cost=cost[block[0, 1], block[0, 0]])
+    assert back.cost == pytest.approx(first.cost, abs=1e-9)
