@@ -83,17 +83,26 @@ def test_moving_start_and_sealing_goal():
         DStarLitePlanner().update(np.zeros((0, 2)))
 
 
+def _random_problem(rng, occ):
+    """(free cells, start row, goal row, grid, start_xy, goal_xy) on the occupancy ``occ``, two
+    distinct free cells drawn by ``rng``; grid None when fewer than two cells are free."""
+    free = np.argwhere(~occ)
+    if len(free) < 2:
+        return free, 0, 0, None, None, None
+    i, j = rng.choice(len(free), 2, replace=False)
+    grid = OccupancyGrid(occ)
+    start, goal = grid.cell_to_world(np.array([free[i][::-1], free[j][::-1]]))
+    return free, i, j, grid, start, goal
+
+
 @settings(max_examples=40, deadline=None)
 @given(st.integers(0, 2**31 - 1), st.integers(3, 12), st.integers(3, 12), st.sampled_from([4, 8]))
 def test_random_changes_stay_optimal(seed, h, w, conn):
     rng = np.random.default_rng(seed)
     occ = rng.random((h, w)) < 0.25
-    free = np.argwhere(~occ)
-    if len(free) < 2:
+    free, i, j, grid, start, goal = _random_problem(rng, occ)
+    if grid is None:
         return
-    i, j = rng.choice(len(free), 2, replace=False)
-    grid = OccupancyGrid(occ)
-    start, goal = grid.cell_to_world(np.array([free[i][::-1], free[j][::-1]]))
     planner = DStarLitePlanner(DStarLiteConfig(connectivity=conn))
     dijkstra = DijkstraPlanner(DijkstraConfig(connectivity=conn))
     r = planner.plan(PlanningProblem(grid, start, goal))
@@ -126,12 +135,9 @@ def test_compiled_first_search_is_the_python_loops_state(seed, h, w, conn, edge_
     rng = np.random.default_rng(seed)
     occ = rng.random((h, w)) < 0.25
     cost = np.where(occ, np.inf, rng.choice([1.0, 1.5, 4.0], size=(h, w)))
-    free = np.argwhere(~occ)
-    if len(free) < 2:
+    _, _, _, grid, start, goal = _random_problem(rng, occ)
+    if grid is None:
         return
-    i, j = rng.choice(len(free), 2, replace=False)
-    grid = OccupancyGrid(occ)
-    start, goal = grid.cell_to_world(np.array([free[i][::-1], free[j][::-1]]))
     problem = PlanningProblem(grid, start, goal, cell_cost=cost)
     planners = [DStarLitePlanner(DStarLiteConfig(connectivity=conn, edge_cost=edge_cost, use_native=native))
                 for native in (True, False)]
