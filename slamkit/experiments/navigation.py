@@ -387,8 +387,9 @@ def runs_of(episodes: list[Episode]) -> list[RunRecord]:
 def report_markdown(config: Mapping[str, Any], episodes: list[Episode], summary: list[dict],
                     maps: Mapping[str, RobotMap] | None = None) -> str:
     text = f"# Navigation: {config.get('name', 'navigation')}\n\n"
-    text += ("MCL (likelihood field, 500 particles) on simulated lidar and wheel odometry, A* global "
-             "planning, the local planner on the estimated pose among lidar-tracked obstacles. "
+    text += ("MCL (likelihood field, 500 particles) on simulated lidar and wheel odometry, each "
+             "variant's global planner (A* by default) and local planner on the estimated pose among "
+             "lidar-tracked obstacles. "
              "Success: stopped within the goal tolerance (position and heading, by the truth) "
              "without a collision. Mean ± half the 95% CI over seeds, per world and variant.\n\n")
     text += map_source_markdown(maps or {})
