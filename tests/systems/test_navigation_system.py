@@ -3,6 +3,8 @@ and a short closed-loop run through the simulator in the default suite."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -245,9 +247,13 @@ def test_evasion_never_runs_into_a_wall_while_an_arc_stays_clear():
 
     # 0.03 m off the bottom wall (its surface at y = 0.1), driving +x at 0.3 m/s; a forklift (0.4 m
     # + 0.25 m margin) 0.8 m ahead, 0.42 m to the left, coming at (-0.6, -0.3) m/s: no arc is
-    # admissible. The arc whose predicted contact comes latest is (0.4, -0.3) (contact at step 1,
-    # but it turns 0.19 m into the wall within 2 s); the evasion takes the latest-contact arc
-    # among those that stay clear of the wall instead: (0.4, -0.03)
+    # admissible, and every candidate is predicted to touch it at the first step. Among the
+    # window's held arcs the best (the larger smallest clearance) is (0.4, -0.03), -0.666 m; the
+    # arc that would score better, (0.4, -0.3), turns 0.19 m into the wall within 2 s and is
+    # never taken. With the braking profiles the evasion also sees braking on to back off at
+    # -0.3 m/s while turning to -0.75 rad/s: smallest clearance -0.612 m, ending at (2.73, 0.665)
+    # away from both, its first command (0.2, -0.3) (one 0.1 s step of the 1 m/s^2, 3 rad/s^2
+    # limits; ``evade_brake_profiles``); it never comes nearer the wall than the 0.229 m where it starts
     stack = _straight_stack(3.0)
     pose = np.array([3.0, 0.33, 0.0])
     stack.path = np.array([[3.0, 0.33], [5.5, 0.33]])
@@ -255,7 +261,33 @@ def test_evasion_never_runs_into_a_wall_while_an_arc_stays_clear():
     state = RobotState(pose, np.array([0.3, 0.0]), 0.0)
     out = stack.controller.compute(state, Reference(stack.path, speed_mps=0.5), world)
     assert out.status.value == "fallback_brake"
+    # the default evasion (held arcs only) takes (0.4, -0.03)
     cmd = stack._evade(state, world, out)
     assert cmd == pytest.approx([0.4, -0.03], abs=1e-9)
-    arc = rollout_arcs(pose, cmd[None], 0.1, 20)[0]
-    assert stack.distance.query(arc[:, :2])[0].min() > stack.config.robot_radius_m
+    held = rollout_arcs(pose, cmd[None], 0.1, 20)[0]
+    assert stack.distance.query(held[:, :2])[0].min() > stack.config.robot_radius_m
+    stack.config = dataclasses.replace(stack.config, evade_brake_profiles=True)
+    cmd = stack._evade(state, world, out)
+    assert cmd == pytest.approx([0.2, -0.3], abs=1e-9)
+    first, profiles = stack._brake_profiles(state, 20, 0.1)
+    chosen = profiles[1]  # v -> -0.3 m/s, omega -> -0.75 rad/s (order: v_end major, omega_end minor)
+    assert first[1] == pytest.approx(cmd)
+    np.testing.assert_allclose(chosen[-1, :2], [2.728, 0.665], atol=2e-3)
+    assert stack.distance.query(chosen[:, :2])[0].min() > stack.config.robot_radius_m
+
+
+def test_brake_profiles_stop_or_back_off_within_the_acceleration_limits():
+    from slamkit.control.protocols import RobotState
+
+    # from (0.3, 0.0): v falls by 0.1 m/s per 0.1 s step to 0 (stop) or to -0.3 (back off), omega
+    # rises by 0.3 rad/s per step towards one of -1.5 .. 1.5 rad/s
+    stack = _straight_stack(1.0)
+    state = RobotState(np.array([1.0, 2.0, 0.0]), np.array([0.3, 0.0]), 0.0)
+    first, traj = stack._brake_profiles(state, 20, 0.1)
+    assert first.shape == (10, 2) and traj.shape == (10, 21, 3)
+    np.testing.assert_allclose(first[:, 0], 0.2)
+    np.testing.assert_allclose(np.sort(np.unique(first[:, 1].round(9))), [-0.3, 0.0, 0.3])
+    straight = traj[np.flatnonzero((first[:, 1] == 0.0))]
+    # straight stop: 0.2 and 0.1 m/s for a step each: 0.03 m on; straight back-off: 0.2, 0.1, 0,
+    # -0.1, -0.2, then -0.3 m/s for the remaining 15 steps: 0.1 * (0.3 - 0.3 - 4.5) = -0.45 m net
+    np.testing.assert_allclose(sorted(straight[:, -1, 0] - 1.0), [-0.45, 0.03], atol=1e-9)
