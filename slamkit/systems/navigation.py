@@ -54,6 +54,7 @@ The stack knows nothing of a simulator or of ground truth.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
@@ -68,6 +69,7 @@ from slamkit.control.protocols import (ControlOutput, ControlStatus, DistanceGri
                                        RobotState)
 from slamkit.control.registry import CONTROLLERS, make_controller
 from slamkit.control.rollout import rollout_profiles
+from slamkit.control.trajectory_rollout import ramped_commands
 from slamkit.data.estimate import Estimate, Prior
 from slamkit.data.noise import NoiseParams
 from slamkit.data.sequence import Event, Odometry, Scan
@@ -153,22 +155,26 @@ class NavigationConfig:
     #: of :class:`LocalWorld`: centre x + (1 - lam) v t, radius r + lam s t with s the larger of
     #: the track's speed and its typical speed): 0 constant velocity, 1 anywhere it can reach
     #: at its speed (it may stop, turn or reverse); ``reversed_prediction_hedge`` for a track
-    #: seen reversing before (a shuttler turns again). Off by default: measured (DWA, seeds
-    #: failing on main + office 4/13/16/21/22), 0.5 / 1.0 -> office 4 moving collisions in the
-    #: first 23 seeds (main 1) and robots waiting out two shuttlers to the 90 s limit when
-    #: yielding used it too; 0 / 1.0 -> 4 of 8 office seeds hit; 0 / 0 -> 1 of 6. The larger
-    #: discs turn DWA's arcs inadmissible near traffic and leave the choice to the evasion,
-    #: whose 2 s horizon then backs the robot along an obstacle's line
+    #: seen reversing before (a shuttler turns again); ``yield_reversed_hedge`` the same for
+    #: yielding's sweep (the other tracks' sweeps stay constant-velocity). All off: measured
+    #: (pipelines/navigation.yaml's scenarios; main: success .90/.933/.867, moving collisions
+    #: 2/1/3 of 30 in office/warehouse/Willow) -- 0.5/1.0: 8 of main's 10 failing seeds reached,
+    #: but office seeds 0-22 4 moving collisions (main 1 there): the larger discs leave DWA no
+    #: admissible arc near traffic and the evasion's 2 s look backs the robot along another
+    #: obstacle's line; 0/1.0: 4 of 8 office seeds hit; also yielding on them: robots wait out
+    #: two shuttlers to the 90 s limit (3 of 10). Yielding alone (0/0/1.0): office 30 seeds 3
+    #: moving + 5 timeouts, warehouse seeds 0-26 4 moving (main's 19/24/27 office misses reached)
     prediction_hedge: float = 0.0
     reversed_prediction_hedge: float = 0.0
+    yield_reversed_hedge: float = 0.0
     #: when the local planner finds no admissible arc, take the one whose predicted contact
     #: comes latest instead of braking in the path of a moving obstacle
     evade: bool = True
     #: the evasion also weighs braking to a stop or on to backing off
-    #: (:meth:`NavigationStack._brake_profiles`). Off by default: measured over 30 office seeds
-    #: (with the evasion's wall rule kept 5 cm off the walls) success 0.90, moving collisions 3
-    #: (office 3, 4, 18) against main's 0.90 / 2 (19, 24): it saved main's moving collisions
-    #: (office 19/24, warehouse 5, Willow 10/17/19 reached) but backed into others
+    #: (:meth:`NavigationStack._brake_profiles`). Off: measured over the 30 x 3 seeds, success
+    #: .833/.800/.933, moving collisions 4/3/1 (main .900/.933/.867, 2/1/3): it saves main's
+    #: office 19/24 and Willow 10/17/19 but backs into other shuttlers (office 4: off one
+    #: obstacle's line into the other's)
     evade_brake_profiles: bool = False
     #: yielding to crossing traffic: a moving track whose constant-velocity sweep over
     #: ``yield_horizon_s`` covers the path ``yield_lookahead_m`` ahead within ``yield_slack_s``
@@ -197,7 +203,7 @@ class NavigationConfig:
             raise ConfigError(f"NavigationConfig.global_planner must be a grid planner {GRID_PLANNERS}, "
                               f"got {self.global_planner!r}")
         chance_sigma_multiplier(self.collision_probability)  # validates delta
-        for name in ("prediction_hedge", "reversed_prediction_hedge"):
+        for name in ("prediction_hedge", "reversed_prediction_hedge", "yield_reversed_hedge"):
             if not 0.0 <= getattr(self, name) <= 1.0:
                 raise ConfigError(f"NavigationConfig.{name} must be in [0, 1], got {getattr(self, name)}")
         for name in ("robot_radius_m", "replan_period_s", "cruise_speed_mps", "approach_radius_m",
@@ -532,24 +538,24 @@ class NavigationStack:
         """(K,) tracks moving faster than ``blocking_speed_mps``."""
         return np.linalg.norm(tracks.velocity_mps, axis=1) >= self.config.blocking_speed_mps
 
-    def local_world(self, tracks: Tracks, t_s: float = 0.0, hedged: bool = True) -> LocalWorld:
+    def local_world(self, tracks: Tracks, t_s: float = 0.0, hedges: tuple[float, float] | None = None) -> LocalWorld:
         """What the local planner, the evasion, yielding and the safe-stop check see: the walls
         and every track, moving ones grown by ``moving_margin_m``, predicted with the hedge of
         ``prediction_hedge`` (``reversed_prediction_hedge`` for a track that has reversed
-        before) -- the stack's only prediction of the tracks."""
+        before; ``hedges``: other values for the two) -- the stack's only prediction of the tracks."""
         c = self.config
         moving = self._moving(tracks)
-        lam = np.where(tracks.reversals > 0, c.reversed_prediction_hedge, c.prediction_hedge) * float(hedged)
+        plain, reversed_ = (c.prediction_hedge, c.reversed_prediction_hedge) if hedges is None else hedges
+        lam = np.where(tracks.reversals > 0, reversed_, plain)
         speed = np.maximum(np.linalg.norm(tracks.velocity_mps, axis=1), tracks.speed_typical_mps)
         return LocalWorld(tracks.xy_m, tracks.radius_m + c.moving_margin_m * moving,
                           (1.0 - lam)[:, None] * tracks.velocity_mps, self.distance, t_s, lam * speed)
 
     def _yield_speed_mps(self, pose: np.ndarray, tracks: Tracks) -> float:
         """The speed that lets the robot stop short of crossing traffic (+inf when nothing to
-        yield to): each moving track's constant-velocity sweep (:meth:`local_world`'s unhedged:
-        a 6 s reachable set covers the path for good between two shuttlers -- measured, office 1
-        waited to the time limit; grown by ``moving_margin_m`` and the robot radius) over
-        ``yield_horizon_s`` against the
+        yield to): each moving track's sweep as :meth:`local_world` predicts it (constant
+        velocity; a track seen reversing hedged by ``yield_reversed_hedge``), grown by
+        ``moving_margin_m`` and the robot radius, over ``yield_horizon_s`` against the
         path ``yield_lookahead_m`` ahead. A track conflicts when it occupies some point of that
         path within ``yield_slack_s`` of the time the robot would reach it at cruise speed (the
         robot does not race it), unless some track's constant-velocity sweep would touch the
@@ -560,7 +566,7 @@ class NavigationStack:
         moving = self._moving(tracks)
         if self.path is None or not moving.any():
             return math.inf
-        world = self.local_world(tracks, self._t_s, hedged=False)
+        world = self.local_world(tracks, self._t_s, hedges=(0.0, c.yield_reversed_hedge))
         s0 = project_on_path(self.path, pose[:2])
         s = s0 + np.arange(0.0, c.yield_lookahead_m, 0.5 * self.grid.resolution_m + 0.05)
         ahead = point_at(self.path, s)  # (S, 2)
@@ -675,15 +681,11 @@ class NavigationStack:
         ``accel_max_mps2`` to 0 (stop) or to its ``v_min_mps`` (back off, when it reverses),
         omega at ``alpha_max_radps2`` to one of ``n_omega`` turn rates over +-``omega_max_radps``.
         Returns their first commands (M, 2) and rollouts (M, steps + 1, 3)."""
-        cfg = self.controller.config
-        t = dt_s * np.arange(1, steps + 1)  # (T,)
+        cfg = dataclasses.replace(self.controller.config, rollout_dt_s=dt_s)
         v_end = np.unique([0.0, min(float(cfg.v_min_mps), 0.0)])
         w_end = np.linspace(-cfg.omega_max_radps, cfg.omega_max_radps, n_omega)
-        ve, we = (a.ravel() for a in np.meshgrid(v_end, w_end, indexing="ij"))
-        v0, w0 = (float(x) for x in state.command)
-        v = v0 + np.clip(ve[:, None] - v0, -cfg.accel_max_mps2 * t, cfg.accel_max_mps2 * t)
-        w = w0 + np.clip(we[:, None] - w0, -cfg.alpha_max_radps2 * t, cfg.alpha_max_radps2 * t)
-        commands = np.stack([v, w], axis=-1)  # (M, T, 2)
+        targets = np.column_stack([a.ravel() for a in np.meshgrid(v_end, w_end, indexing="ij")])
+        commands = ramped_commands(state.command, targets, cfg, steps)  # (M, T, 2)
         return commands[:, 0], rollout_profiles(state.world_xytheta_body, commands, dt_s)
 
     def _keep_safe_stop(self, pose: np.ndarray, cmd: np.ndarray, world: LocalWorld) -> tuple[np.ndarray, bool]:

@@ -186,6 +186,47 @@ def test_yielding_stops_short_of_a_crossing_track():
     assert stack._yield_speed_mps(pose, _tracks([[3.0, 2.5]], [[0.0, -0.1]], [0.3])) == np.inf
 
 
+
+def test_local_world_hedges_the_prediction_of_tracks_seen_reversing():
+    from slamkit.estimation.obstacle_tracker import Tracks
+
+    # two 0.3 m tracks moving +x at 0.4 m/s, typical speed 0.5 m/s (they were faster a moment
+    # ago); the second has reversed once. Hedges 0.5 / 1.0: the first is predicted at half its
+    # velocity with its disc growing at 0.5 * 0.5 = 0.25 m/s, the second stays where it is and
+    # grows at 0.5 m/s (anywhere it can reach); both get the 0.25 m moving margin
+    stack = _straight_stack(1.0)
+    stack.config = dataclasses.replace(stack.config, prediction_hedge=0.5, reversed_prediction_hedge=1.0)
+    tracks = Tracks(np.arange(2), np.array([[3.0, 2.0], [3.0, 3.0]]), np.array([[0.4, 0.0], [0.4, 0.0]]),
+                    np.array([0.3, 0.3]), np.tile(np.eye(4), (2, 1, 1)), reversals=np.array([0, 1]),
+                    speed_typical_mps=np.array([0.5, 0.5]))
+    world = stack.local_world(tracks)
+    np.testing.assert_allclose(world.circle_velocity_mps, [[0.2, 0.0], [0.0, 0.0]])
+    np.testing.assert_allclose(world.circle_growth_mps, [0.25, 0.5])
+    np.testing.assert_allclose(world.radii_at([2.0]), [[1.05, 1.55]])
+    # the defaults (no hedge) are the constant-velocity prediction
+    plain = _straight_stack(1.0).local_world(tracks)
+    np.testing.assert_allclose(plain.circle_velocity_mps, tracks.velocity_mps)
+    np.testing.assert_allclose(plain.circle_growth_mps, [0.0, 0.0])
+
+
+def test_yielding_to_a_shuttler_that_may_turn_back():
+    from slamkit.estimation.obstacle_tracker import Tracks
+
+    # the person of the yielding example 1 m past the path, walking away at 0.5 m/s: constant
+    # velocity says no yield. Seen reversing before and with yield_reversed_hedge 1, it may be
+    # anywhere within 0.5 t: grown by the margin and the robot its disc reaches the path (1 m off)
+    # at t = 0.5 s, before the robot (there at 0.95 / 0.65 = 1.46 s), and within the 6 s horizon
+    # it covers the robot's own place (1.38 m off, reach 3.75 m): the robot stops where it is
+    stack = _straight_stack(2.05)
+    pose = np.array([2.05, 2.0, 0.0])
+    away = dict(ids=np.arange(1), xy_m=np.array([[3.0, 1.0]]), velocity_mps=np.array([[0.0, -0.5]]),
+                radius_m=np.array([0.3]), covariance=np.eye(4)[None])
+    assert stack._yield_speed_mps(pose, Tracks(**away, reversals=np.array([1]))) == np.inf
+    stack.config = dataclasses.replace(stack.config, yield_reversed_hedge=1.0)
+    assert stack._yield_speed_mps(pose, Tracks(**away, reversals=np.array([1]))) == 0.0
+    # one never seen reversing is still predicted with its constant velocity
+    assert stack._yield_speed_mps(pose, Tracks(**away)) == np.inf
+
 def test_speed_cap_keeps_the_arc():
     from slamkit.systems.navigation import _speed_capped
 
