@@ -151,22 +151,24 @@ class NavigationConfig:
     #: extra clearance the local planner keeps from tracks moving faster than
     #: ``blocking_speed_mps`` (people and forklifts do not avoid the robot)
     moving_margin_m: float = 0.25
-    #: how little the local planner's prediction of a track trusts its constant velocity (lam
-    #: of :class:`LocalWorld`: centre x + (1 - lam) v t, radius r + lam s t with s the larger of
-    #: the track's speed and its typical speed): 0 constant velocity, 1 anywhere it can reach
-    #: at its speed (it may stop, turn or reverse); ``reversed_prediction_hedge`` for a track
-    #: seen reversing before (a shuttler turns again); ``yield_reversed_hedge`` the same for
-    #: yielding's sweep (the other tracks' sweeps stay constant-velocity). All off: measured
-    #: (pipelines/navigation.yaml's scenarios; main: success .90/.933/.867, moving collisions
-    #: 2/1/3 of 30 in office/warehouse/Willow) -- 0.5/1.0: 8 of main's 10 failing seeds reached,
-    #: but office seeds 0-22 4 moving collisions (main 1 there): the larger discs leave DWA no
-    #: admissible arc near traffic and the evasion's 2 s look backs the robot along another
-    #: obstacle's line; 0/1.0: 4 of 8 office seeds hit; also yielding on them: robots wait out
-    #: two shuttlers to the 90 s limit (3 of 10). Yielding alone (0/0/1.0): office 30 seeds 3
-    #: moving + 5 timeouts, warehouse seeds 0-26 4 moving (main's 19/24/27 office misses reached)
+    #: how little the prediction of a track trusts its constant velocity (lam of
+    #: :class:`LocalWorld`: centre x + (1 - lam) v t, radius r + lam s t with s the larger of the
+    #: track's speed and its typical speed): 0 constant velocity, 1 anywhere it can reach at its
+    #: speed (it may stop, turn or reverse). ``prediction_hedge`` and ``reversed_prediction_hedge``
+    #: (a track seen reversing before: a shuttler turns again) for the local planner, the
+    #: evasion and the safe-stop check; ``yield_reversed_hedge`` for yielding's sweep of a track
+    #: seen reversing (the others' sweeps stay constant-velocity). Measured on
+    #: pipelines/navigation.yaml's 30 x 3 seeds (success office/warehouse/Willow, moving
+    #: collisions; no static ones): all 0 (main) .900/.933/.867, 2/1/3; yielding 0.3: .967/.900/
+    #: .900, 0/2/1 (crossing behind a shuttler waits until its trailing edge, moving at 0.4 v,
+    #: has cleared: office 19/24, Willow 10/17 reached; +1.5-3 s, +0.14-0.19 m on the seeds both
+    #: reach); yielding 1.0: office 3 moving + 5 timeouts (a reachable set between two shuttlers
+    #: never clears). Local planner 0.5/1.0: office 0-22 4 moving (main 1): the larger discs
+    #: leave DWA no admissible arc near traffic and the evasion backs along another obstacle's
+    #: line; 0/1.0: 4 of 8 hard office seeds hit
     prediction_hedge: float = 0.0
     reversed_prediction_hedge: float = 0.0
-    yield_reversed_hedge: float = 0.0
+    yield_reversed_hedge: float = 0.3
     #: when the local planner finds no admissible arc, take the one whose predicted contact
     #: comes latest instead of braking in the path of a moving obstacle
     evade: bool = True
