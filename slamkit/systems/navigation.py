@@ -27,7 +27,9 @@ Layers, each timed per call (``timings_s``):
   stop at a 0.2 m tolerance and the stack is asked for centimetres. Its command is capped at
   ``cruise_speed_mps`` and, when yielding to crossing traffic (a moving track's predicted sweep
   meets the path ahead about when the robot would get there), at the speed that stops the
-  robot short of the sweep: it waits rather than races.
+  robot short of the sweep: it waits rather than races. A track the tracker has seen reversing
+  (a shuttler) is not trusted to keep going: its sweep is hedged (``yield_reversed_hedge``, the
+  reachable-set prediction of :class:`LocalWorld`), so the robot does not cross right behind it.
 
 Planning under uncertainty (``NavigationConfig.uncertainty``):
 
@@ -162,10 +164,11 @@ class NavigationConfig:
     #: collisions; no static ones): all 0 (main) .900/.933/.867, 2/1/3; yielding 0.3: .967/.900/
     #: .900, 0/2/1 (crossing behind a shuttler waits until its trailing edge, moving at 0.4 v,
     #: has cleared: office 19/24, Willow 10/17 reached; +1.5-3 s, +0.14-0.19 m on the seeds both
-    #: reach); yielding 1.0: office 3 moving + 5 timeouts (a reachable set between two shuttlers
-    #: never clears). Local planner 0.5/1.0: office 0-22 4 moving (main 1): the larger discs
-    #: leave DWA no admissible arc near traffic and the evasion backs along another obstacle's
-    #: line; 0/1.0: 4 of 8 hard office seeds hit
+    #: reach); 0.5: .933/.900/.900, 1/1/2 and a static hit; 1.0: office 3 moving + 5 timeouts
+    #: (a reachable set between two shuttlers never clears). Local planner 0.5/1.0: office 0-22
+    #: 4 moving (main 1): the larger discs leave DWA no admissible arc near traffic and the
+    #: evasion backs along another obstacle's line; 0/1.0: 4 of 8 hard office seeds hit (both
+    #: measured with a since-dropped variant of the moving test and recovery margin)
     prediction_hedge: float = 0.0
     reversed_prediction_hedge: float = 0.0
     yield_reversed_hedge: float = 0.3
