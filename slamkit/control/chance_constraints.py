@@ -59,7 +59,7 @@ def tightened_world(world: LocalWorld, robot_xy_m: np.ndarray, pose_cov_xy: np.n
     if distance is None and world.distance is not None:
         distance = tightened_distance(world.distance, cov, k_sigma=k)
     return LocalWorld(world.circle_xy_m, radii, world.circle_velocity_mps,
-                      distance if distance is not None else world.distance, world.t_s)
+                      distance if distance is not None else world.distance, world.t_s, world.circle_growth_mps)
 
 
 def worst_sigma_m(pose_cov_xy: np.ndarray) -> float:

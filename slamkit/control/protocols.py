@@ -126,31 +126,41 @@ class LocalWorld:
 
     ``circle_xy_m`` (K, 2) centres, ``circle_radius_m`` (K,), ``circle_velocity_mps`` (K, 2): moving
     (or static, velocity 0) circular obstacles, predicted with constant velocity;
-    ``distance`` the static map as a :class:`DistanceGrid` (or None for open space)."""
+    ``distance`` the static map as a :class:`DistanceGrid` (or None for open space);
+    ``circle_growth_mps`` (K,) how fast each predicted disc's radius grows with the look-ahead
+    time (None: 0, the plain constant-velocity prediction). A tracked obstacle may stop, turn or
+    reverse: with centre x + (1 - lam) v t and radius r + lam |v| t the disc holds every place
+    it can reach at speed |v| when lam = 1 (the reachable set), the constant-velocity guess
+    when lam = 0."""
 
     circle_xy_m: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     circle_radius_m: np.ndarray = field(default_factory=lambda: np.zeros(0))
     circle_velocity_mps: np.ndarray | None = None
     distance: DistanceGrid | None = None
     t_s: float = 0.0
+    circle_growth_mps: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         c = np.asarray(self.circle_xy_m, dtype=float).reshape(-1, 2)
         r = np.asarray(self.circle_radius_m, dtype=float).reshape(-1)
         v = (np.zeros_like(c) if self.circle_velocity_mps is None
              else np.asarray(self.circle_velocity_mps, dtype=float).reshape(-1, 2))
-        if not (len(c) == len(r) == len(v)):
-            raise ControlError(f"LocalWorld: {len(c)} circle centres, {len(r)} radii, {len(v)} velocities")
-        bad = ~(np.isfinite(c).all(axis=1) & np.isfinite(r) & np.isfinite(v).all(axis=1))
+        g = (np.zeros_like(r) if self.circle_growth_mps is None
+             else np.asarray(self.circle_growth_mps, dtype=float).reshape(-1))
+        if not (len(c) == len(r) == len(v) == len(g)):
+            raise ControlError(f"LocalWorld: {len(c)} circle centres, {len(r)} radii, {len(v)} velocities, "
+                               f"{len(g)} growth rates")
+        bad = ~(np.isfinite(c).all(axis=1) & np.isfinite(r) & np.isfinite(v).all(axis=1) & np.isfinite(g))
         if bad.any():
             k = int(np.flatnonzero(bad)[0])
             raise ControlError(f"LocalWorld: obstacle {k} has a non-finite centre, radius or velocity "
-                               f"({c[k].tolist()}, {float(r[k])}, {v[k].tolist()})")
-        if np.any(r < 0):
-            raise ControlError("LocalWorld.circle_radius_m must be >= 0")
+                               f"({c[k].tolist()}, {float(r[k])}, {v[k].tolist()}) or growth rate ({float(g[k])})")
+        if np.any(r < 0) or np.any(g < 0):
+            raise ControlError("LocalWorld.circle_radius_m and circle_growth_mps must be >= 0")
         object.__setattr__(self, "circle_xy_m", _ro(c.copy()))
         object.__setattr__(self, "circle_radius_m", _ro(r.copy()))
         object.__setattr__(self, "circle_velocity_mps", _ro(v.copy()))
+        object.__setattr__(self, "circle_growth_mps", _ro(g.copy()))
 
     @property
     def num_circles(self) -> int:
@@ -160,6 +170,11 @@ class LocalWorld:
         """Constant-velocity prediction: (T,) time offsets -> (T, K, 2) centres."""
         dt = np.asarray(dt_s, dtype=float).reshape(-1)
         return self.circle_xy_m[None, :, :] + dt[:, None, None] * self.circle_velocity_mps[None, :, :]
+
+    def radii_at(self, dt_s: np.ndarray) -> np.ndarray:
+        """The predicted discs' radii: (T,) time offsets -> (T, K), r + growth * dt."""
+        dt = np.asarray(dt_s, dtype=float).reshape(-1)
+        return self.circle_radius_m[None, :] + np.maximum(dt, 0.0)[:, None] * self.circle_growth_mps[None, :]
 
     def clearance_m(self, xy_m: np.ndarray, dt_s: np.ndarray | float = 0.0) -> np.ndarray:
         """Distance from points (..., T, 2) to the nearest obstacle surface, the circles predicted
@@ -171,7 +186,7 @@ class LocalWorld:
         out = np.full(xy.shape[:-1], np.inf)
         if self.num_circles:
             centres = self.circles_at(dt)  # (T, K, 2)
-            dist = np.linalg.norm(xy[..., :, None, :] - centres, axis=-1) - self.circle_radius_m
+            dist = np.linalg.norm(xy[..., :, None, :] - centres, axis=-1) - self.radii_at(dt)
             out = np.minimum(out, dist.min(axis=-1))
         if self.distance is not None:
             out = np.minimum(out, self.distance.query(xy)[0])

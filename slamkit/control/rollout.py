@@ -25,6 +25,19 @@ def rollout_arcs(world_xytheta_body: np.ndarray, commands: np.ndarray, dt_s: flo
     return motion(pose, u[:, None, :], t[None, :])
 
 
+def rollout_profiles(world_xytheta_body: np.ndarray, commands: np.ndarray, dt_s: float) -> np.ndarray:
+    """(3,) start pose, (K, T, 2) commands held for ``dt_s`` each (a speed profile: braking,
+    reversing) -> (K, T + 1, 3) poses, each step an exact arc (one motion call per step, vectorised
+    over the K profiles)."""
+    u = np.asarray(commands, dtype=float)
+    u = u.reshape((1,) * (3 - u.ndim) + u.shape)
+    out = np.empty((u.shape[0], u.shape[1] + 1, 3))
+    out[:, 0] = np.asarray(world_xytheta_body, dtype=float).reshape(3)
+    for k in range(u.shape[1]):
+        out[:, k + 1] = motion(out[:, k], u[:, k], dt_s)
+    return out
+
+
 def trajectory_clearance(traj_xytheta: np.ndarray, world: LocalWorld, dt_s: float,
                          robot_radius_m: float) -> np.ndarray:
     """(K, T+1, 3) rollouts -> (K, T+1) distance from the robot's disc to the nearest obstacle,

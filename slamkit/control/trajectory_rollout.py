@@ -23,7 +23,7 @@ import numpy as np
 
 from slamkit.control.dwa import DWAConfig, DWAController
 from slamkit.control.protocols import RobotState
-from slamkit.models.diff_drive import motion
+from slamkit.control.rollout import rollout_profiles
 
 
 @dataclass(frozen=True)
@@ -63,12 +63,8 @@ class RolloutController(DWAController):
         return np.column_stack([vv.ravel(), ww.ravel()])
 
     def rollouts(self, state: RobotState, cand: np.ndarray, steps: int) -> np.ndarray:
-        u = ramped_commands(state.command, cand, self.config, steps)
-        out = np.empty((len(cand), steps + 1, 3))
-        out[:, 0] = state.world_xytheta_body
-        for k in range(steps):
-            out[:, k + 1] = motion(out[:, k], u[:, k], self.config.rollout_dt_s)
-        return out
+        return rollout_profiles(state.world_xytheta_body, ramped_commands(state.command, cand, self.config, steps),
+                                self.config.rollout_dt_s)
 
     def compute(self, state, reference, world):
         out = super().compute(state, reference, world)

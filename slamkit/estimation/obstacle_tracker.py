@@ -15,6 +15,13 @@ and tracked with a constant-velocity Kalman filter (no oracle obstacle list).
   detections are assigned greedily by increasing distance inside a ``gate_m`` gate (global
   nearest neighbour), unassigned detections start tentative tracks, a track is confirmed after
   ``confirm_hits`` hits and deleted after ``max_misses`` scans without one.
+* Motion history, for a prediction that does not trust the constant-velocity model blindly
+  (people and forklifts stop, turn and shuttle back): each track keeps the span of positions it
+  has been estimated at (the two farthest apart, extended greedily: ``span_xy_m``), a typical
+  speed (an exponential average of its speed, ``speed_typical_mps``: it stays up while the
+  obstacle slows down to turn) and how often it has reversed along that span
+  (``reversals``: the velocity's component along the span changed sign, each side faster than
+  ``reverse_speed_mps``, once the span is ``reverse_span_m`` long).
 """
 
 from __future__ import annotations
@@ -128,8 +135,16 @@ class TrackerConfig:
     initial_speed_sigma_mps: float = 1.0
     confirm_hits: int = 2
     max_misses: int = 5
+    #: a reversal counts when the velocity along the seen span flips between +- this speed ...
+    reverse_speed_mps: float = 0.15
+    #: ... and the span is at least this long (a standing track's jitter is no reversal)
+    reverse_span_m: float = 0.3
+    #: weight of the newest speed in the typical speed's exponential average (per scan)
+    speed_smoothing: float = 0.1
 
     def __post_init__(self) -> None:
+        if not 0 < self.speed_smoothing <= 1 or min(self.reverse_speed_mps, self.reverse_span_m) <= 0:
+            raise ConfigError("TrackerConfig: speed_smoothing in (0, 1], reverse_speed_mps and reverse_span_m > 0")
         if min(self.gate_m, self.accel_psd, self.sigma_detection_m, self.initial_speed_sigma_mps) <= 0:
             raise ConfigError("TrackerConfig: gate, noise densities and sigmas must be > 0")
         if self.confirm_hits < 1 or self.max_misses < 0:
@@ -139,13 +154,29 @@ class TrackerConfig:
 @dataclass(frozen=True)
 class Tracks:
     """Confirmed tracks: ``ids`` (K,), ``xy_m`` (K, 2), ``velocity_mps`` (K, 2), ``radius_m`` (K,),
-    ``covariance`` (K, 4, 4) of (x, y, vx, vy)."""
+    ``covariance`` (K, 4, 4) of (x, y, vx, vy); their motion history (module docstring):
+    ``reversals`` (K,), ``speed_typical_mps`` (K,), ``span_xy_m`` (K, 2, 2) (None: none seen, the
+    current speed and position)."""
 
     ids: np.ndarray
     xy_m: np.ndarray
     velocity_mps: np.ndarray
     radius_m: np.ndarray
     covariance: np.ndarray
+    reversals: np.ndarray | None = None
+    speed_typical_mps: np.ndarray | None = None
+    span_xy_m: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        k = len(self.ids)
+        if self.reversals is None:
+            object.__setattr__(self, "reversals", np.zeros(k, dtype=int))
+        if self.speed_typical_mps is None:
+            object.__setattr__(self, "speed_typical_mps",
+                               np.linalg.norm(np.asarray(self.velocity_mps, float).reshape(k, 2), axis=1))
+        if self.span_xy_m is None:
+            xy = np.asarray(self.xy_m, float).reshape(k, 2)
+            object.__setattr__(self, "span_xy_m", np.stack([xy, xy], axis=1))
 
 
 def cv_matrices(dt_s: float, accel_psd: float) -> tuple[np.ndarray, np.ndarray]:
@@ -173,6 +204,10 @@ class ConstantVelocityTracker:
         self._hits = np.zeros(0, dtype=int)
         self._misses = np.zeros(0, dtype=int)
         self._ids = np.zeros(0, dtype=int)
+        self._span = np.zeros((0, 2, 2))
+        self._speed = np.zeros(0)
+        self._sign = np.zeros(0)
+        self._reversals = np.zeros(0, dtype=int)
         self._next_id = 0
         self._t: float | None = None
 
@@ -212,9 +247,12 @@ class ConstantVelocityTracker:
         self._hits[assigned_tr >= 0] += 1
         self._misses[assigned_tr >= 0] = 0
         self._misses[assigned_tr < 0] += 1
+        self._remember_motion(assigned_tr >= 0)
         keep = self._misses <= c.max_misses
         self._x, self._P, self._r = self._x[keep], self._P[keep], self._r[keep]
         self._hits, self._misses, self._ids = self._hits[keep], self._misses[keep], self._ids[keep]
+        self._span, self._speed = self._span[keep], self._speed[keep]
+        self._sign, self._reversals = self._sign[keep], self._reversals[keep]
         new = np.flatnonzero(~used)
         if len(new):
             x0 = np.column_stack([z[new], np.zeros((len(new), 2))])
@@ -225,9 +263,35 @@ class ConstantVelocityTracker:
             self._hits = np.concatenate([self._hits, np.ones(len(new), dtype=int)])
             self._misses = np.concatenate([self._misses, np.zeros(len(new), dtype=int)])
             self._ids = np.concatenate([self._ids, self._next_id + np.arange(len(new))])
+            self._span = np.concatenate([self._span, np.repeat(z[new][:, None, :], 2, axis=1)])
+            self._speed = np.concatenate([self._speed, np.zeros(len(new))])
+            self._sign = np.concatenate([self._sign, np.zeros(len(new))])
+            self._reversals = np.concatenate([self._reversals, np.zeros(len(new), dtype=int)])
             self._next_id += len(new)
+
+    def _remember_motion(self, updated: np.ndarray) -> None:
+        """The motion history of the tracks just updated (see the module docstring)."""
+        c = self.config
+        for i in np.flatnonzero(updated):
+            p, (a, b) = self._x[i, :2], self._span[i]
+            length, to_a, to_b = (float(np.linalg.norm(d)) for d in (b - a, p - a, p - b))
+            if max(to_a, to_b) > length:  # the longer of (a, p) and (p, b) replaces (a, b)
+                self._span[i, 1 if to_a >= to_b else 0] = p
+            v = self._x[i, 2:]
+            self._speed[i] += c.speed_smoothing * (float(np.linalg.norm(v)) - self._speed[i])
+            axis = self._span[i, 1] - self._span[i, 0]
+            length = float(np.linalg.norm(axis))
+            if length < c.reverse_span_m:
+                continue
+            along = float(v @ axis) / length
+            if abs(along) > c.reverse_speed_mps:
+                sign = float(np.sign(along))
+                if self._sign[i] != 0 and sign != self._sign[i]:
+                    self._reversals[i] += 1
+                self._sign[i] = sign
 
     def tracks(self) -> Tracks:
         ok = self._hits >= self.config.confirm_hits
         return Tracks(self._ids[ok].copy(), self._x[ok, :2].copy(), self._x[ok, 2:].copy(),
-                      self._r[ok].copy(), self._P[ok].copy())
+                      self._r[ok].copy(), self._P[ok].copy(), self._reversals[ok].copy(),
+                      self._speed[ok].copy(), self._span[ok].copy())

@@ -8,6 +8,7 @@ import pytest
 
 from slamkit.control.dwa import DWAController
 from slamkit.control.protocols import ControlStatus, LocalWorld, Reference, RobotState
+from slamkit.errors import ControlError
 from slamkit.control.trajectory_rollout import RolloutConfig, RolloutController, ramped_commands
 
 
@@ -47,3 +48,30 @@ def test_sends_the_first_step_of_the_chosen_ramp():
     # on an open straight path the fastest straight arc wins; the command is its first step
     assert out.info["target_command"] == pytest.approx((0.8, 0.0))
     np.testing.assert_allclose(out.command, [0.1, 0.0], atol=1e-12)
+
+
+def test_a_hedged_prediction_grows_the_disc_with_the_look_ahead_time():
+    from slamkit.control.protocols import LocalWorld
+
+    # a 0.3 m disc at (2, 0) coming at 0.5 m/s, predicted with lam = 0.5 (centre at half its
+    # speed, radius growing at 0.25 m/s): at t = 2 s the centre is at (1.5, 0), radius 0.8 m, so the
+    # origin is 0.7 m clear; the plain constant-velocity prediction puts it at (1, 0) with 0.3 m
+    # (0.7 m clear as well: the front edge is the same), and a point behind it, (2.5, 0), is 0.2 m
+    # clear of the hedged disc against 1.2 m of the plain one
+    hedged = LocalWorld([[2.0, 0.0]], [0.3], [[-0.25, 0.0]], circle_growth_mps=[0.25])
+    plain = LocalWorld([[2.0, 0.0]], [0.3], [[-0.5, 0.0]])
+    np.testing.assert_allclose(hedged.radii_at([0.0, 2.0]), [[0.3], [0.8]])
+    pts = np.array([[[0.0, 0.0]], [[2.5, 0.0]]])  # (2 points, T = 1, 2)
+    np.testing.assert_allclose(hedged.clearance_m(pts, [2.0]).ravel(), [0.7, 0.2], atol=1e-12)
+    np.testing.assert_allclose(plain.clearance_m(pts, [2.0]).ravel(), [0.7, 1.2], atol=1e-12)
+    with pytest.raises(ControlError, match="growth"):
+        LocalWorld([[2.0, 0.0]], [0.3], circle_growth_mps=[-0.1])
+
+
+def test_rollout_profiles_of_held_commands_are_the_exact_arcs():
+    from slamkit.control.rollout import rollout_arcs, rollout_profiles
+
+    cmds = np.array([[0.5, 0.3], [-0.2, 0.0], [0.4, -1.0]])
+    held = np.repeat(cmds[:, None, :], 20, axis=1)
+    np.testing.assert_allclose(rollout_profiles([1.0, 2.0, 0.3], held, 0.1), rollout_arcs([1.0, 2.0, 0.3], cmds, 0.1, 20),
+                               atol=1e-12)

@@ -99,3 +99,41 @@ def test_two_crossing_tracks_keep_their_identities_and_a_lost_one_is_deleted():
         t = 0.1 * k
         tr.update(t, Detection(np.array([[0.0, 0.3 * t]]), np.array([0.2]), np.array([5])))
     assert tr.tracks().ids.tolist() == [0]
+
+
+def test_a_shuttling_track_keeps_its_seen_span_typical_speed_and_counts_its_reversals():
+    # a disc shuttling along y = 2 between x = 1 and x = 3 at 0.4 m/s (5 s per leg), seen at 10 Hz
+    # for 12 s: out to x = 3 (t = 5), back to x = 1 (t = 10), out again to x = 1.8 (t = 12)
+    tr = ConstantVelocityTracker()
+    for k in range(121):
+        t = 0.1 * k
+        s = 0.4 * t % 4.0
+        x = 1.0 + (s if s <= 2.0 else 4.0 - s)
+        tr.update(t, Detection(np.array([[x, 2.0]]), np.array([0.3]), np.array([10])))
+    out = tr.tracks()
+    assert out.ids.tolist() == [0]
+    # two turns, each counted once although the filtered speed passes through 0 in between
+    assert out.reversals.tolist() == [2]
+    # the seen span: the filter's estimates reach (almost: it lags a turn by a few cm) both ends
+    span_x = np.sort(out.span_xy_m[0, :, 0])
+    np.testing.assert_allclose(span_x, [1.0, 3.0], atol=0.1)
+    np.testing.assert_allclose(out.span_xy_m[0, :, 1], [2.0, 2.0], atol=0.02)
+    # the typical speed stays near 0.4 m/s (an exponential average, 0.1 per scan)
+    assert 0.3 < out.speed_typical_mps[0] < 0.45
+    # a track made from positions alone (no history) has none: its speed is its typical speed
+    from slamkit.estimation.obstacle_tracker import Tracks
+    bare = Tracks(np.arange(1), np.array([[1.0, 2.0]]), np.array([[0.3, 0.4]]), np.array([0.2]), np.eye(4)[None])
+    assert bare.reversals.tolist() == [0] and bare.speed_typical_mps.tolist() == [0.5]
+    np.testing.assert_allclose(bare.span_xy_m, [[[1.0, 2.0], [1.0, 2.0]]])
+
+
+def test_a_standing_track_has_no_reversals():
+    # detection noise of 3 cm around a fixed point: the span stays below reverse_span_m (0.3 m)
+    rng = np.random.default_rng(0)
+    tr = ConstantVelocityTracker()
+    for k in range(100):
+        tr.update(0.1 * k, Detection(np.array([[1.0, 2.0]]) + 0.03 * rng.standard_normal((1, 2)),
+                                     np.array([0.3]), np.array([10])))
+    out = tr.tracks()
+    assert out.reversals.tolist() == [0]
+    assert np.linalg.norm(out.span_xy_m[0, 1] - out.span_xy_m[0, 0]) < 0.3

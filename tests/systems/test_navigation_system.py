@@ -3,6 +3,8 @@ and a short closed-loop run through the simulator in the default suite."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -46,7 +48,8 @@ def test_config_is_checked():
 
 
 def test_short_closed_loop_run_reaches_the_goal_within_3_cm():
-    # office seed 1 with its two crossing obstacles: measured 42.9 s (it waits for both), final error 0.96 cm
+    # office seed 1 with its two crossing obstacles: measured 43.3 s (it waits for both; 27.9 s without
+    # yielding's hedge for shuttlers, yield_reversed_hedge 0), final error 1.2 cm
     sc = make_navigation_scenario(1, "office")
     ep = run_episode(sc, NavigationConfig(), EpisodeConfig(max_time_s=60.0))
     m = ep.metrics
@@ -184,6 +187,52 @@ def test_yielding_stops_short_of_a_crossing_track():
     assert stack._yield_speed_mps(pose, _tracks([[3.0, 2.5]], [[0.0, -0.1]], [0.3])) == np.inf
 
 
+
+def test_local_world_hedges_the_prediction_of_tracks_seen_reversing():
+    from slamkit.estimation.obstacle_tracker import Tracks
+
+    # two 0.3 m tracks moving +x at 0.4 m/s, typical speed 0.5 m/s (they were faster a moment
+    # ago); the second has reversed once. Hedges 0.5 / 1.0: the first is predicted at half its
+    # velocity with its disc growing at 0.5 * 0.5 = 0.25 m/s, the second stays where it is and
+    # grows at 0.5 m/s (anywhere it can reach); both get the 0.25 m moving margin
+    stack = _straight_stack(1.0)
+    stack.config = dataclasses.replace(stack.config, prediction_hedge=0.5, reversed_prediction_hedge=1.0)
+    tracks = Tracks(np.arange(2), np.array([[3.0, 2.0], [3.0, 3.0]]), np.array([[0.4, 0.0], [0.4, 0.0]]),
+                    np.array([0.3, 0.3]), np.tile(np.eye(4), (2, 1, 1)), reversals=np.array([0, 1]),
+                    speed_typical_mps=np.array([0.5, 0.5]))
+    world = stack.local_world(tracks)
+    np.testing.assert_allclose(world.circle_velocity_mps, [[0.2, 0.0], [0.0, 0.0]])
+    np.testing.assert_allclose(world.circle_growth_mps, [0.25, 0.5])
+    np.testing.assert_allclose(world.radii_at([2.0]), [[1.05, 1.55]])
+    # the defaults (no hedge) are the constant-velocity prediction
+    plain = _straight_stack(1.0).local_world(tracks)
+    np.testing.assert_allclose(plain.circle_velocity_mps, tracks.velocity_mps)
+    np.testing.assert_allclose(plain.circle_growth_mps, [0.0, 0.0])
+
+
+def test_yielding_to_a_shuttler_that_may_turn_back():
+    from slamkit.estimation.obstacle_tracker import Tracks
+
+    # the person of the yielding example 1 m past the path, walking away at 0.5 m/s: constant
+    # velocity says no yield. Seen reversing before and with yield_reversed_hedge 1, it may be
+    # anywhere within 0.5 t: grown by the margin and the robot its disc reaches the path (1 m off)
+    # at t = 0.5 s, before the robot (there at 0.95 / 0.65 = 1.46 s), and within the 6 s horizon
+    # it covers the robot's own place (1.38 m off, reach 3.75 m): the robot stops where it is
+    stack = _straight_stack(2.05)
+    pose = np.array([2.05, 2.0, 0.0])
+    away = dict(ids=np.arange(1), xy_m=np.array([[3.0, 1.0]]), velocity_mps=np.array([[0.0, -0.5]]),
+                radius_m=np.array([0.3]), covariance=np.eye(4)[None])
+    stack.config = dataclasses.replace(stack.config, yield_reversed_hedge=0.0)
+    assert stack._yield_speed_mps(pose, Tracks(**away, reversals=np.array([1]))) == np.inf
+    # the default hedge 0.3: centre receding at 0.35 m/s, disc growing at 0.15 m/s -- the trailing
+    # edge still recedes (at 0.2 m/s) from 1 m off: it never comes back over the path, no yield
+    stack.config = dataclasses.replace(stack.config, yield_reversed_hedge=0.3)
+    assert stack._yield_speed_mps(pose, Tracks(**away, reversals=np.array([1]))) == np.inf
+    stack.config = dataclasses.replace(stack.config, yield_reversed_hedge=1.0)
+    assert stack._yield_speed_mps(pose, Tracks(**away, reversals=np.array([1]))) == 0.0
+    # one never seen reversing is still predicted with its constant velocity
+    assert stack._yield_speed_mps(pose, Tracks(**away)) == np.inf
+
 def test_speed_cap_keeps_the_arc():
     from slamkit.systems.navigation import _speed_capped
 
@@ -245,9 +294,13 @@ def test_evasion_never_runs_into_a_wall_while_an_arc_stays_clear():
 
     # 0.03 m off the bottom wall (its surface at y = 0.1), driving +x at 0.3 m/s; a forklift (0.4 m
     # + 0.25 m margin) 0.8 m ahead, 0.42 m to the left, coming at (-0.6, -0.3) m/s: no arc is
-    # admissible. The arc whose predicted contact comes latest is (0.4, -0.3) (contact at step 1,
-    # but it turns 0.19 m into the wall within 2 s); the evasion takes the latest-contact arc
-    # among those that stay clear of the wall instead: (0.4, -0.03)
+    # admissible, and every candidate is predicted to touch it at the first step. Among the
+    # window's held arcs the best (the larger smallest clearance) is (0.4, -0.03), -0.666 m; the
+    # arc that would score better, (0.4, -0.3), turns 0.19 m into the wall within 2 s and is
+    # never taken. With the braking profiles the evasion also sees braking on to back off at
+    # -0.3 m/s while turning to -0.75 rad/s: smallest clearance -0.612 m, ending at (2.73, 0.665)
+    # away from both, its first command (0.2, -0.3) (one 0.1 s step of the 1 m/s^2, 3 rad/s^2
+    # limits; ``evade_brake_profiles``); it never comes nearer the wall than the 0.229 m where it starts
     stack = _straight_stack(3.0)
     pose = np.array([3.0, 0.33, 0.0])
     stack.path = np.array([[3.0, 0.33], [5.5, 0.33]])
@@ -255,7 +308,33 @@ def test_evasion_never_runs_into_a_wall_while_an_arc_stays_clear():
     state = RobotState(pose, np.array([0.3, 0.0]), 0.0)
     out = stack.controller.compute(state, Reference(stack.path, speed_mps=0.5), world)
     assert out.status.value == "fallback_brake"
+    # the default evasion (held arcs only) takes (0.4, -0.03)
     cmd = stack._evade(state, world, out)
     assert cmd == pytest.approx([0.4, -0.03], abs=1e-9)
-    arc = rollout_arcs(pose, cmd[None], 0.1, 20)[0]
-    assert stack.distance.query(arc[:, :2])[0].min() > stack.config.robot_radius_m
+    held = rollout_arcs(pose, cmd[None], 0.1, 20)[0]
+    assert stack.distance.query(held[:, :2])[0].min() > stack.config.robot_radius_m
+    stack.config = dataclasses.replace(stack.config, evade_brake_profiles=True)
+    cmd = stack._evade(state, world, out)
+    assert cmd == pytest.approx([0.2, -0.3], abs=1e-9)
+    first, profiles = stack._brake_profiles(state, 20, 0.1)
+    chosen = profiles[1]  # v -> -0.3 m/s, omega -> -0.75 rad/s (order: v_end major, omega_end minor)
+    assert first[1] == pytest.approx(cmd)
+    np.testing.assert_allclose(chosen[-1, :2], [2.728, 0.665], atol=2e-3)
+    assert stack.distance.query(chosen[:, :2])[0].min() > stack.config.robot_radius_m
+
+
+def test_brake_profiles_stop_or_back_off_within_the_acceleration_limits():
+    from slamkit.control.protocols import RobotState
+
+    # from (0.3, 0.0): v falls by 0.1 m/s per 0.1 s step to 0 (stop) or to -0.3 (back off), omega
+    # rises by 0.3 rad/s per step towards one of -1.5 .. 1.5 rad/s
+    stack = _straight_stack(1.0)
+    state = RobotState(np.array([1.0, 2.0, 0.0]), np.array([0.3, 0.0]), 0.0)
+    first, traj = stack._brake_profiles(state, 20, 0.1)
+    assert first.shape == (10, 2) and traj.shape == (10, 21, 3)
+    np.testing.assert_allclose(first[:, 0], 0.2)
+    np.testing.assert_allclose(np.sort(np.unique(first[:, 1].round(9))), [-0.3, 0.0, 0.3])
+    straight = traj[np.flatnonzero((first[:, 1] == 0.0))]
+    # straight stop: 0.2 and 0.1 m/s for a step each: 0.03 m on; straight back-off: 0.2, 0.1, 0,
+    # -0.1, -0.2, then -0.3 m/s for the remaining 15 steps: 0.1 * (0.3 - 0.3 - 4.5) = -0.45 m net
+    np.testing.assert_allclose(sorted(straight[:, -1, 0] - 1.0), [-0.45, 0.03], atol=1e-9)
