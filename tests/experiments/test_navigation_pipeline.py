@@ -53,6 +53,9 @@ def test_a_short_run_writes_the_results_folder(tmp_path):
 #: moving collision): its bounds are this version's, the others' the stricter of both; the
 #: issue's goals are the xfail below.
 MEASURED = (("office", 0.96, 0, 0), ("warehouse", 0.90, 0, 2), ("willow", 0.89, 0, 1))
+#: over the 90 runs: at least 83 successes and at most 3 moving collisions (main before the hedge:
+#: 81 and 6), so the warehouse bound's slack cannot hide a loss elsewhere
+MEASURED_ALL_WORLDS = (83, 3)
 #: the issue's goals: success >= 95 %, no static collision, moving collisions < 2 % of the runs
 GOALS = (0.95, 0, 0.02)
 
@@ -82,6 +85,10 @@ def test_shipped_navigation_pipeline_30_seeds_per_world(navigation_30_seeds):
         assert sum(m["collision_moving"] for m in runs) <= max_moving
         reached = [m["final_position_error_m"] for m in runs if m["reached_by_belief"]]
         assert np.mean(reached) < 0.03
+    every = [m for runs in navigation_30_seeds.values() for m in runs]
+    min_successes, max_moving_all = MEASURED_ALL_WORLDS
+    assert sum(m["success"] for m in every) >= min_successes
+    assert sum(m["collision_moving"] for m in every) <= max_moving_all
 
 
 @pytest.mark.slow
