@@ -147,3 +147,29 @@ def test_cycle_covariance_matches_monte_carlo_composition(dim, closures, err2, e
     stats = np.array(stats)
     assert abs(stats.mean() - d) < 0.25 * d
     assert np.mean(stats <= chi2_dist.ppf(0.99, d)) >= 0.97
+
+
+def test_pcm_in_space_keeps_true_closures_and_drops_gross_outliers():
+    # a noise-free climbing helix: 6 true closures agree with the odometry exactly, 4 false ones
+    # (metres off, tilted) do not; dead reckoning reproduces the poses in the (x, y, z, quat) layout
+    n = 120
+    xi = np.tile([1.0, 0.0, 0.05, 0.0, 0.02, 2 * np.pi / 40], (n - 1, 1))
+    steps = se3.exp(xi)
+    X = [se3.identity()]
+    for s in steps:
+        X.append(se3.compose(X[-1], s))
+    X = np.array(X)
+    true_pairs = [(0, 40), (5, 45), (10, 90), (20, 100), (40, 80), (60, 100)]
+    false = [(3, 70, [4.0, -2.0, 1.0, 0.3, 1.0, -0.5]), (15, 33, [-6.0, 1.0, 2.0, -1.0, 0.2, 2.0]),
+             (50, 110, [2.0, 7.0, -3.0, 0.5, 0.5, 0.5]), (8, 99, [0.0, 5.0, 1.0, 2.5, 0.0, 1.0])]
+    ef = list(range(n - 1)) + [a for a, _ in true_pairs] + [a for a, _, _ in false]
+    et = list(range(1, n)) + [b for _, b in true_pairs] + [b for _, b, _ in false]
+    z = np.concatenate([steps, se3.between(X[[a for a, _ in true_pairs]], X[[b for _, b in true_pairs]]),
+                        se3.exp(np.array([m for _, _, m in false]))])
+    info = np.broadcast_to(np.diag([100.0, 100.0, 100.0, 1000.0, 1000.0, 1000.0]), (len(ef), 6, 6)).copy()
+    g = PoseGraph(3, np.arange(n), _rows(3, X), np.array(ef), np.array(et), _rows(3, z), info)
+    assert np.allclose(dead_reckoning(g), _rows(3, X), atol=1e-9)
+    result = pcm(g)
+    assert result.accepted[: n - 1 + len(true_pairs)].all()
+    assert not result.accepted[n - 1 + len(true_pairs):].any()
+    assert result.clique_size == 6
