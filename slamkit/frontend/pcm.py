@@ -48,6 +48,7 @@ Measured (1000 random outliers, seed 0, probability 0.99; ``pcm`` alone):
 | ring (26 true) | scalar (before) | greedy | 0 | 67 | 0.2 s |
 | ring | first-order | greedy | 0 | 11 | 0.5 s |
 | ring | first-order | exact (falls back to greedy) | 0 | 11 | 1.2 s |
+| sphere2500 (2450 true, SE(3)) | first-order | exact | 0 | 250 | 24.6 s |
 
 No pair of true closures of manhattan-olson fails the test; a random outlier passes it with 2092 of
 the 2099 true ones on average, because a stretch of thousands of odometry steps leaves the
@@ -56,6 +57,11 @@ outliers, it cannot remove them, and a robust back-end must do the rest. The two
 exact clique drops (846 -> 1471, 414 -> 1911) are each inconsistent with several outliers that
 are consistent with everything else; the outlier-free optimum without them has ATE 0.792 m
 (0.794 m with them).
+
+End to end (``pcm_gnc`` of the ``pose_graph_outliers`` pipeline: PCM, then GNC-TLS with global
+restarts and the re-admission gate of ``slamkit.backend.robust``), 1000 random outliers, seed 0:
+manhattan-olson ATE 0.7942 m (outlier-free 0.7942 m, 154 s), ring 1.4315 m (1.4316 m, 19 s),
+sphere2500 0.1801 m (0.1801 m, 225 s + PCM), every outlier rejected, every true closure kept.
 """
 
 from __future__ import annotations
