@@ -8,8 +8,10 @@ solution's ATE (``ate_ratio``), ATE against that optimum (``ate_to_clean_rmse_m`
 recall (rejected false loop closures / all false ones), outlier precision (false among rejected),
 inlier recall (true edges kept), iterations and solve time. Count 0 runs once per dataset.
 
-Back-end ``pcm`` composes the front-end check ``slamkit.frontend.pcm`` (pairwise consistency,
-greedy maximum clique) with least squares on the accepted edges; ``pcm_gnc`` with GNC.
+Back-end ``pcm`` composes the front-end check ``slamkit.frontend.pcm`` (pairwise consistency
+with the first-order cycle covariance, exact maximum clique) with least squares on the accepted
+edges; ``pcm_gnc`` with GNC. Every back-end re-admits the rejected loop closures inside the chi2 gate at its solution (the
+``readmit`` option of ``RobustSolveConfig``), PCM's rejections included.
 """
 
 from __future__ import annotations
@@ -104,17 +106,9 @@ def _solve(graph: PoseGraph, backend: str, solve_options: Mapping[str, Any]) -> 
         return solve_robust(graph, RobustSolveConfig(backend=backend, **solve_options))
     with Stopwatch() as sw:
         accepted = pcm(graph).accepted
-        kept = replace(graph, edge_from=graph.edge_from[accepted], edge_to=graph.edge_to[accepted],
-                       measurements=graph.measurements[accepted], information=graph.information[accepted])
-        inner = solve_robust(kept, RobustSolveConfig(backend="gnc" if backend == "pcm_gnc" else "none",
-                                                     **solve_options))
-    inlier = accepted.copy()
-    inlier[accepted] = inner.inlier
-    weights = np.zeros(graph.num_edges)
-    weights[accepted] = inner.weights
-    chi2 = np.full(graph.num_edges, np.nan)
-    chi2[accepted] = inner.chi2
-    return RobustResult(backend, inner.poses, inlier, weights, chi2, inner.iterations, sw.elapsed_s)
+        result = solve_robust(graph, RobustSolveConfig(backend="gnc" if backend == "pcm_gnc" else "none",
+                                                       **solve_options), accepted=accepted)
+    return replace(result, backend=backend, time_solve_s=sw.elapsed_s)
 
 
 def _report(config: Mapping[str, Any], runs: list[RunRecord], clean, failures: list[str]) -> str:
