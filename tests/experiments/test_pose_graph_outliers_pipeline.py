@@ -37,6 +37,14 @@ def test_small_sweep_writes_runs_report_plot_and_recording(shared_datasets, tmp_
     assert {"/plots/ate_rmse_m/ring/random/dcs", "/plots/outlier_recall/ring/grouped/dcs"} <= entities
 
 
+def test_a_graph_without_ground_truth_is_scored_against_its_outlier_free_optimum(shared_datasets, tmp_path):
+    config = {"pipeline": "pose_graph_outliers", "name": "t", "datasets": ["intel"], "counts": [0],
+              "backends": ["none"], "record": False}
+    (run,) = run_pipeline(config, tmp_path / "out", progress=False).results["runs"]
+    assert run["metrics"]["ate_rmse_m"] < 1e-9      # the reference is this very solution
+    assert run["metrics"]["ate_ratio"] is None      # NaN (written as null): no ratio to a zero ATE
+
+
 def test_config_errors_name_the_field(tmp_path) -> None:
     with pytest.raises(ConfigError, match="kinds"):
         run_pipeline({"pipeline": "pose_graph_outliers", "datasets": ["ring"], "kinds": ["everywhere"]},
