@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from slamkit.errors import DataError
+from slamkit.geometry import se3
 
 
 @dataclass(frozen=True)
@@ -72,3 +73,18 @@ class PoseGraph:
     def is_odometry(self) -> np.ndarray:
         """Boolean mask (M,) of edges between consecutive vertex ids (the rest are loop closures)."""
         return np.abs(self.edge_to - self.edge_from) == 1
+
+
+def rows_to_transforms(dim: int, rows: np.ndarray) -> np.ndarray:
+    """Poses or measurements in the PoseGraph layout -> the group's array form: planar (..., 3)
+    (x, y, theta) unchanged, spatial (..., 7) (x, y, z, qw, qx, qy, qz) -> (..., 4, 4)."""
+    rows = np.asarray(rows, dtype=float)
+    return rows if dim == 2 else se3.from_quat_wxyz_t(rows[..., 3:7], rows[..., :3])
+
+
+def transforms_to_rows(dim: int, transforms: np.ndarray) -> np.ndarray:
+    """The inverse of :func:`rows_to_transforms` (spatial quaternions with qw >= 0)."""
+    if dim == 2:
+        return np.asarray(transforms, dtype=float)
+    quat_wxyz, t = se3.to_quat_wxyz_t(transforms)
+    return np.concatenate([t, quat_wxyz], axis=-1)

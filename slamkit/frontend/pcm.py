@@ -74,7 +74,7 @@ from scipy import sparse
 from scipy.optimize import Bounds, LinearConstraint, milp
 from scipy.stats import chi2 as chi2_dist
 
-from slamkit.data.pose_graph import PoseGraph
+from slamkit.data.pose_graph import PoseGraph, rows_to_transforms, transforms_to_rows
 from slamkit.errors import ConfigError, DataError
 from slamkit.geometry import se2, se3
 
@@ -112,11 +112,6 @@ def _group(dim: int) -> ModuleType:
     return se2 if dim == 2 else se3
 
 
-def _as_group(dim: int, rows: np.ndarray) -> np.ndarray:
-    """PoseGraph layout (..., 3) / (..., 7) -> the group's array form ((..., 3) / (..., 4, 4))."""
-    return rows if dim == 2 else se3.from_quat_wxyz_t(rows[..., 3:7], rows[..., :3])
-
-
 def _congruence(A: np.ndarray, S: np.ndarray) -> np.ndarray:
     """A S A^T over leading dimensions."""
     return A @ S @ np.swapaxes(A, -1, -2)
@@ -141,13 +136,13 @@ def odometry_chain(graph: PoseGraph) -> OdometryChain:
                         "PCM needs the whole odometry chain", graph.source)
     edges = np.array([step[a] for a in range(graph.num_poses - 1)], dtype=np.int64)
     fwd = np.array([forward[a] for a in range(graph.num_poses - 1)], dtype=bool)
-    z = _as_group(graph.dim, graph.measurements[edges])
+    z = rows_to_transforms(graph.dim, graph.measurements[edges])
     cov = np.linalg.inv(graph.information[edges])
     if (~fwd).any():
         cov[~fwd] = _congruence(G.adjoint(z[~fwd]), cov[~fwd])
         z[~fwd] = G.inverse(z[~fwd])
     poses = np.empty((graph.num_poses,) + z.shape[1:])
-    poses[0] = _as_group(graph.dim, graph.poses[0])
+    poses[0] = rows_to_transforms(graph.dim, graph.poses[0])
     for a in range(graph.num_poses - 1):
         poses[a + 1] = G.compose(poses[a], z[a])
     d = cov.shape[-1]
@@ -159,11 +154,7 @@ def odometry_chain(graph: PoseGraph) -> OdometryChain:
 def dead_reckoning(graph: PoseGraph) -> np.ndarray:
     """Poses in the PoseGraph layout ((N, 3) or (N, 7)) composed along the consecutive-id odometry
     edges from the first vertex's pose."""
-    poses = odometry_chain(graph).world_T_body
-    if graph.dim == 2:
-        return poses
-    quat_wxyz, t = se3.to_quat_wxyz_t(poses)
-    return np.concatenate([t, quat_wxyz], axis=-1)
+    return transforms_to_rows(graph.dim, odometry_chain(graph).world_T_body)
 
 
 @dataclass(frozen=True)
@@ -185,7 +176,7 @@ def loop_closures(graph: PoseGraph, chain: OdometryChain, edges: np.ndarray) -> 
     row = graph.index_of()
     frm = np.array([row[int(v)] for v in graph.edge_from[edges]], dtype=np.int64)
     to = np.array([row[int(v)] for v in graph.edge_to[edges]], dtype=np.int64)
-    z = _as_group(graph.dim, graph.measurements[edges])
+    z = rows_to_transforms(graph.dim, graph.measurements[edges])
     cov = np.linalg.inv(graph.information[edges])
     X = chain.world_T_body
     predicted_to = G.compose(X[frm], z)  # X_frm z_c, where the closure puts its "to" pose

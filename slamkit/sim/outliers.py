@@ -23,7 +23,7 @@ from typing import Literal
 
 import numpy as np
 
-from slamkit.data.pose_graph import PoseGraph
+from slamkit.data.pose_graph import PoseGraph, rows_to_transforms, transforms_to_rows
 from slamkit.errors import ConfigError
 from slamkit.geometry import se2, se3
 
@@ -132,9 +132,6 @@ def _measurements(graph: PoseGraph, config: OutlierConfig, pairs: np.ndarray,
     if graph.dim == 2:
         X = graph.poses
         return se2.compose(se2.compose(se2.between(X[a], X[a0]), z[first]), se2.between(X[b0], X[b]))
-    X = se3.from_quat_wxyz_t(graph.poses[:, 3:], graph.poses[:, :3])
-    Z = se3.from_quat_wxyz_t(z[:, 3:], z[:, :3])
-    T = se3.compose(se3.compose(se3.between(X[a], X[a0]), Z[first]), se3.between(X[b0], X[b]))
-    q, t = se3.to_quat_wxyz_t(T)
-    q = np.where(q[:, :1] < 0, -q, q)
-    return np.column_stack([t, q])
+    X, Z = rows_to_transforms(3, graph.poses), rows_to_transforms(3, z)
+    return transforms_to_rows(3, se3.compose(se3.compose(se3.between(X[a], X[a0]), Z[first]),
+                                             se3.between(X[b0], X[b])))

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.stats import chi2 as chi2_dist
 
-from slamkit.data.pose_graph import PoseGraph
+from slamkit.data.pose_graph import PoseGraph, transforms_to_rows
 from slamkit.errors import ConfigError
 from slamkit.frontend.pcm import (cycle_errors, dead_reckoning, exact_max_clique, greedy_max_clique, loop_closures,
                                   odometry_chain, pcm)
@@ -64,12 +64,6 @@ def test_true_loop_closures_are_kept_and_gross_outliers_dropped():
     assert result.clique_size == 6
 
 
-def _rows(dim: int, T: np.ndarray) -> np.ndarray:
-    """Group elements -> the PoseGraph layout."""
-    if dim == 2:
-        return T
-    quat_wxyz, t = se3.to_quat_wxyz_t(T)
-    return np.concatenate([t, quat_wxyz], axis=-1)
 
 
 def _chain_with_two_closures(dim: int, closures, rng: np.random.Generator, n: int = 12):
@@ -94,8 +88,8 @@ def _chain_with_two_closures(dim: int, closures, rng: np.random.Generator, n: in
     z = np.concatenate([steps, np.stack([group.between(X[i], X[j]), group.between(X[k], X[l])])])
     cov = np.concatenate([np.broadcast_to(cov_odo, (n - 1, d, d)), np.broadcast_to(2 * cov_odo, (2, d, d))])
 
-    graph = PoseGraph(dim, np.arange(n), _rows(dim, X), np.r_[np.arange(n - 1), i, k],
-                      np.r_[np.arange(1, n), j, l], _rows(dim, z), np.linalg.inv(cov))
+    graph = PoseGraph(dim, np.arange(n), transforms_to_rows(dim, X), np.r_[np.arange(n - 1), i, k],
+                      np.r_[np.arange(1, n), j, l], transforms_to_rows(dim, z), np.linalg.inv(cov))
     return group, graph, X, steps, z[n - 1:], cov_odo
 
 
@@ -140,7 +134,7 @@ def test_cycle_covariance_matches_monte_carlo_composition(dim, closures, err2, e
     stats = []
     for s in range(400):
         zs = np.concatenate([u[s], np.stack([za[s], zb[s]])])
-        noisy = replace(graph, measurements=_rows(dim, zs))
+        noisy = replace(graph, measurements=transforms_to_rows(dim, zs))
         ch = odometry_chain(noisy)
         e, c = cycle_errors(ch, loop_closures(noisy, ch, np.array([n - 1, n])), np.array(0), np.array(1))
         stats.append(float(e @ np.linalg.solve(c, e)))
@@ -167,8 +161,8 @@ def test_pcm_in_space_keeps_true_closures_and_drops_gross_outliers():
     z = np.concatenate([steps, se3.between(X[[a for a, _ in true_pairs]], X[[b for _, b in true_pairs]]),
                         se3.exp(np.array([m for _, _, m in false]))])
     info = np.broadcast_to(np.diag([100.0, 100.0, 100.0, 1000.0, 1000.0, 1000.0]), (len(ef), 6, 6)).copy()
-    g = PoseGraph(3, np.arange(n), _rows(3, X), np.array(ef), np.array(et), _rows(3, z), info)
-    assert np.allclose(dead_reckoning(g), _rows(3, X), atol=1e-9)
+    g = PoseGraph(3, np.arange(n), transforms_to_rows(3, X), np.array(ef), np.array(et), transforms_to_rows(3, z), info)
+    assert np.allclose(dead_reckoning(g), transforms_to_rows(3, X), atol=1e-9)
     result = pcm(g)
     assert result.accepted[: n - 1 + len(true_pairs)].all()
     assert not result.accepted[n - 1 + len(true_pairs):].any()
