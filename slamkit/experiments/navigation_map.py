@@ -45,6 +45,7 @@ from slamkit.experiments.lidar_slam import ate_keyframes_m, run_slam, slam_confi
 from slamkit.geometry import se2
 from slamkit.maps.log_odds import map_quality, resample_to
 from slamkit.maps.occupancy_grid import OccupancyGrid
+from slamkit.paths import atomic_file
 from slamkit.sim.grid_world import GridScenario, simulate_grid_sequence
 from slamkit.sim.navigation_world import NavigationScenario
 from slamkit.systems.lidar_slam import occupancy_map
@@ -154,10 +155,12 @@ def robot_map(scenario: NavigationScenario, config: MapSourceConfig, cache_dir: 
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
         g = robot.grid
-        np.savez_compressed(path, occupied=g.occupied, resolution_m=g.resolution_m,
-                            origin_xy_m=g.origin_xy_m, metrics=json.dumps(robot.metrics),
-                            anchors_world_xytheta=robot.anchors_world_xytheta,
-                            anchors_map_xytheta=robot.anchors_map_xytheta)
+        # whole or absent: an interrupted write must not leave a map the next run would load
+        with atomic_file(path) as tmp, open(tmp, "wb") as f:
+            np.savez_compressed(f, occupied=g.occupied, resolution_m=g.resolution_m,
+                                origin_xy_m=g.origin_xy_m, metrics=json.dumps(robot.metrics),
+                                anchors_world_xytheta=robot.anchors_world_xytheta,
+                                anchors_map_xytheta=robot.anchors_map_xytheta)
     return robot
 
 

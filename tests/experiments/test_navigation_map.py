@@ -62,6 +62,7 @@ def test_slam_tour_map_matches_the_world_and_is_cached(tmp_path):
     # unobserved cells are occupied: the robot's map holds every true wall it saw and no more free space
     assert np.mean(g.occupied[sc.grid.occupied]) > 0.99
     (cached,) = (tmp_path / "maps").glob("office_*.npz")
+    assert [p.name for p in (tmp_path / "maps").iterdir()] == [cached.name]  # no partial file beside it
     again = robot_map(sc, cfg, tmp_path / "maps")
     np.testing.assert_array_equal(again.grid.occupied, g.occupied)
     assert again.metrics == pytest.approx(m)
