@@ -272,9 +272,7 @@ def _gnc_run(graph, plain, initial, cand, config, barc2, starts, mu_at):
     for step in range(1, GNC_MAX_STEPS + 1):
         weights[cand_idx] = tls_weights(chi2[cand_idx], barc2, mu)
         live = weights > 0
-        scaled = replace(graph, edge_from=graph.edge_from[live], edge_to=graph.edge_to[live],
-                         measurements=graph.measurements[live],
-                         information=graph.information[live] * weights[live, None, None])
+        scaled = replace(edge_subset(graph, live), information=graph.information[live] * weights[live, None, None])
         fg, _ = build_graph(scaled, "none", prior_sigma=config.prior_sigma)
         values = _least_squares_from(graph, fg, [_global_start(scaled, config)]
                                      + ([values] if starts == "warm_and_global" else []), config)
