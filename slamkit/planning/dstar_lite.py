@@ -189,19 +189,17 @@ class DStarLitePlanner:
         self._cost = setup.cell_cost.reshape(-1).tolist()
         self._hscale = setup.min_cost
         self._nmoves = 4 if self.config.connectivity == 4 else 8
-        n = self._w * self._hgt
-        self._g = [math.inf] * n
-        self._rhs = [math.inf] * n
         self._start = setup.start_ixy[1] * self._w + setup.start_ixy[0]
         self._goal = setup.goal_ixy[1] * self._w + setup.goal_ixy[0]
-        self._last = self._start
-        self._km = 0.0
-        self._heap: list = []
-        self._open: dict[int, tuple[float, float]] = {}
         self._ready = True
-        self._repair_budget = None
         if self.config.use_native and _native.gridsearch() is not None:
             return self._solve(t0, self._seed_from_backward_search(setup.cell_cost))
+        n = self._w * self._hgt
+        self._g, self._rhs = [math.inf] * n, [math.inf] * n
+        self._last, self._km = self._start, 0.0
+        self._heap: list = []
+        self._open: dict[int, tuple[float, float]] = {}
+        self._repair_budget = None
         self._rhs[self._goal] = 0.0
         self._open[self._goal] = self._key(self._goal)
         heapq.heappush(self._heap, (self._open[self._goal], self._goal))
