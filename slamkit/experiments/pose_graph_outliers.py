@@ -125,7 +125,7 @@ def _report(config: Mapping[str, Any], runs: list[RunRecord], clean, failures: l
     text += "Outlier-free least squares: " + ", ".join(
         f"{d} ATE {v[3]:.4g} m" for d, v in clean.items()) + "\n\n"
     header = ["dataset", "kind", "outliers", "back-end", "ATE (m)", "ATE ratio", "outlier recall",
-              "outlier precision", "inlier recall", "time (s)", "n"]
+              "outlier precision", "inlier recall", "iterations", "time (s)", "n"]
     groups: dict[tuple, list[RunRecord]] = {}
     for r in runs:
         groups.setdefault((r.dataset, r.params["kind"], r.params["outliers"], r.estimator), []).append(r)
@@ -135,7 +135,8 @@ def _report(config: Mapping[str, Any], runs: list[RunRecord], clean, failures: l
         return float(np.mean(v)) if v else None
 
     rows = [[*key, mean(rs, "ate_rmse_m"), mean(rs, "ate_ratio"), mean(rs, "outlier_recall"),
-             mean(rs, "outlier_precision"), mean(rs, "inlier_recall"), mean(rs, "time_solve_s"), len(rs)]
+             mean(rs, "outlier_precision"), mean(rs, "inlier_recall"), mean(rs, "iterations"),
+             mean(rs, "time_solve_s"), len(rs)]
             for key, rs in groups.items()]
     text += markdown_table(header, rows) + "\n"
     if failures:
@@ -149,11 +150,15 @@ def _plot(plots: Path, runs: list[RunRecord], backends: list[str]) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    panels = sorted({(r.dataset, r.params["kind"]) for r in runs if r.params["outliers"] > 0})
-    if not panels:
+    datasets = list(dict.fromkeys(r.dataset for r in runs if r.params["outliers"] > 0))
+    kinds = list(dict.fromkeys(r.params["kind"] for r in runs if r.params["outliers"] > 0))
+    if not datasets:
         return
-    fig, axes = plt.subplots(1, len(panels), figsize=(5 * len(panels), 4.2), squeeze=False)
-    for ax, (dataset, kind) in zip(axes[0], panels):
+    # one row per dataset, one column per outlier kind: a row compares the kinds on one graph
+    fig, axes = plt.subplots(len(datasets), len(kinds), figsize=(4.6 * len(kinds), 3.8 * len(datasets)),
+                             squeeze=False)
+    for (row, dataset), (col, kind) in itertools.product(enumerate(datasets), enumerate(kinds)):
+        ax = axes[row][col]
         for backend in backends:
             pts: dict[int, list[float]] = {}
             for r in runs:
@@ -167,7 +172,7 @@ def _plot(plots: Path, runs: list[RunRecord], backends: list[str]) -> None:
         ax.set_yscale("log")
         ax.set_xlabel(f"{kind} false loop closures")
         ax.set_ylabel("ATE RMSE (m)")
-        ax.set_title(dataset)
+        ax.set_title(f"{dataset}, {kind}")
         ax.grid(True, which="both", alpha=0.3)
     axes[0][0].legend(fontsize=8)
     fig.tight_layout()

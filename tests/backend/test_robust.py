@@ -117,3 +117,45 @@ def test_both_gnc_solvers_reject_20_random_outliers_on_ring(shared_datasets):
         r = solve_robust(bad.graph, RobustSolveConfig(backend="gnc", gnc_solver=solver, readmit=False))
         assert np.array_equal(r.inlier, ~bad.is_outlier), solver
         assert _ate(gt, bad.graph, r.poses) == pytest.approx(1.4316, abs=1e-3), solver
+
+
+def test_global_gnc_starts_one_run_from_dcs_which_alone_reaches_the_optimum_on_ring_plus_50(shared_datasets):
+    from slamkit.backend import robust
+
+    graph, gt = _ring(shared_datasets)
+    bad = add_outliers(graph, OutlierConfig(kind="random", count=50), np.random.default_rng(0), 0)
+    assert [s[0] for s in robust.GNC_STRATEGIES] == ["least_squares", "least_squares", "dcs"]
+    # measured: the least-squares-started runs keep 1 and 2 outliers (ATE 44.2 m, TLS cost 603.5;
+    # 48.3 m, 604.6); the DCS-started one rejects all 50 and keeps every true closure (1.43 m, 578.4)
+    r = solve_robust(bad.graph, RobustSolveConfig(backend="gnc", readmit=False))
+    assert np.array_equal(r.inlier, ~bad.is_outlier)
+    assert _ate(gt, bad.graph, r.poses) == pytest.approx(1.4316, abs=2e-3)
+
+
+def test_ten_grouped_outliers_on_ring_are_the_tls_optimum_so_gnc_keeps_them_and_dcs_does_not(shared_datasets):
+    """A group of mutually consistent false loop closures can be cheaper under the truncated
+    least-squares loss than the truth: the odometry absorbs them with every residual inside the
+    gate. GNC minimises that loss and keeps them; DCS's kernel (Phi = 1) rejects them."""
+    from slamkit.backend.graph import build_graph
+    from slamkit.backend.robust import _chi2
+
+    graph, gt = _ring(shared_datasets)
+    bad = add_outliers(graph, OutlierConfig(kind="grouped", count=10), np.random.default_rng(0), 0)
+    plain, _ = build_graph(bad.graph, "none", prior_sigma=1e-6)
+    cand = ~bad.graph.is_odometry()
+    barc2 = 11.345  # chi2 quantile 0.99, 3 dof
+
+    def tls_cost(poses) -> float:
+        from slamkit.backend._convert import values_from_poses
+
+        chi2 = _chi2(plain, values_from_poses(bad.graph.dim, bad.graph.vertex_ids, poses), bad.graph.num_edges)
+        return float(np.sum(chi2[~cand]) + np.sum(np.minimum(chi2[cand], barc2)))
+
+    gnc = solve_robust(bad.graph, RobustSolveConfig(backend="gnc", readmit=False))
+    dcs = solve_robust(bad.graph, RobustSolveConfig(backend="dcs", readmit=False))
+    # measured: GNC keeps all 10 (ATE 41.53 m, TLS cost 83.6); DCS rejects all 10 (1.431 m, 124.6)
+    assert gnc.inlier[bad.is_outlier].all() and not dcs.inlier[bad.is_outlier].any()
+    assert _ate(gt, bad.graph, gnc.poses) == pytest.approx(41.53, abs=0.05)
+    assert _ate(gt, bad.graph, dcs.poses) == pytest.approx(1.431, abs=2e-3)
+    assert tls_cost(gnc.poses) == pytest.approx(83.6, abs=0.1)
+    assert tls_cost(dcs.poses) == pytest.approx(124.6, abs=0.1)

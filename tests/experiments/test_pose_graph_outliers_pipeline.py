@@ -31,6 +31,7 @@ def test_small_sweep_writes_runs_report_plot_and_recording(shared_datasets, tmp_
     assert (out / "plots" / "ate_vs_outliers.png").stat().st_size > 10_000
     report = (out / "report.md").read_text()
     assert "| ring | random | 20 | dcs |" in report
+    assert "| inlier recall | iterations | time (s) |" in report
     summary = json.loads((out / "results.json").read_text())["summary"]
     assert {"dataset", "kind", "outliers", "estimator", "metric", "mean"} <= set(summary[0])
     entities = verify_rrd(out / "recording.rrd")
