@@ -602,14 +602,14 @@ class NavigationStack:
         from the walls -- straight forwards or backwards, whichever side the distance field
         says is freer, turning in place first when both are worse -- until the disc is
         ``path_margin_m`` clear (the margin the global path keeps); then turn towards the path
-        1 m ahead of the nearest point and creep along it while the robot's own disc stays
-        clear of the map and the tracks. The stack replans when the recovery ends."""
+        (:meth:`_recovery_target`) and creep along it while the robot's own disc stays clear of
+        the map and the tracks. The stack replans when the recovery ends."""
         t0 = time.perf_counter()
         c = self.config
         world = LocalWorld(tracks.xy_m, tracks.radius_m, tracks.velocity_mps, self.distance)
         cmd = self._back_off(pose, world)
         if cmd is None:
-            target = point_at(self.path, np.array([project_on_path(self.path, pose[:2]) + 1.0]))[0]
+            target = self._recovery_target(pose, world)
             bearing = float(wrap_angle(math.atan2(target[1] - pose[1], target[0] - pose[0]) - pose[2]))
             cmd = np.array([0.0, float(np.clip(1.5 * bearing, -0.8, 0.8))])
             if abs(bearing) < 0.25:
@@ -620,6 +620,24 @@ class NavigationStack:
             self._last_plan_s = -math.inf  # replan from where the recovery left the robot
         self.timings_s["local_planner"].append(time.perf_counter() - t0)
         return self._send(cmd, "recovery")
+
+    def _recovery_target(self, pose: np.ndarray, world: LocalWorld, lookahead_m: float = 1.0,
+                         step_m: float = 0.05) -> np.ndarray:
+        """Where the recovery heads: the farthest path point up to ``lookahead_m`` beyond the
+        nearest one that the robot can drive to in a straight line (its disc plus
+        ``recovery_margin_m`` clear of the map and the tracks all the way), else the nearest
+        path point ahead. The plain point ``lookahead_m`` ahead cuts the corners of the path:
+        where the path bends around a wall corner it lies straight ahead through the wall's
+        margin, the creep is never clear and the recovery turns towards it for ever (measured:
+        Willow 13, 13 recoveries in a row before the 0.7 m passage under a block, 90 s limit)."""
+        c = self.config
+        s0 = project_on_path(self.path, pose[:2])
+        ahead = point_at(self.path, s0 + np.arange(step_m, lookahead_m + 1e-9, step_m))  # (K, 2)
+        frac = np.linspace(0.0, 1.0, 41)[:, None, None]  # points along each straight line (<= 3 cm apart)
+        lines = pose[None, None, :2] + frac * (ahead[None] - pose[None, None, :2])  # (41, K, 2)
+        clear = (world.clearance_m(lines.reshape(-1, 2)).reshape(lines.shape[:2])
+                 > c.robot_radius_m + c.recovery_margin_m).all(axis=0)
+        return ahead[int(np.flatnonzero(clear)[-1])] if clear.any() else ahead[0]
 
     def _back_off(self, pose: np.ndarray, world: LocalWorld, step_m: float = 0.1) -> np.ndarray | None:
         """The back-off command of :meth:`_recover` (None once the disc is ``path_margin_m``
