@@ -40,6 +40,27 @@ def signed_distance_field_m(grid: OccupancyGrid) -> np.ndarray:
     return np.where(occ, -inside, outside)
 
 
+def surface_distance_field_m(grid: OccupancyGrid, signed: bool = False) -> np.ndarray:
+    """(H, W) distance from every cell centre to the *surface* of the nearest occupied cell (the
+    distance to its centre less half a cell: a lidar beam ends on a wall's face, not at its
+    cell's centre), 0 in occupied cells; ``signed``: inside occupied cells minus the distance to
+    the surface of the nearest free cell instead of 0, so the field passes through 0 on the faces
+    and bilinear interpolation between a free and an occupied neighbour is exact there.
+
+    A field clipped at 0 inside walls makes the likelihood-field lidar model lopsided: an end
+    point that range noise puts behind a wall's face costs nothing, one in front of it costs its
+    distance, so the best-fitting pose pulls the end points into the walls. Measured (likelihood
+    optimum of 20 summed scans of 90 beams at the goal pose, 2 cm range noise, sigma_hit 5 cm, 30
+    seeds per world; mean / max distance from the true position): office 0.74 / 2.06 cm clipped,
+    0.02 / 0.25 cm signed; warehouse 0.88 / 1.58 -> 0.05 / 0.35; Willow (10 cm map) 0.80 / 1.46
+    -> 0.16 / 0.35."""
+    half = 0.5 * grid.resolution_m
+    outside = np.maximum(distance_field_m(grid) - half, 0.0)
+    if not signed or not grid.occupied.any():
+        return outside
+    return np.where(grid.occupied, signed_distance_field_m(grid) + half, outside)
+
+
 def distance_at(grid: OccupancyGrid, field_m: np.ndarray, world_xy_m: np.ndarray,
                 outside_m: float = 0.0) -> np.ndarray:
     """(N,) value of ``field_m`` at the cells containing the (N, 2) world points.

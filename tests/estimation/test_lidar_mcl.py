@@ -13,6 +13,7 @@ from slamkit.estimation._common import NoiseParams
 from slamkit.estimation.lidar_mcl import LidarMCL, LidarMCLConfig
 from slamkit.frontend.preprocess import despeckle
 from slamkit.geometry import se2
+from slamkit.models.lidar import LikelihoodFieldModel
 from slamkit.maps.log_odds import LogOddsConfig, build_map
 from slamkit.sim.grid_world import GridScenario, simulate_grid_sequence
 
@@ -133,3 +134,57 @@ def test_unknown_cells_score_as_one_sigma_from_a_wall(built_map):
     assert unknown.any()
     np.testing.assert_array_equal(unk.field_m[~unknown], plain.field_m[~unknown])
     np.testing.assert_array_equal(unk.field_m[unknown], np.minimum(plain.field_m[unknown], 0.3))
+
+
+def _room_scan(pose, noise_m):
+    """A 2 m x 2 m room (5 cm cells, walls 2 cells thick, inner faces at 0.1 and 2.1 m), 360
+    beams ray cast from ``pose`` with every other range ``noise_m`` long and the rest that short."""
+    from slamkit.maps.occupancy_grid import OccupancyGrid
+    from slamkit.maps.raycast import cast_scan
+
+    occ = np.zeros((44, 44), bool)
+    occ[:2, :] = occ[-2:, :] = occ[:, :2] = occ[:, -2:] = True
+    grid = OccupancyGrid(occ, 0.05)
+    angles = np.linspace(-np.pi, np.pi, 360, endpoint=False)
+    ranges = cast_scan(grid, np.asarray(pose, float), angles, 20.0)[0]
+    ranges = ranges + noise_m * np.where(np.arange(360) % 2 == 0, 1.0, -1.0)
+    return grid, Scan(0.0, angles, ranges, 20.0)
+
+
+def test_signed_field_removes_the_pull_into_the_walls():
+    # the robot 0.4 m from the left wall's face and 1.6 m from the right one: with the field
+    # clipped at 0 behind the faces, the +-2 cm range noise costs nothing on the long beams'
+    # side and the near wall, seen by more beams, pulls the best fit towards it
+    pose = np.array([0.5, 1.1, 0.0])
+    grid, scan = _room_scan(pose, 0.02)
+    dx = np.arange(-0.03, 0.0301, 0.001)
+    poses = pose + np.column_stack([dx, np.zeros((len(dx), 2))])
+    best = {}
+    for signed in (False, True):
+        config = LidarMCLConfig(max_beams=360, surface_distance=True, interpolate_field=True, signed_field=signed,
+                                likelihood=LikelihoodFieldModel(0.9, 0.1, 0.05))
+        best[signed] = dx[np.argmax(LidarMCL(grid, config=config).scan_log_likelihood(poses, scan))]
+    # measured: clipped 6 mm towards the near wall, signed at the true pose
+    assert best[False] == pytest.approx(-0.006, abs=1e-9)
+    assert best[True] == pytest.approx(0.0, abs=1e-9)
+    with pytest.raises(ConfigError, match="signed_field"):
+        LidarMCLConfig(signed_field=True)
+
+
+def test_roughening_floor_keeps_a_collapsed_set_spread():
+    # every particle on the same pose (a zero prior covariance): spread-scaled roughening leaves
+    # the copies identical; floored at one KLD bin it roughens them by k * bin / N^(1/3)
+    # (0.05 * 0.5 m / 500^(1/3) = 3.15 mm in x and y, 0.05 * 10 deg / 500^(1/3) = 0.063 deg)
+    pose = np.array([0.5, 1.1, 0.0])
+    grid, scan = _room_scan(pose, 0.0)
+    spread = {}
+    for floor in (False, True):
+        config = LidarMCLConfig(n_min=500, n_max=500, global_init=False, roughening_k=0.05,
+                                roughening_spread_floor=floor)
+        mcl = LidarMCL(grid, config=config, rng=np.random.default_rng(0))
+        mcl.reset(Prior(pose, np.zeros((3, 3))))
+        mcl.step(scan)
+        spread[floor] = mcl.particles.std(axis=0)
+    np.testing.assert_allclose(spread[False], 0.0, atol=1e-12)
+    np.testing.assert_allclose(spread[True][:2], 0.05 * 0.5 / 500 ** (1 / 3), rtol=0.1)
+    assert spread[True][2] == pytest.approx(0.05 * np.deg2rad(10.0) / 500 ** (1 / 3), rel=0.1)

@@ -46,16 +46,21 @@ def test_a_short_run_writes_the_results_folder(tmp_path):
 #: the safe stop, the 0.65 m/s cruise cap and the evasion kept off the walls: office 0.867 / 1 /
 #: 2, warehouse 0.90 / 0 / 0, Willow 0.70 / 4 / 1. With them: office 0.90 / 0 / 2, warehouse
 #: 0.933 / 0 / 1, Willow 0.867 / 0 / 3. With yielding hedged for tracks seen reversing
-#: (yield_reversed_hedge 0.3: a shuttler's trailing edge is not trusted to recede at its full
-#: speed): office 0.967 / 0 / 0, warehouse 0.90 / 0 / 2, Willow 0.90 / 0 / 1 (mean final error
-#: 1.70 / 1.79 / 1.25 cm; +1.5-3 s and +0.14-0.19 m on the seeds both versions reach). Moving
-#: collisions 6 -> 3 of 90 and success 81 -> 83 of 90, at the price of warehouse (seed 29 a new
-#: moving collision): its bounds are this version's, the others' the stricter of both; the
-#: issue's goals are the xfail below.
-MEASURED = (("office", 0.96, 0, 0), ("warehouse", 0.90, 0, 2), ("willow", 0.89, 0, 1))
-#: over the 90 runs: at least 83 successes and at most 3 moving collisions (main before the hedge:
-#: 81 and 6), so the warehouse bound's slack cannot hide a loss elsewhere
-MEASURED_ALL_WORLDS = (83, 3)
+#: (yield_reversed_hedge 0.3): office 0.967 / 0 / 0, warehouse 0.90 / 0 / 2, Willow 0.90 / 0 / 1
+#: (mean final error 1.70 / 1.79 / 1.25 cm); its failures that were not collisions were MCL
+#: bias at the goal (office 27, warehouse 7, Willow 8: stopped 3.0-3.3 cm off) and Willow 13
+#: stuck in recoveries. With the signed likelihood field, the roughening floor and the recovery
+#: heading for a path point it can drive to (2026-11-25): office 0.967 / 0 / 1, warehouse 0.967 /
+#: 0 / 1, Willow 1.0 / 0 / 0 (Willow 13 reached at 89.6 s of 90); final error over the successes
+#: mean 1.01 / 0.94 / 0.98 cm, max 1.50 / 1.56 / 1.42 cm. The bounds are the stricter of both
+#: versions except office's moving collisions (0 -> 1: office 24, a crossing whose timing moved
+#: with the localisation; warehouse 2 -> 1 and Willow 1 -> 0 the other way).
+MEASURED = (("office", 0.96, 0, 1), ("warehouse", 0.96, 0, 1), ("willow", 0.99, 0, 0))
+#: (mean, max) final position error over the successes per world, every world (measured above)
+MEASURED_FINAL_ERROR_M = (0.0125, 0.02)
+#: over the 90 runs: at least 88 successes and at most 2 moving collisions (main before the hedge:
+#: 81 and 6; with it 83 and 3), so a bound's slack cannot hide a loss elsewhere
+MEASURED_ALL_WORLDS = (88, 2)
 #: the issue's goals: success >= 95 %, no static collision, moving collisions < 2 % of the runs
 GOALS = (0.95, 0, 0.02)
 
@@ -85,6 +90,8 @@ def test_shipped_navigation_pipeline_30_seeds_per_world(navigation_30_seeds):
         assert sum(m["collision_moving"] for m in runs) <= max_moving
         reached = [m["final_position_error_m"] for m in runs if m["reached_by_belief"]]
         assert np.mean(reached) < 0.03
+        final = [m["final_position_error_m"] for m in runs if m["success"]]
+        assert np.mean(final) <= MEASURED_FINAL_ERROR_M[0] and np.max(final) <= MEASURED_FINAL_ERROR_M[1]
     every = [m for runs in navigation_30_seeds.values() for m in runs]
     min_successes, max_moving_all = MEASURED_ALL_WORLDS
     assert sum(m["success"] for m in every) >= min_successes
@@ -92,8 +99,8 @@ def test_shipped_navigation_pipeline_30_seeds_per_world(navigation_30_seeds):
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="issue 14's goals not reached yet: success 0.967 / 0.90 / 0.90 "
-                   "(goal 0.95), moving collisions 0 / 2 / 1 of 30 (goal < 2 %, i.e. 0 of 30)")
+@pytest.mark.xfail(strict=True, reason="issue 14's goals not reached yet: success 0.967 / 0.967 / 1.0 "
+                   "meets the 0.95 goal, but moving collisions 1 / 1 / 0 of 30 (goal < 2 %, i.e. 0 of 30)")
 def test_navigation_goals_30_seeds_per_world(navigation_30_seeds):
     import numpy as np
 

@@ -9,7 +9,8 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from slamkit.errors import DataError
-from slamkit.maps.distance_field import distance_at, distance_field_m, signed_distance_field_m
+from slamkit.maps.distance_field import (bilinear, distance_at, distance_field_m, signed_distance_field_m,
+                                        surface_distance_field_m)
 from slamkit.maps.inflation import INSCRIBED_COST, LETHAL_COST, costmap, inflate
 from slamkit.maps.occupancy_grid import OccupancyGrid
 
@@ -37,6 +38,27 @@ def test_distance_field_empty_grid_is_infinite_and_signed_field_is_negative_insi
     sdf = signed_distance_field_m(OccupancyGrid(occ, 0.1))
     assert sdf[2, 2] == pytest.approx(-0.2)  # centre of the 3x3 block: two cells to free space
     assert sdf[0, 0] == pytest.approx(0.1 * np.sqrt(2))
+
+
+def test_surface_distance_field_worked_example():
+    # a 3-cell wall (x in [0.2, 0.5)) in a row of 7 cells of 0.1 m
+    occ = np.zeros((1, 7), bool)
+    occ[0, 2:5] = True
+    grid = OccupancyGrid(occ, 0.1)
+    np.testing.assert_allclose(surface_distance_field_m(grid)[0], [0.15, 0.05, 0, 0, 0, 0.05, 0.15])
+    signed = surface_distance_field_m(grid, signed=True)
+    np.testing.assert_allclose(signed[0], [0.15, 0.05, -0.05, -0.15, -0.05, 0.05, 0.15])
+    # bilinear between the centres: exact on the faces (x = 0.2 and 0.5) and 2 cm either side;
+    # the clipped field reads a quarter cell on the face and 0 wherever behind it
+    x = np.array([0.18, 0.2, 0.22, 0.48, 0.5, 0.52])
+    xy = np.column_stack([x, np.full(6, 0.05)])
+    np.testing.assert_allclose(bilinear(signed, 0.1, grid.origin_xy_m, xy)[0], [0.02, 0, -0.02, -0.02, 0, 0.02],
+                               atol=1e-12)
+    np.testing.assert_allclose(bilinear(surface_distance_field_m(grid), 0.1, grid.origin_xy_m, xy)[0],
+                               [0.035, 0.025, 0.015, 0.015, 0.025, 0.035], atol=1e-12)
+    # no obstacle: infinite either way; all occupied: -inf inside
+    assert np.all(np.isinf(surface_distance_field_m(OccupancyGrid(np.zeros((2, 2), bool)), signed=True)))
+    assert np.all(surface_distance_field_m(OccupancyGrid(np.ones((2, 2), bool)), signed=True) == -np.inf)
 
 
 @settings(max_examples=40, deadline=None)

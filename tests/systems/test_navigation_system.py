@@ -49,7 +49,8 @@ def test_config_is_checked():
 
 def test_short_closed_loop_run_reaches_the_goal_within_3_cm():
     # office seed 1 with its two crossing obstacles: measured 43.3 s (it waits for both; 27.9 s without
-    # yielding's hedge for shuttlers, yield_reversed_hedge 0), final error 1.2 cm
+    # yielding's hedge for shuttlers, yield_reversed_hedge 0), final error 1.2 cm; 42.9 s and 0.5 cm
+    # with the signed likelihood field and the roughening floor
     sc = make_navigation_scenario(1, "office")
     ep = run_episode(sc, NavigationConfig(), EpisodeConfig(max_time_s=60.0))
     m = ep.metrics
@@ -253,6 +254,37 @@ def test_recovery_backs_off_from_a_wall_towards_free_space():
     # the field's gradient (+x): omega = clip(1.5 * -1.4, -0.8, 0.8)
     assert stack._back_off(np.array([0.37, 2.0, 1.4]), world) == pytest.approx([0.0, -0.8])
     assert stack._back_off(np.array([1.0, 2.0, 0.0]), world) is None  # clear: back to the path
+
+
+def test_recovery_heads_for_the_farthest_path_point_it_can_drive_to_straight():
+    from slamkit.control.protocols import LocalWorld
+
+    occ = _room().occupied.copy()
+    occ[30:, 50:60] = True  # a pillar from the top wall: x in [2.5, 3.0], y >= 1.5
+    stack = NavigationStack(OccupancyGrid(occ, 0.05))
+    stack.reset([2.1, 1.4, 0.0], np.eye(3) * 1e-4)
+    # the path dips under the pillar's corner (2.5, 1.5) and comes back up behind it
+    stack.path = np.array([[2.1, 1.4], [2.4, 1.1], [3.1, 1.1], [3.4, 1.4], [3.4, 3.0]])
+    world = LocalWorld(distance=stack.distance)
+    pose = np.array([2.1, 1.4, 0.0])
+
+    def line_clearance(end):
+        line = pose[:2] + np.linspace(0.0, 1.0, 2001)[:, None] * (np.asarray(end) - pose[:2])
+        return float(world.clearance_m(line).min())
+
+    # 1 m along the path is (2.976, 1.1): the straight line there passes 0.232 m from the corner,
+    # inside the disc + recovery margin (0.25 m). The farthest 5 cm step whose line clears it is
+    # 0.85 m along: (2.826, 1.1), line clearance 0.253 m; 0.90 m along: 0.245 m
+    assert line_clearance([2.976, 1.1]) == pytest.approx(0.232, abs=1e-3)
+    target = stack._recovery_target(pose, world)
+    np.testing.assert_allclose(target, [2.1 + 0.3 + 0.85 - 0.3 * np.sqrt(2), 1.1], atol=1e-9)
+    assert line_clearance(target) == pytest.approx(0.253, abs=1e-3)
+    assert line_clearance(target + [0.05, 0.0]) == pytest.approx(0.245, abs=1e-3)
+    # nothing visible (the robot itself 0.18 m from the corner): the path point 5 cm beyond the
+    # nearest, which is (2.275, 1.225) on the first segment
+    close = np.array([2.4, 1.35, 0.0])
+    np.testing.assert_allclose(stack._recovery_target(close, world),
+                               [2.275 + 0.05 / np.sqrt(2), 1.225 - 0.05 / np.sqrt(2)], atol=1e-9)
 
 
 def test_safe_stop_is_acted_on():
