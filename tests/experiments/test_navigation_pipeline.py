@@ -50,12 +50,16 @@ def test_a_short_run_writes_the_results_folder(tmp_path):
 #: speed): office 0.967 / 0 / 0, warehouse 0.90 / 0 / 2, Willow 0.90 / 0 / 1 (mean final error
 #: 1.70 / 1.79 / 1.25 cm; +1.5-3 s and +0.14-0.19 m on the seeds both versions reach). Moving
 #: collisions 6 -> 3 of 90 and success 81 -> 83 of 90, at the price of warehouse (seed 29 a new
-#: moving collision): its bounds are this version's, the others' the stricter of both; the
+#: moving collision). With yielding choosing where it waits (outside every track's sweep and
+#: seen span, backing off along the way it came; 2026-11-25): office 0.967 / 0 / 0, warehouse
+#: 0.90 / 0 / 1, Willow 0.90 / 0 / 1 (warehouse 5/29 and Willow 19 no longer hit, warehouse 6 and
+#: Willow 10 are; mean final error 1.65 / 1.78 / 1.29 cm; +0.3 / +2.3 / +0.7 s and +0.9 / +1.1 /
+#: +0.3 m on the seeds both versions reach). The bounds are the stricter of both per world; the
 #: issue's goals are the xfail below.
-MEASURED = (("office", 0.96, 0, 0), ("warehouse", 0.90, 0, 2), ("willow", 0.89, 0, 1))
-#: over the 90 runs: at least 83 successes and at most 3 moving collisions (main before the hedge:
-#: 81 and 6), so the warehouse bound's slack cannot hide a loss elsewhere
-MEASURED_ALL_WORLDS = (83, 3)
+MEASURED = (("office", 0.96, 0, 0), ("warehouse", 0.90, 0, 1), ("willow", 0.89, 0, 1))
+#: over the 90 runs: at least 83 successes and at most 2 moving collisions (before the hedge:
+#: 81 and 6; with it, before waiting places: 83 and 3)
+MEASURED_ALL_WORLDS = (83, 2)
 #: the issue's goals: success >= 95 %, no static collision, moving collisions < 2 % of the runs
 GOALS = (0.95, 0, 0.02)
 
@@ -93,7 +97,7 @@ def test_shipped_navigation_pipeline_30_seeds_per_world(navigation_30_seeds):
 
 @pytest.mark.slow
 @pytest.mark.xfail(strict=True, reason="issue 14's goals not reached yet: success 0.967 / 0.90 / 0.90 "
-                   "(goal 0.95), moving collisions 0 / 2 / 1 of 30 (goal < 2 %, i.e. 0 of 30)")
+                   "(goal 0.95), moving collisions 0 / 1 / 1 of 30 (goal < 2 %, i.e. 0 of 30)")
 def test_navigation_goals_30_seeds_per_world(navigation_30_seeds):
     import numpy as np
 
