@@ -60,8 +60,8 @@ def _segments_cross_edges(A: np.ndarray, B: np.ndarray, P: np.ndarray, Q: np.nda
     return np.any((d1 * d2 <= 0) & (d3 * d4 <= 0), axis=1)
 
 
-def _point_segment_distance(X: np.ndarray, P: np.ndarray, Q: np.ndarray) -> np.ndarray:
-    """(N, E) distance from points to segments."""
+def point_segment_distance(X: np.ndarray, P: np.ndarray, Q: np.ndarray) -> np.ndarray:
+    """(N, E) distance from points X (N, 2) to the segments P_e Q_e (E, 2)."""
     d = Q - P
     l2 = np.maximum(np.einsum("ij,ij->i", d, d), 1e-300)
     t = np.clip(np.einsum("nej,ej->ne", X[:, None, :] - P[None], d) / l2, 0.0, 1.0)
@@ -223,7 +223,7 @@ class PointWorld:
             d = np.linalg.norm(X[:, None, :] - self.circles[None, :, :2], axis=-1) - self.circles[None, :, 2]
             out = np.minimum(out, d.min(axis=1))
         if len(self._edge_p):
-            d = _point_segment_distance(X, self._edge_p, self._edge_q).min(axis=1)
+            d = point_segment_distance(X, self._edge_p, self._edge_q).min(axis=1)
             inside = np.zeros(len(X), dtype=bool)
             for poly in self.polygons:
                 inside |= points_in_polygon(X, poly)

@@ -48,9 +48,9 @@ def test_config_is_checked():
 
 
 def test_short_closed_loop_run_reaches_the_goal_within_3_cm():
-    # office seed 1 with its two crossing obstacles: measured 43.3 s (it waits for both; 27.9 s without
-    # yielding's hedge for shuttlers, yield_reversed_hedge 0), final error 1.2 cm; 42.9 s and 0.5 cm
-    # with the signed likelihood field and the roughening floor
+    # office seed 1 with its two crossing obstacles: measured 28.6 s, final error 0.7 cm (43.3 s and
+    # 1.2 cm before yielding chose where to wait, the signed likelihood field and the roughening
+    # floor: it had stopped between the two shuttlers' lines)
     sc = make_navigation_scenario(1, "office")
     ep = run_episode(sc, NavigationConfig(), EpisodeConfig(max_time_s=60.0))
     m = ep.metrics
@@ -370,3 +370,56 @@ def test_brake_profiles_stop_or_back_off_within_the_acceleration_limits():
     # straight stop: 0.2 and 0.1 m/s for a step each: 0.03 m on; straight back-off: 0.2, 0.1, 0,
     # -0.1, -0.2, then -0.3 m/s for the remaining 15 steps: 0.1 * (0.3 - 0.3 - 4.5) = -0.45 m net
     np.testing.assert_allclose(sorted(straight[:, -1, 0] - 1.0), [-0.45, 0.03], atol=1e-9)
+
+
+def test_shuttle_centres_turn_at_the_span_ends_but_not_at_one_still_being_pushed_out():
+    from slamkit.systems.navigation import shuttle_centres
+
+    # span x = 1 .. 3 on y = 0; at x = 2.5 moving +x at 0.5 m/s: 3.0 at 1 s (the end), back to
+    # 2.5 at 2 s, 1.5 at 4 s; a second one at the end x = 3 moving out keeps going (3.5 at 1 s)
+    span = np.array([[[1.0, 0.0], [3.0, 0.0]]] * 2)
+    c = shuttle_centres(np.array([[2.5, 0.2], [3.0, 0.0]]), np.array([[0.5, 0.1], [0.4, 0.0]]),
+                        np.array([0.5, 0.5]), span, np.array([0.0, 1.0, 2.0, 4.0]))
+    np.testing.assert_allclose(c[:, 0], [[2.5, 0.0], [3.0, 0.0], [2.5, 0.0], [1.5, 0.0]], atol=1e-12)
+    np.testing.assert_allclose(c[:, 1], [[3.0, 0.0], [3.5, 0.0], [4.0, 0.0], [5.0, 0.0]], atol=1e-12)
+
+
+def _line_tracks(xy, velocity, radius, span, reversals=(0, 0)):
+    from slamkit.estimation.obstacle_tracker import Tracks
+
+    n = len(radius)
+    return Tracks(np.arange(n), np.asarray(xy, float), np.asarray(velocity, float), np.asarray(radius, float),
+                  np.tile(np.eye(4), (n, 1, 1)), reversals=np.asarray(reversals), span_xy_m=np.asarray(span, float))
+
+
+def test_yielding_waits_outside_every_sweep_and_seen_span_and_backs_off_to_such_a_place():
+    # the path along y = 2 from x = 0.8. Track B (r 0.25) has been seen walking up x = 2.2 from
+    # y = 0.5 to 3.5 and walks on, away: its sweep is no conflict, but its seen span grown by
+    # r + 0.25 (moving margin) + 0.2 (robot) covers |x - 2.2| <= 0.7 of the path. Track A (r 0.3,
+    # at (4, 3.5), walking down at 0.5 m/s) crosses the path at x = 4 when the robot would get
+    # there: a conflict, whose sweep starts at x = 3.25
+    b = ([2.2, 3.5], [0.0, 0.3], 0.25, [[2.2, 0.5], [2.2, 3.5]])
+    a = ([4.0, 3.5], [0.0, -0.5], 0.3, [[4.0, 3.5], [4.0, 3.5]])
+    tracks = _line_tracks([b[0], a[0]], [b[1], a[1]], [b[2], a[2]], [b[3], a[3]])
+    stack = _straight_stack(0.8)
+    stack.path = np.array([[0.8, 2.0], [5.5, 2.0]])
+    # standing at x = 0.8 (a waiting place) it stops short of B's span, not between B and A: the
+    # path is sampled every 0.075 m, x = 1.475 is the first sample within the 5 cm wait margin
+    # (0.025 m clear), gap 0.675 m, stop 5 cm short: v = sqrt(2 * 0.5 * 0.625)
+    d = stack.yield_decision(np.array([0.8, 2.0, 0.0]), tracks)
+    assert d.wait_gap_m == pytest.approx(0.675, abs=1e-9) and d.back_off_xy_m is None
+    assert d.v_max_mps == pytest.approx(np.sqrt(0.625), abs=1e-9)
+    # (the rule before stopped where A's sweep begins, x = 3.25 less 5 cm: inside B's span)
+    # standing inside B's span at x = 2, having come along y = 2 from x = 0.82 (trail every 5 cm):
+    # going on would meet A within 0.5 s of its sweep, so it backs off to the nearest trail point
+    # 5 cm clear of B's span, x = 1.42 (0.08 m clear; 1.47 is 0.03 m), and reverses towards it at
+    # the controller's acceleration: -0.1 m/s after one 0.1 s cycle from standing
+    stack._trail = [np.array([x, 2.0]) for x in 0.82 + 0.05 * np.arange(24)]
+    d = stack.yield_decision(np.array([2.0, 2.0, 0.0]), tracks)
+    assert d.v_max_mps == 0.0
+    np.testing.assert_allclose(d.back_off_xy_m, [1.42, 2.0], atol=1e-9)
+    np.testing.assert_allclose(stack._drive_to(np.array([2.0, 2.0, 0.0]), d.back_off_xy_m), [-0.1, 0.0], atol=1e-12)
+    # no trail to back along: it stops where A's sweep begins (the first conflicting point)
+    stack._trail = []
+    d = stack.yield_decision(np.array([2.0, 2.0, 0.0]), tracks)
+    assert d.back_off_xy_m is None and d.wait_gap_m == pytest.approx(1.275, abs=1e-9)
