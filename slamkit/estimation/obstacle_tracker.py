@@ -21,7 +21,9 @@ and tracked with a constant-velocity Kalman filter (no oracle obstacle list).
   speed (an exponential average of its speed, ``speed_typical_mps``: it stays up while the
   obstacle slows down to turn) and how often it has reversed along that span
   (``reversals``: the velocity's component along the span changed sign, each side faster than
-  ``reverse_speed_mps``, once the span is ``reverse_span_m`` long).
+  ``reverse_speed_mps``, once the span is ``reverse_span_m`` long). A track estimated more than
+  ``span_restart_m`` across its span's line has left that line (it turned, or took over another
+  obstacle's detections): its span starts again from there; its reversals and typical speed stay.
 """
 
 from __future__ import annotations
@@ -147,12 +149,20 @@ class TrackerConfig:
     #: shuttlers, was hit at warehouse 5 and 29 (off: 5 reached, 29 no hit); with its
     #: span-shuttle prediction on as well, office 4/13/27 waited to the 90 s limit, 19/24 were hit
     hand_over: bool = False
+    #: a track estimated farther than this from its span's line (across it) has left the line it
+    #: was moving along -- its detections now come from another obstacle (two tracks swapped where
+    #: two shuttlers met) or it turned: its span starts again from there (None: never). Warehouse
+    #: seed 24: a track swapped from a shuttler along a wall to one crossing it diagonally kept
+    #: the first one's span, and the robot waited inside the second one's lane
+    span_restart_m: float | None = 0.3
 
     def __post_init__(self) -> None:
         if not 0 < self.speed_smoothing <= 1 or min(self.reverse_speed_mps, self.reverse_span_m) <= 0:
             raise ConfigError("TrackerConfig: speed_smoothing in (0, 1], reverse_speed_mps and reverse_span_m > 0")
         if min(self.gate_m, self.accel_psd, self.sigma_detection_m, self.initial_speed_sigma_mps) <= 0:
             raise ConfigError("TrackerConfig: gate, noise densities and sigmas must be > 0")
+        if self.span_restart_m is not None and self.span_restart_m <= 0:
+            raise ConfigError("TrackerConfig: span_restart_m > 0 or None")
         if self.confirm_hits < 1 or self.max_misses < 0:
             raise ConfigError("TrackerConfig: confirm_hits >= 1 and max_misses >= 0 needed")
 
@@ -281,6 +291,9 @@ class ConstantVelocityTracker:
         """The motion history of the tracks just updated (see the module docstring)."""
         c = self.config
         for i in np.flatnonzero(updated):
+            if self._off_span_line(i, self._x[i, :2]):
+                self._span[i] = self._x[i, :2]
+                self._sign[i] = 0.0
             self._extend_span(i, self._x[i, :2])
             v = self._x[i, 2:]
             self._speed[i] += c.speed_smoothing * (float(np.linalg.norm(v)) - self._speed[i])
@@ -294,6 +307,17 @@ class ConstantVelocityTracker:
                 if self._sign[i] != 0 and sign != self._sign[i]:
                     self._reversals[i] += 1
                 self._sign[i] = sign
+
+    def _off_span_line(self, i: int, p: np.ndarray) -> bool:
+        """Whether p lies more than ``span_restart_m`` across the line of track ``i``'s span (one
+        at least ``reverse_span_m`` long)."""
+        c = self.config
+        a, b = self._span[i]
+        length = float(np.linalg.norm(b - a))
+        if c.span_restart_m is None or length < c.reverse_span_m:
+            return False
+        u = (b - a) / length
+        return abs(float(u[0] * (p[1] - a[1]) - u[1] * (p[0] - a[0]))) > c.span_restart_m
 
     def _extend_span(self, i: int, p: np.ndarray) -> None:
         """Track ``i``'s span (a, b) takes in the point p: the longer of (a, p) and (p, b)

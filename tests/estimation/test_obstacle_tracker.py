@@ -139,6 +139,29 @@ def test_a_standing_track_has_no_reversals():
     assert np.linalg.norm(out.span_xy_m[0, 1] - out.span_xy_m[0, 0]) < 0.3
 
 
+def test_a_track_that_leaves_its_span_line_starts_a_new_span_and_keeps_its_reversals():
+    # the shuttler above (span x 1..3 along y = 2, 2 reversals) at x = 1.8 at t = 12 s; from then
+    # on its detections go straight down (-y) at 0.4 m/s for 3 s, to (1.8, 0.8) -- a turn, or a
+    # track that took over another obstacle's detections where two lanes meet
+    def run(config: TrackerConfig):
+        tr = ConstantVelocityTracker(config)
+        for k in range(151):
+            t = 0.1 * k
+            s = 0.4 * t % 4.0
+            xy = [1.0 + (s if s <= 2.0 else 4.0 - s), 2.0] if k <= 120 else [1.8, 2.0 - 0.4 * (t - 12.0)]
+            tr.update(t, Detection(np.array([xy]), np.array([0.3]), np.array([10])))
+        return tr.tracks()
+
+    out = run(TrackerConfig())
+    # the filtered estimate (lagging the turn) is 0.319 m below y = 2 at t = 12.8 s, more than
+    # span_restart_m = 0.3 m: the span starts again there and runs down to the last estimate
+    np.testing.assert_allclose(out.span_xy_m[0], [[1.801, 1.681], [1.8, 0.8]], atol=2e-3)
+    assert out.reversals.tolist() == [2]  # still a track seen reversing (its prediction is hedged)
+    # without the restart the span stays the old lane, 1.2 m away from where the track now moves
+    stale = run(TrackerConfig(span_restart_m=None))
+    np.testing.assert_allclose(stale.span_xy_m[0], [[1.0, 2.0], [3.0, 2.0]], atol=2e-3)
+
+
 def test_a_track_lost_to_a_split_cluster_hands_its_history_to_its_successor():
     # the shuttler above, seen for 12 s (2 reversals, span x 1..3); at t = 12.1 s its cluster
     # splits (near a wall part of it is explained by the map): one fragment 0.1 m ahead of it,
