@@ -626,9 +626,9 @@ class NavigationStack:
         return LocalWorld(tracks.xy_m, tracks.radius_m + c.moving_margin_m * moving,
                           (1.0 - lam)[:, None] * tracks.velocity_mps, self.distance, t_s, lam * speed)
 
-    def _yield_speed_mps(self, pose: np.ndarray, tracks: Tracks) -> float:
-        """The speed cap of :meth:`yield_decision` (0 while it backs off)."""
-        return self.yield_decision(pose, tracks).v_max_mps
+    def _accel_max_mps2(self) -> float:
+        """The local planner's acceleration limit (1 m/s^2 for a controller without one)."""
+        return float(getattr(self.controller.config, "accel_max_mps2", 1.0))
 
     def yield_sweep(self, tracks: Tracks, tau_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Where yielding predicts the moving tracks over the look-ahead times ``tau_s`` (T,): each
@@ -753,7 +753,7 @@ class NavigationStack:
         # on the way there: first the stop from the current speed (at the controller's
         # acceleration, on along the path), then back at the back-off speed; against the sweep
         # at each time (its last past the horizon)
-        a = float(getattr(self.controller.config, "accel_max_mps2", 1.0))
+        a = self._accel_max_mps2()
         v0 = max(float(self._last_cmd[0]), 0.0)
         t_stop, overshoot = v0 / a, 0.5 * v0**2 / a
         s0 = project_on_path(self.path, pose[:2])
@@ -777,7 +777,7 @@ class NavigationStack:
             e = float(wrap_angle(e - math.pi))
         v = sign * min(c.yield_back_off_speed_mps, math.sqrt(2.0 * c.yield_decel_mps2 * float(np.linalg.norm(d))))
         v *= max(math.cos(e), 0.0) if abs(e) < 0.5 else 0.0
-        dv = 0.1 * float(getattr(self.controller.config, "accel_max_mps2", 1.0))
+        dv = 0.1 * self._accel_max_mps2()
         v = float(np.clip(v, self._last_cmd[0] - dv, self._last_cmd[0] + dv))
         return np.array([v, float(np.clip(1.5 * e, -0.8, 0.8))])
 

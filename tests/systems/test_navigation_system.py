@@ -177,15 +177,15 @@ def test_yielding_stops_short_of_a_crossing_track():
     # 0.075 m from the robot, so the first covered sample is x = 2.275: gap 0.225 m, stop 5 cm short,
     # v = sqrt(2 * 0.5 * 0.175) = 0.4183 m/s (the robot at cruise speed would be there within the slack)
     crossing = _tracks([[3.0, 3.5]], [[0.0, -0.5]], [0.3])
-    assert stack._yield_speed_mps(pose, crossing) == pytest.approx(np.sqrt(0.175), abs=1e-9)
+    assert stack.yield_decision(pose, crossing).v_max_mps == pytest.approx(np.sqrt(0.175), abs=1e-9)
     # the same person 8 m away arrives after the robot has passed (10.5 s > horizon): no yield
-    assert stack._yield_speed_mps(pose, _tracks([[3.0, 8.0]], [[0.0, -0.5]], [0.3])) == np.inf
+    assert stack.yield_decision(pose, _tracks([[3.0, 8.0]], [[0.0, -0.5]], [0.3])).v_max_mps == np.inf
     # already past the path and walking away: no yield
-    assert stack._yield_speed_mps(pose, _tracks([[3.0, 1.0]], [[0.0, -0.5]], [0.3])) == np.inf
+    assert stack.yield_decision(pose, _tracks([[3.0, 1.0]], [[0.0, -0.5]], [0.3])).v_max_mps == np.inf
     # walking along the path at the robot: stopping would not help, the evasion handles it
-    assert stack._yield_speed_mps(pose, _tracks([[4.0, 2.0]], [[-0.5, 0.0]], [0.3])) == np.inf
+    assert stack.yield_decision(pose, _tracks([[4.0, 2.0]], [[-0.5, 0.0]], [0.3])).v_max_mps == np.inf
     # slow tracks are not traffic (they block the path and are planned around)
-    assert stack._yield_speed_mps(pose, _tracks([[3.0, 2.5]], [[0.0, -0.1]], [0.3])) == np.inf
+    assert stack.yield_decision(pose, _tracks([[3.0, 2.5]], [[0.0, -0.1]], [0.3])).v_max_mps == np.inf
 
 
 
@@ -224,15 +224,15 @@ def test_yielding_to_a_shuttler_that_may_turn_back():
     away = dict(ids=np.arange(1), xy_m=np.array([[3.0, 1.0]]), velocity_mps=np.array([[0.0, -0.5]]),
                 radius_m=np.array([0.3]), covariance=np.eye(4)[None])
     stack.config = dataclasses.replace(stack.config, yield_reversed_hedge=0.0)
-    assert stack._yield_speed_mps(pose, Tracks(**away, reversals=np.array([1]))) == np.inf
+    assert stack.yield_decision(pose, Tracks(**away, reversals=np.array([1]))).v_max_mps == np.inf
     # the default hedge 0.3: centre receding at 0.35 m/s, disc growing at 0.15 m/s -- the trailing
     # edge still recedes (at 0.2 m/s) from 1 m off: it never comes back over the path, no yield
     stack.config = dataclasses.replace(stack.config, yield_reversed_hedge=0.3)
-    assert stack._yield_speed_mps(pose, Tracks(**away, reversals=np.array([1]))) == np.inf
+    assert stack.yield_decision(pose, Tracks(**away, reversals=np.array([1]))).v_max_mps == np.inf
     stack.config = dataclasses.replace(stack.config, yield_reversed_hedge=1.0)
-    assert stack._yield_speed_mps(pose, Tracks(**away, reversals=np.array([1]))) == 0.0
+    assert stack.yield_decision(pose, Tracks(**away, reversals=np.array([1]))).v_max_mps == 0.0
     # one never seen reversing is still predicted with its constant velocity
-    assert stack._yield_speed_mps(pose, Tracks(**away)) == np.inf
+    assert stack.yield_decision(pose, Tracks(**away)).v_max_mps == np.inf
 
 def test_speed_cap_keeps_the_arc():
     from slamkit.systems.navigation import _speed_capped
