@@ -269,8 +269,7 @@ def _gnc_run(graph, plain, initial, cand, config, barc2, first, starts, mu_at):
     weights = np.ones(graph.num_edges)
     if first == "dcs":
         fg, _ = build_graph(graph, "dcs", config.kernel_k, config.prior_sigma, robust_mask=cand)
-        values = _levenberg_marquardt(graph, fg, initial, replace(config, max_iterations=config.gnc_inner_iterations),
-                                      inner=True)[0]
+        values = _least_squares_from(graph, fg, [initial], config)
     else:
         values = _least_squares_from(graph, plain, [initial, _global_start(graph, config)], config)
     chi2 = _chi2(plain, values, graph.num_edges)
