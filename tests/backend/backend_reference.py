@@ -46,8 +46,9 @@ class Case:
     #: odometry-only graph whose initial estimate is already optimal (error ~1e-21): iteration
     #: counts at that noise floor carry no meaning
     trivial: bool = False
-    #: initial errors agree to this (relative); see the bignoise case
-    initial_rel_tol: float = 1e-9
+    #: build raw GTSAM's problem from slamkit's parsed numbers rather than gtsam.readG2o (the
+    #: bignoise case: see its comment)
+    parsed_reference: bool = False
 
     @property
     def id(self) -> str:
@@ -95,10 +96,14 @@ CASES = [
     Case("pose_graph_3d/cubicle.g2o", anchor_error=1372.78, anchor_iterations=40, anchor_F=2568.36,
          slow=True),
     # its quaternions are off unit length by up to 6.5e-7; slamkit's reader normalises them and
-    # gtsam.readG2o does not, which moves the (sensitive) chordal initial error by 8.6e-4
-    # relative; the final errors still agree to 1e-10
+    # gtsam.readG2o does not. The chordal relaxation of a graph this noisy is ill-conditioned:
+    # that 6.5e-7 moved the initial error by 8.6e-4 relative on the machine that wrote this case
+    # and by 4.5e-3 on two later ones (1516479.0 vs readG2o's 1523364.8, issue 28), while the
+    # final errors agreed to 3e-9. So the initial error is compared with GTSAM's own chordal
+    # initialisation of the same parsed (normalised) measurements -- measured bit-identical,
+    # checked at the default 1e-9 -- and the final error and iterations with readG2o's graph.
     Case("pose_graph_3d/sphere_bignoise_vertex3.g2o", init="chordal", anchor_error=1.49417e6,
-         anchor_iterations=5, initial_rel_tol=1e-3),
+         anchor_iterations=5, parsed_reference=True),
     Case("pose_graph_3d/smallGrid3D.g2o", init="chordal", anchor_error=517.925, anchor_iterations=7),
     Case("pose_graph_3d/tinyGrid3D.g2o", init="chordal", anchor_error=9.31391, anchor_iterations=7),
     # 3D iSAM text (no MANIFEST anchor; gtsam's own loaders misread its sqrt-information)
@@ -137,12 +142,14 @@ def _prior(graph: gtsam.NonlinearFactorGraph, key: int, pose, sigma: float) -> N
         graph.add(gtsam.PriorFactorPose3(key, pose, gtsam.noiseModel.Isotropic.Sigma(6, sigma)))
 
 
-def raw_problem(file: str, first_vertex: int) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values]:
+def raw_problem(file: str, first_vertex: int, parsed: bool = False
+                ) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values]:
     """The problem as a GTSAM user loads it: readG2o (g2o) or load2D with NoiseFormatTORO (TORO),
-    plus the same gauge prior. iSAM files: gtsam misreads them, so the reference graph is built
-    with plain GTSAM calls from slamkit's parsed numbers (information = R^T R)."""
+    plus the same gauge prior. iSAM files (gtsam misreads them) and ``parsed=True`` (3D only):
+    the reference graph is built with plain GTSAM calls from slamkit's parsed numbers
+    (information = R^T R for iSAM)."""
     path = str(DATASETS / file)
-    if file.endswith(".g2o"):
+    if file.endswith(".g2o") and not parsed:
         is3d = "pose_graph_3d" in file
         graph, initial = gtsam.readG2o(path, is3d)
     elif file.endswith(".graph"):
@@ -164,16 +171,17 @@ def raw_problem(file: str, first_vertex: int) -> tuple[gtsam.NonlinearFactorGrap
 
 
 def raw_solve(file: str, init: str = "file", solver: str = "lm",
-              linear_solver: str = "MULTIFRONTAL_CHOLESKY", manifest: bool = False,
+              linear_solver: str = "MULTIFRONTAL_CHOLESKY", manifest: bool = False, parsed: bool = False,
               ) -> tuple[float, float, int, float]:
-    """Plain GTSAM: ``(initial error, final error, iterations, seconds)``, cached."""
-    return _raw_solve(file, init, solver, linear_solver, manifest)
+    """Plain GTSAM: ``(initial error, final error, iterations, seconds)``, cached; ``parsed``:
+    on the graph built from slamkit's parsed numbers (see :func:`raw_problem`)."""
+    return _raw_solve(file, init, solver, linear_solver, manifest, parsed)
 
 
 @functools.lru_cache(maxsize=None)
-def _raw_solve(file, init, solver, linear_solver, manifest) -> tuple[float, float, int, float]:
+def _raw_solve(file, init, solver, linear_solver, manifest, parsed) -> tuple[float, float, int, float]:
     s = settings(manifest)
-    graph, initial = raw_problem(file, int(load(file).vertex_ids[0]))
+    graph, initial = raw_problem(file, int(load(file).vertex_ids[0]), parsed)
     if init == "chordal":
         first = int(load(file).vertex_ids[0])
         chordal = gtsam.InitializePose3.initialize(graph)
