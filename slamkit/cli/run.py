@@ -16,12 +16,20 @@ def run_command(
     out: Path = typer.Option(None, "--out", help="results folder (default runs/<config name>)"),
     quiet: bool = typer.Option(False, "--quiet", help="no progress bar or table"),
     spawn: bool = typer.Option(False, "--spawn", help="also stream the recording to a Rerun viewer"),
+    perturbations: int = typer.Option(None, "--perturbations", min=0, max=100,
+                                      help="rerun every dataset on this many seeded twins and report the "
+                                           "median and worst beside each figure (the config's "
+                                           "'perturbations: {count: N}')"),
 ) -> None:
     """Run a pipeline config and write config.yaml, results.json, report.md, plots and a recording."""
-    from slamkit.experiments.pipeline import run_pipeline
+    from slamkit.experiments.pipeline import load_config, run_pipeline
     from slamkit.viz.pipelines import observer_for
 
-    result = run_pipeline(pipeline, out, progress=not quiet,
+    config = pipeline
+    if perturbations is not None:
+        config = load_config(pipeline)
+        config["perturbations"] = {**(config.get("perturbations") or {}), "count": perturbations}
+    result = run_pipeline(config, out, progress=not quiet,
                           observer_factory=lambda kind, path: observer_for(kind, path, spawn))
     if not quiet:
         # plain Markdown: tables stay readable at any terminal width and in logs

@@ -152,9 +152,28 @@ class ScenarioEntry(BaseModel):
     estimators: dict[str, Union[dict[str, Any], Literal[False]]] = {}
 
 
+def _check_perturbations(values: Any, doc: YamlDocument | None, source: str) -> None:
+    """``perturbations`` (the pipelines that rerun their data on seeded twins,
+    slamkit.experiments.perturbation) against the fields of PerturbationConfig."""
+    if values is None:
+        return
+    from slamkit.data.perturb import PerturbationConfig
+
+    _nested(model_of(PerturbationConfig), values, doc, source, ("perturbations",))
+    from slamkit.experiments.perturbation import perturbation_config
+
+    try:
+        perturbation_config({"perturbations": values})
+    except ConfigError as exc:
+        where = doc.where(("perturbations",)) if doc is not None else source
+        raise ConfigError(f"{where}: {exc}") from None
+
+
 class FilterVsSmootherPipeline(PipelineConfig):
     pipeline: Literal["filter_vs_smoother"]
     seeds: Seeds = 1
+    #: seeded twins of every dataset (slamkit.experiments.perturbation)
+    perturbations: dict[str, Any] | None = None
     workers: Annotated[int, Field(ge=1, le=256)] | None = None
     scenarios: Annotated[list[Union[str, ScenarioEntry]], Field(min_length=1)]
     estimators: Union[dict[str, Union[dict[str, Any], None]], Annotated[list[Union[str, dict[str, Any]]], Field(min_length=1)]]
@@ -163,6 +182,7 @@ class FilterVsSmootherPipeline(PipelineConfig):
     def check_options(self, config: dict[str, Any], doc: YamlDocument | None, source: str) -> None:
         _check_estimators(config.get("estimators"), doc, source)
         _check_scenarios(self, doc, source)
+        _check_perturbations(self.perturbations, doc, source)
 
 
 # --- local_planning ------------------------------------------------------------------------------
@@ -271,6 +291,8 @@ class LidarSlamPipeline(PipelineConfig):
     false_loop_closures: Annotated[int, Field(ge=0, le=1000)] = 0
     false_loop_seed: int = 0
     mcl: Union[bool, dict[str, Any], None] = None
+    #: seeded twins of every world and log (slamkit.experiments.perturbation)
+    perturbations: dict[str, Any] | None = None
 
     def check_options(self, config: dict[str, Any], doc: YamlDocument | None, source: str) -> None:
         from slamkit.experiments.lidar_slam import MclCheckConfig
@@ -285,6 +307,7 @@ class LidarSlamPipeline(PipelineConfig):
             _nested(model_of(LidarSlamConfig), values, doc, source, ("slam_by_motion_prior", prior))
         if isinstance(self.mcl, dict):
             _nested(model_of(MclCheckConfig), self.mcl, doc, source, ("mcl",))
+        _check_perturbations(self.perturbations, doc, source)
         for k, world in enumerate(self.worlds):
             _nested(model_of(GridScenario), {key: v for key, v in world.items() if key != "kind"},
                     doc, source, ("worlds", k))

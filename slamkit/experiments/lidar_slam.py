@@ -45,6 +45,8 @@ from slamkit.data.sequence import Odometry, Scan, Sequence
 from slamkit.data.trajectory import Trajectory
 from slamkit.errors import ConfigError
 from slamkit.experiments.observers import StepSnapshot
+from slamkit.data.perturb import perturb
+from slamkit.experiments.perturbation import PARAM as PERTURBATION, perturbation_config, perturbation_indices, unperturbed
 from slamkit.experiments.results import RunRecord, markdown_table
 from slamkit.frontend.correlative import CorrelativeConfig
 from slamkit.frontend.icp import IcpConfig
@@ -499,7 +501,9 @@ def run(config: Mapping[str, Any], folder, progress, observer=None):
     n_false, false_seed = int(config.get("false_loop_closures", 0)), int(config.get("false_loop_seed", 0))
     mcl_cfg = None if not config.get("mcl") else _dataclass_from(
         MclCheckConfig, config["mcl"] if isinstance(config["mcl"], Mapping) else {}, "lidar_slam.mcl")
-    advance = progress.task("lidar_slam", (len(worlds) * len(seeds) + len(logs)) * len(variants))
+    twins = perturbation_config(config)
+    indices = perturbation_indices(config)
+    advance = progress.task("lidar_slam", (len(worlds) * len(seeds) + len(logs)) * len(variants) * len(indices))
     runs: list[RunRecord] = []
     results: list[LidarSlamResult] = []
     for world in worlds:
@@ -513,18 +517,21 @@ def run(config: Mapping[str, Any], folder, progress, observer=None):
                 second, _ = simulate_grid_sequence(sim.scenario,
                                                    np.random.default_rng(int(seed) + mcl_cfg.seed_offset), grid=grid)
                 second = trim_to_free_space(second, grid)
-            for robust, prior in variants:
+            for (robust, prior), twin in ((v, t) for v in variants for t in indices):
                 label = _label(robust, prior)
-                res = run_slam(seq, grid, replace(slam_by_prior[prior], robust=robust), observer,
-                               n_false, false_seed, label=f"{seq.name}_{robust}" + ("" if prior == "odometry" else f"_{prior}"))
-                results.append(res)
+                tag = _twin_tag(twin)
+                res = run_slam(perturb(seq, twin, twins), grid, replace(slam_by_prior[prior], robust=robust),
+                               observer if twin == 0 else None, n_false, false_seed,
+                               label=f"{seq.name}_{robust}" + ("" if prior == "odometry" else f"_{prior}") + tag)
+                if twin == 0:
+                    results.append(res)
                 metrics = dict(res.metrics)
                 if second is not None:
                     metrics.update(localize_on_map(res, second, mcl_cfg))
                 runs.append(RunRecord(seq.name, label, metrics, seed=int(seed),
                                       params={"robust": robust, "motion_prior": prior,
-                                              "false_loop_closures": n_false}))
-                stem = f"{seq.name}_s{seed}_{robust}" + ("" if prior == "odometry" else f"_{prior}")
+                                              "false_loop_closures": n_false, **_twin_param(twin)}))
+                stem = f"{seq.name}_s{seed}_{robust}" + ("" if prior == "odometry" else f"_{prior}") + tag
                 _write_trajectory(folder, res.stamps_s, res.optimised_poses, stem)
                 _write_trajectory(folder, res.stamps_s, res.frontend_poses, f"{stem}_frontend")
                 advance()
@@ -535,21 +542,33 @@ def run(config: Mapping[str, Any], folder, progress, observer=None):
         if entry.duration_s is not None:
             seq = first_seconds(seq, entry.duration_s)
         relations = read_relations(entry.relations) if entry.relations else None
-        for robust, prior in variants:
-            suffix = ("" if len(robusts) == 1 else f"_{robust}") + ("" if prior == "odometry" else f"_{prior}")
-            res = run_slam(seq, None, replace(slam_by_prior[prior], robust=robust), observer,
-                           relations=relations, label=f"{entry.name}{suffix}")
-            results.append(res)
+        for (robust, prior), twin in ((v, t) for v in variants for t in indices):
+            suffix = (("" if len(robusts) == 1 else f"_{robust}") + ("" if prior == "odometry" else f"_{prior}")
+                      + _twin_tag(twin))
+            res = run_slam(perturb(seq, twin, twins), None, replace(slam_by_prior[prior], robust=robust),
+                           observer if twin == 0 else None, relations=relations, label=f"{entry.name}{suffix}")
+            if twin == 0:
+                results.append(res)
             runs.append(RunRecord(entry.name, _label(robust, prior), dict(res.metrics),
                                   params={"robust": robust, "motion_prior": prior, "source": entry.source,
-                                          "relations": entry.relations or ""}))
+                                          "relations": entry.relations or "", **_twin_param(twin)}))
             _write_trajectory(folder, res.scan_stamps_s, res.scan_poses, f"{entry.name}{suffix}")
             advance()
     _plot(folder.plots, results)
-    report = report_markdown(config, [r for r in runs if r.seed is not None],
-                             [r for r in runs if r.seed is None])
+    # the tables show the data as given; the runner adds the perturbation table beside them
+    report = report_markdown(config, [r for r in unperturbed(runs) if r.seed is not None],
+                             [r for r in unperturbed(runs) if r.seed is None])
     # the runner hands this output (``payload``: the LidarSlamResult list) to observer.on_output
     return PipelineOutput(runs, report, payload=results)
+
+
+def _twin_tag(twin: int) -> str:
+    """The file-name suffix of perturbation ``twin`` (none for the data as given)."""
+    return "" if twin == 0 else f"_p{twin}"
+
+
+def _twin_param(twin: int) -> dict[str, int]:
+    return {} if twin == 0 else {PERTURBATION: twin}
 
 
 def _sim_parts(sim):

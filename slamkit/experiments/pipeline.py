@@ -30,6 +30,7 @@ from slamkit.config import load_yaml
 from slamkit.errors import ConfigError
 from slamkit.experiments.config_models import PipelineConfig, check_pipeline
 from slamkit.experiments.observers import NullObserver, PipelineObserver
+from slamkit.experiments.perturbation import with_perturbation_report
 from slamkit.experiments.results import ResultsFolder, RunRecord
 from slamkit.naming import Registry, load_target
 from slamkit.paths import path_component
@@ -204,7 +205,7 @@ def run_pipeline(config: str | Path | Mapping[str, Any], out_dir: str | Path | N
         record = observer_factory is not None and bool(cfg.get("record", True))
         observer = observer_factory(cfg["pipeline"], folder.recording_path) if record else NullObserver()
         try:
-            output = pipeline.run(cfg, folder, reporter, observer)
+            output = with_perturbation_report(pipeline.run(cfg, folder, reporter, observer), folder.plots)
             if not output.runs:
                 # e.g. inits: [chordal] on 2D graphs only: nothing to report is an error, not a result
                 raise ConfigError(f"pipeline {cfg['pipeline']!r} ran nothing: every combination it lists was "

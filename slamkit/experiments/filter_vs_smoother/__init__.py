@@ -82,7 +82,11 @@ def run(config: Mapping[str, Any], folder: ResultsFolder, progress: StepProgress
 
 def assemble(config: Mapping[str, Any], results: list[TaskResult], scenarios: list[ScenarioSpec],
              choices: list[EstimatorChoice]) -> PipelineOutput[FilterVsSmootherPayload]:
-    """The pipeline's output from its task results: runs, summary, consistency, report, payload."""
+    """The pipeline's output from its task results: runs, summary, consistency, report, payload.
+    Everything but ``runs`` is over the data as given; perturbed twins only enter the runner's
+    perturbation table (slamkit.experiments.perturbation)."""
+    every_record = [rec for r in results for rec in r.records]
+    results = [r for r in results if r.perturbation == 0]
     records = [rec for r in results for rec in r.records]
     summary = summarise(records)
     # the best estimator is looked for within a setting: localisation and SLAM never compete
@@ -93,7 +97,7 @@ def assemble(config: Mapping[str, Any], results: list[TaskResult], scenarios: li
     notes = sorted({n for r in results for n in r.notes})
     references = {r.scenario: r.reference for r in results}
     report = report_markdown(config, summary, rows, scenarios, references, notes, results, paired)
-    return PipelineOutput(records, report, summary, {"consistency": rows, "paired": paired}, payload)
+    return PipelineOutput(every_record, report, summary, {"consistency": rows, "paired": paired}, payload)
 
 
 PIPELINE: Pipeline[FilterVsSmootherPayload] = Pipeline(

@@ -20,6 +20,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from slamkit.data.inertial import is_inertial
+from slamkit.data.perturb import PerturbationConfig, perturb
 from slamkit.data.sequence import Sequence
 from slamkit.errors import ConfigError, EstimationError
 from slamkit.experiments.estimators import factory
@@ -28,6 +29,7 @@ from slamkit.experiments.filter_vs_smoother.config import (INERTIAL_PRESETS, NAM
                                                             ScenarioSpec, parse_estimators, parse_scenarios,
                                                             parse_seeds, parse_workers)
 from slamkit.experiments.observers import PipelineObserver
+from slamkit.experiments.perturbation import PARAM as PERTURBATION, perturbation_config
 from slamkit.experiments.results import RunRecord
 from slamkit.experiments.runner import EstimatorRun, ErrorSeries, run_estimators, score
 from slamkit.metrics.inertial import inertial_metrics
@@ -88,6 +90,9 @@ class Task:
     estimators: tuple[EstimatorChoice, ...]
     trajectories_dir: str | None
     keep_full: bool = False
+    #: which seeded twin of the sequence (slamkit.experiments.perturbation; 0: as built)
+    perturbation: int = 0
+    perturbations: PerturbationConfig = PerturbationConfig()
 
 
 @dataclass(frozen=True)
@@ -98,6 +103,7 @@ class TaskResult:
     series: dict[str, ErrorSeries]
     notes: list[str]
     reference: str
+    perturbation: int = 0
     #: only with keep_full (the run the recording shows)
     sequence: Sequence | None = None
     runs: dict[str, EstimatorRun] | None = None
@@ -119,7 +125,7 @@ def setting_of(estimator_type: str, sequence: Sequence) -> str | None:
 
 def run_task(task: Task, observer: PipelineObserver | None = None) -> TaskResult:
     """Build the sequence, run every estimator, score them (and write their trajectories)."""
-    sequence = build_sequence(task.scenario, task.seed)
+    sequence = perturb(build_sequence(task.scenario, task.seed), task.perturbation, task.perturbations)
     factories = {c.label: factory(c.type, c.params, seed=task.seed) for c in task.estimators}
     runs = run_estimators(sequence, factories, observer=observer, kind=NAME,
                           run_label=f"{task.scenario.name}/seed{task.seed}")
@@ -143,6 +149,8 @@ def run_task(task: Task, observer: PipelineObserver | None = None) -> TaskResult
             params["setting"] = setting
         if run.failed:
             params["failed"] = run.failed
+        if task.perturbation:
+            params[PERTURBATION] = task.perturbation
         records.append(RunRecord(task.scenario.name, choice.label, scored.metrics, task.seed, params))
         notes.extend(scored.notes)
         if scored.series is not None:
@@ -150,11 +158,12 @@ def run_task(task: Task, observer: PipelineObserver | None = None) -> TaskResult
         if task.trajectories_dir is not None and run.estimate is not None:
             from slamkit.data.formats.tum import write_tum
 
-            write_tum(file_in(task.trajectories_dir, f"{task.scenario.name}_{choice.label}_seed{task.seed}", ".tum",
+            twin = f"_p{task.perturbation}" if task.perturbation else ""
+            write_tum(file_in(task.trajectories_dir, f"{task.scenario.name}_{choice.label}_seed{task.seed}{twin}", ".tum",
                               "scenario name / estimator label"),
                       run.estimate.trajectory)
     return TaskResult(task.scenario.name, task.seed, records, series, notes, reference_name,
-                      sequence if task.keep_full else None, runs if task.keep_full else None)
+                      task.perturbation, sequence if task.keep_full else None, runs if task.keep_full else None)
 
 
 def run_monte_carlo(config: Mapping[str, Any], trajectories_dir: Path | None = None, progress=None,
@@ -167,8 +176,11 @@ def run_monte_carlo(config: Mapping[str, Any], trajectories_dir: Path | None = N
     seeds = parse_seeds(config)
     workers = parse_workers(config)
     tdir = None if trajectories_dir is None else str(trajectories_dir)
-    tasks = [Task(s, seed, s.estimator_choices(list(choices)), tdir, keep_full=(k == 0))
-             for s in scenarios for k, seed in enumerate(seeds if s.simulated else seeds[:1])]
+    twins = perturbation_config(config)
+    tasks = [Task(s, seed, s.estimator_choices(list(choices)), tdir, keep_full=(k == 0 and twin == 0),
+                  perturbation=twin, perturbations=twins)
+             for s in scenarios for k, seed in enumerate(seeds if s.simulated else seeds[:1])
+             for twin in range(twins.count + 1)]
     advance = progress.task("filter vs smoother", len(tasks)) if progress is not None else (lambda n=1: None)
     main_tasks = [t for t in tasks if t.keep_full]
     pool_tasks = [t for t in tasks if not t.keep_full]
@@ -194,6 +206,6 @@ def run_monte_carlo(config: Mapping[str, Any], trajectories_dir: Path | None = N
                                           f"{outcome.message}")
                 results.append(outcome)
                 advance()
-    order = {(t.scenario.name, t.seed): k for k, t in enumerate(tasks)}
-    results.sort(key=lambda r: order[(r.scenario, r.seed)])
+    order = {(t.scenario.name, t.seed, t.perturbation): k for k, t in enumerate(tasks)}
+    results.sort(key=lambda r: order[(r.scenario, r.seed, r.perturbation)])
     return results, scenarios, list(choices)
