@@ -15,14 +15,16 @@ setup: $(STAMP)
 # the C kernels are compiled by setup.py at install: reinstall when a source changes
 KERNEL_SOURCES := $(wildcard slamkit/*/*.c slamkit/*/*/*.c)
 
-$(STAMP): pyproject.toml setup.py $(KERNEL_SOURCES)
+$(STAMP): pyproject.toml constraints.txt setup.py $(KERNEL_SOURCES)
 	@# open3d links against libusb-1.0, which minimal Debian images lack.
 	@ldconfig -p | grep -q 'libusb-1.0.so.0' || { $(SUDO) apt-get update -qq && $(SUDO) apt-get install -y -qq libusb-1.0-0; }
 	@# the kernels need Python's C headers (Debian's python3 ships them in python3-dev)
 	@$(PYTHON) -c 'import os, sysconfig, sys; sys.exit(not os.path.exists(os.path.join(sysconfig.get_paths()["include"], "Python.h")))' || { $(SUDO) apt-get update -qq && $(SUDO) apt-get install -y -qq python3-dev; }
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install -q --upgrade pip
-	$(BIN)/pip install -q -e '.[test]'
+	@# constraints.txt pins every dependency to the versions the figures were measured with
+	@# (README, "Reproducibility"): a fresh machine must not resolve newer numpy/scipy/BLAS builds
+	$(BIN)/pip install -q -c constraints.txt -e '.[test]'
 	@# The rerun CLI phones home for analytics and can hang without network.
 	$(BIN)/python -m rerun analytics disable >/dev/null 2>&1 || true
 	touch $(STAMP)
