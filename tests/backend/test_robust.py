@@ -145,17 +145,29 @@ def test_ten_grouped_outliers_on_ring_are_the_tls_optimum_so_gnc_keeps_them_and_
     cand = ~bad.graph.is_odometry()
     barc2 = 11.345  # chi2 quantile 0.99, 3 dof
 
-    def tls_cost(poses) -> float:
+    def chi2(poses) -> np.ndarray:
         from slamkit.backend._convert import values_from_poses
 
-        chi2 = _chi2(plain, values_from_poses(bad.graph.dim, bad.graph.vertex_ids, poses), bad.graph.num_edges)
-        return float(np.sum(chi2[~cand]) + np.sum(np.minimum(chi2[cand], barc2)))
+        return _chi2(plain, values_from_poses(bad.graph.dim, bad.graph.vertex_ids, poses), bad.graph.num_edges)
+
+    def tls_cost(poses) -> float:
+        c = chi2(poses)
+        return float(np.sum(c[~cand]) + np.sum(np.minimum(c[cand], barc2)))
 
     gnc = solve_robust(bad.graph, RobustSolveConfig(backend="gnc", readmit=False))
     dcs = solve_robust(bad.graph, RobustSolveConfig(backend="dcs", readmit=False))
-    # measured: GNC keeps all 10 (ATE 41.53 m, TLS cost 83.6); DCS rejects all 10 (1.431 m, 124.6)
+    # measured: GNC keeps all 10 (ATE 41.530 m, TLS cost 83.615, every outlier's chi2 inside the
+    # gate); DCS rejects all 10 (1.4310 m, TLS cost 124.613) -- identical with OPENBLAS_NUM_THREADS=1
+    # and 2 and on 5 jittered twins (measurements + 1e-9, initial poses + 1e-6, rng (0, k)). Which
+    # local minimum GNC's basin holds is not a figure to pin to the last digit (other groups: seed 2
+    # kept at 45.3 m / TLS 48.5, seed 3 at 62.8 m / 113.0, seed 1 rejected at 1.43 m), so the test
+    # checks what makes it the TLS optimum: kept, inside the gate, cheaper than the truth, far from it
     assert gnc.inlier[bad.is_outlier].all() and not dcs.inlier[bad.is_outlier].any()
-    assert _ate(gt, bad.graph, gnc.poses) == pytest.approx(41.53, abs=0.05)
-    assert _ate(gt, bad.graph, dcs.poses) == pytest.approx(1.431, abs=2e-3)
-    assert tls_cost(gnc.poses) == pytest.approx(83.6, abs=0.1)
-    assert tls_cost(dcs.poses) == pytest.approx(124.6, abs=0.1)
+    assert np.all(chi2(gnc.poses)[bad.is_outlier] <= barc2)
+    assert tls_cost(gnc.poses) < tls_cost(dcs.poses)
+    assert _ate(gt, bad.graph, gnc.poses) > 10 * 1.4316  # the outlier-free ATE (measured 29x that)
+    # DCS returns to the outlier-free optimum (ATE 1.4316 m; measured 1.4309-1.4323 m over groups
+    # seeds 0-3): its TLS cost is the optimum's chi2 (2 x its cost 5.58155, the MANIFEST anchor)
+    # plus every outlier truncated at barc2 (measured 124.613 for seeds 0-3; band 1e-4 relative)
+    assert _ate(gt, bad.graph, dcs.poses) == pytest.approx(1.4316, abs=2e-3)
+    assert tls_cost(dcs.poses) == pytest.approx(2 * 5.58155 + 10 * barc2, rel=1e-4)
