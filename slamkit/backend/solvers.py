@@ -38,17 +38,23 @@ SOLVERS = ("lm", "gn", "dogleg", "isam2")
 LINEAR_SOLVERS = {"cholesky": "MULTIFRONTAL_CHOLESKY", "qr": "MULTIFRONTAL_QR"}
 
 IterationHook = Callable[[int, float, np.ndarray], None]
+#: which edges OptimizeConfig.robust applies to
+ROBUST_EDGES = ("all", "loop_closures")
 
 
 @dataclass(frozen=True)
 class OptimizeConfig:
     """How to solve a pose graph. Tolerances are GTSAM's defaults; ``robust_k`` None means the
-    kernel's 95%-efficiency default; ``prior_sigma`` (m, rad) is the gauge prior's sigma."""
+    kernel's 95%-efficiency default; ``prior_sigma`` (m, rad) is the gauge prior's sigma.
+    ``robust_edges``: the edges the ``robust`` kernel applies to, ``all`` or ``loop_closures``
+    (every edge but the consecutive-id ones, which stay least squares: trusted odometry, as the
+    robust back-ends of ``slamkit.backend.robust`` treat it)."""
 
     solver: str = "lm"
     init: str = "file"
     robust: str = "none"
     robust_k: float | None = None
+    robust_edges: str = "all"
     max_iterations: int = 100
     relative_error_tol: float = 1e-5
     absolute_error_tol: float = 1e-5
@@ -63,6 +69,7 @@ class OptimizeConfig:
         for name, value, allowed in (("solver", self.solver, SOLVERS),
                                      ("init", self.init, INIT_METHODS),
                                      ("robust", self.robust, ROBUST_KINDS),
+                                     ("robust_edges", self.robust_edges, ROBUST_EDGES),
                                      ("linear_solver", self.linear_solver, tuple(LINEAR_SOLVERS))):
             if value not in allowed:
                 raise ConfigError(f"{name} must be one of {allowed}, got {value!r}")
@@ -204,7 +211,8 @@ def optimize(graph: PoseGraph, config: OptimizeConfig = OptimizeConfig(),
         warnings.append(f"{nonpd} of {graph.num_edges} edges have an information matrix that is "
                         f"not positive definite; GTSAM factorises them as given (as readG2o does)")
     with Stopwatch() as sw_build:
-        fg, key_of = build_graph(graph, config.robust, config.robust_k, config.prior_sigma)
+        mask = ~graph.is_odometry() if config.robust_edges == "loop_closures" else None
+        fg, key_of = build_graph(graph, config.robust, config.robust_k, config.prior_sigma, robust_mask=mask)
     with Stopwatch() as sw_init:
         init = initial_values(graph, config.init, config.prior_sigma,
                               factor_graph=fg if config.robust == "none" else None)

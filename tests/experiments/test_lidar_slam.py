@@ -64,22 +64,29 @@ def test_default_pipeline_map_matches_ground_truth(default_run):
 
 def test_mcl_check_is_a_rate_over_filter_seeds(default_run):
     """Global localization on one built map is a coin flip in a world with near-twins: along the
-    same second tour on the same map, filter seeds 0-3 and 5 localize (after 4, 3, 2, 4, 11
-    updates), 4, 6 and 7 settle 3.1-4.6 m away. The check therefore reports the rate over its
-    filter seeds, which is exactly the single-seed runs pooled (issue 11: the verdict of filter
-    seed 0 alone flipped on office seed 1 between two maps that localize in 4 and 3 of 10 runs)."""
+    same second tour on the same map, filter seeds 0-3 and 5 localize, 4, 6 and 7 settle 3.1-4.6 m
+    away (measured on two maps of this world: before and after the final solve kept the
+    scan-match chain out of the robust kernel, issue 28; the successes converged after 4, 3, 2,
+    4, 11 and 3, 2, 2, 4, 9 updates). Which seeds succeed is chaotic (it follows the last bits of
+    the map), so the test checks the invariant -- the check's numbers are exactly the single-seed
+    runs pooled -- and that the outcome is a rate, not one verdict: both outcomes occur (issue
+    11: filter seed 0 alone flipped on office seed 1 between two maps that localize in 4 and 3 of
+    10 runs)."""
     sim = _simulate(WORLD, 0)
     second, _ = simulate_grid_sequence(sim.scenario, np.random.default_rng(1000), grid=sim.grid)
     second = trim_to_free_space(second, sim.grid)
     cfg = MclCheckConfig(max_updates=30, filter_seeds=8)
     pooled = localize_on_map(default_run, second, cfg)
     single = [localize_on_map(default_run, second, replace(cfg, filter_seed=k, filter_seeds=1)) for k in range(8)]
+    rates = np.array([m["mcl_success_rate"] for m in single])
     after = np.array([m["mcl_converged_after_updates"] for m in single])
-    assert [m["mcl_success_rate"] for m in single] == [1, 1, 1, 1, 0, 1, 0, 0]
-    assert np.array_equal(after[np.isfinite(after)], [4, 3, 2, 4, 11])
+    assert set(rates.tolist()) == {0.0, 1.0} and np.array_equal(np.isfinite(after), rates == 1.0)
+    # measured 5 of 8 on both maps; a map that lost its twin structure (or its walls) leaves the band
+    assert 2 / 8 <= rates.mean() <= 7 / 8
+    assert np.all(after[np.isfinite(after)] <= 15)
     assert pooled["mcl_runs"] == 8 and pooled["mcl_updates"] == 30
-    assert pooled["mcl_success_rate"] == 5 / 8
-    assert pooled["mcl_converged_after_updates"] == 4.0
+    assert pooled["mcl_success_rate"] == rates.mean()
+    assert pooled["mcl_converged_after_updates"] == np.median(after[np.isfinite(after)])
     assert pooled["mcl_final_error_m"] == np.median([m["mcl_final_error_m"] for m in single])
     with pytest.raises(ConfigError, match="filter_seeds"):
         MclCheckConfig(filter_seeds=0)
@@ -212,7 +219,8 @@ def test_log_pipeline_on_an_intel_slice(tmp_path, verify_rrd):
     from slamkit.experiments.pipeline import load_config
 
     cfg = load_config(Path(__file__).resolve().parents[2] / "pipelines" / "lidar_slam_logs.yaml")
-    cfg.update(logs=[{"name": "intel", "path": "intel-log", "duration_s": 60.0}], motion_priors=["odometry"])
+    cfg.update(logs=[{"name": "intel", "path": "intel-log", "duration_s": 60.0}], motion_priors=["odometry"],
+               perturbations=None)
     res = run_pipeline(cfg, tmp_path / "run", progress=False, observer_factory=observer_for)
     (run,) = res.results["runs"]
     m = run["metrics"]

@@ -16,15 +16,13 @@ import numpy as np
 import pytest
 
 from slamkit.data import registry
-from slamkit.data.sequence import Odometry, Scan
+from slamkit.data.sequence import Scan
 from slamkit.errors import ConfigError, DataError
 from slamkit.experiments.lidar_slam import (_sim_parts, _simulate, ate_keyframes_m, first_seconds, run_slam,
                                             slam_config_from, slam_section_for)
 from slamkit.experiments.pipeline import load_config
-from slamkit.frontend.keyframes import select_keyframes
 from slamkit.geometry import se2
 from slamkit.metrics.relations import read_relations
-from slamkit.models import diff_drive
 from slamkit.systems.lidar_slam import LidarSlam, LidarSlamConfig
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -83,9 +81,9 @@ def test_keyframes_are_placed_on_the_matched_motion(world):
     """The keyframe rule (``KeyframeConfig.exceeded_by``) is applied to the scan-matched motion
     since the newest keyframe, also with wheel odometry: no scan between keyframes passes it by
     its matched pose, every keyframe's scan-match edge does. The old experiment applied it to
-    the odometry (it matched keyframes only), which picks a different set here (26 of 69 in
-    common) and, measured on the whole Intel log with odometry, 0.189 +- 0.743 m relation error
-    instead of 0.0155 +- 0.0136 m (issue 11)."""
+    the odometry (it matched keyframes only), which can pick a different set (26 of 69 in common
+    here) and, measured on the whole Intel log with odometry, gave 0.189 +- 0.743 m relation
+    error instead of 0.0155 +- 0.0136 m (issue 11)."""
     seq, _ = world
     cfg = LidarSlamConfig()
     slam = LidarSlam(cfg, seq.initial_world_xytheta_body).run(seq)
@@ -95,21 +93,20 @@ def test_keyframes_are_placed_on_the_matched_motion(world):
     k_T_scan = se2.between(est.keyframe_poses[anchor], est.world_xytheta_body)
     since_s = est.stamps_s - est.keyframe_stamps_s[anchor]
     between = np.setdiff1d(np.arange(len(est.stamps_s)), k)
-    assert len(k) == 69 and len(between) == 442 - 69
+    # 442 scans: the seeded simulator's 60 s tour, trimmed to free space (exact, no decision).
+    # Keyframes depend on the matched motion: perturbations 0-5 (start_offset, range_jitter 1e-6 m)
+    # select 69, 69, 69, 68, 68, 67 keyframes; band 62-76. How many of them
+    # an odometry-based selection would share is a knife edge (26, 30, 30, 68, 68, 67 of them: one
+    # borderline scan early on shifts every later keyframe), so it is not a check; the rule
+    # checks below pin the set down instead: with the rule applied to the matched motion, no
+    # scan between keyframes passes it and every keyframe's edge does
+    assert len(est.stamps_s) == 442
+    assert 62 <= len(k) <= 76 and len(between) == len(est.stamps_s) - len(k)
     assert not any(cfg.keyframes.exceeded_by(k_T_scan[n], since_s[n]) for n in between)
     g = slam.graph()
     chain = g.edge_to == g.edge_from + 1
     assert chain.sum() == len(k) - 1
     assert all(cfg.keyframes.exceeded_by(z, 0.0) for z in g.measurements[chain])
-    odometry = np.array([seq.initial_world_xytheta_body], float)
-    at_scan = []
-    for ev in seq:
-        if isinstance(ev, Odometry):
-            odometry = diff_drive.motion(odometry, np.array([[ev.v_mps, ev.omega_radps]]), ev.dt_s)
-        elif isinstance(ev, Scan):
-            at_scan.append(odometry[0])
-    on_odometry = select_keyframes(est.stamps_s, np.array(at_scan), cfg.keyframes)
-    assert len(np.intersect1d(on_odometry, k)) == 26
 
 
 def test_lidar_only_in_a_simulated_world(world):
@@ -225,18 +222,25 @@ INTEL_BOTTOM_WALL = (-4.5, 10.8, -18.75, -17.9)
 @pytest.mark.parametrize("name, prior", [("intel", "odometry"), ("fr079", "odometry"),
                                          ("intel", "constant_velocity"), ("fr079", "constant_velocity")])
 def test_benchmark_goals(name, prior):
-    """Issue 11's goals on the whole logs: the published graph-mapping result (Intel 0.031 m,
-    fr079 0.056 m) with odometry, within 1.5x of it lidar only; rotation below 1 deg. Measured
-    (mean +- std, m): Intel 0.016 +- 0.014 with odometry, 0.026 +- 0.050 lidar only (0.453 +-
-    1.334 before the lidar-only matcher settings of slam_by_motion_prior); fr079 0.031 +- 0.024
-    and 0.036 +- 0.025."""
+    """Issue 11's goals on the whole logs, as the worst over the log as given and 5 seeded
+    perturbations of it (issue 28: start 1-5 scans later, 1e-6 m range jitter): the published
+    graph-mapping result (Intel 0.031 m, fr079 0.056 m) with odometry, within 1.5x of it lidar
+    only; rotation below 1 deg. The measured distributions are in the README's laser-log table
+    (``slamkit run pipelines/lidar_slam_logs.yaml``)."""
     seq, relations = _log(name)
-    res = run_slam(seq, None, logs_config(prior), relations=relations)
-    m = res.metrics
+    twins = PerturbationConfig(count=5)
     goal = GOALS[name] * (1.0 if prior == "odometry" else 1.5)
-    assert m["relation_count"] == {"intel": 2984, "fr079": 1685}[name]
-    assert m["relation_trans_mean_m"] <= goal
-    assert m["relation_rot_mean_deg"] < 1.0
+    full = {"intel": 2984, "fr079": 1685}[name]
+    for twin in range(twins.count + 1):
+        res = run_slam(perturb(seq, twin, twins), None, logs_config(prior), relations=relations)
+        m = res.metrics
+        # a later start can only drop relations that begin in the first scans
+        assert full - 10 <= m["relation_count"] <= full and (twin > 0 or m["relation_count"] == full)
+        assert m["relation_trans_mean_m"] <= goal, (twin, m["relation_trans_mean_m"])
+        assert m["relation_rot_mean_deg"] < 1.0, (twin, m["relation_rot_mean_deg"])
+        if twin == 0:
+            unperturbed = res
+    res = unperturbed
     if (name, prior) == ("intel", "odometry"):
         # Intel's inner corridor walls are arcs (radius ~21 m) in the raw scans themselves: the
         # map must show the bend single scans see and add none of its own. Measured (map / single
