@@ -133,7 +133,9 @@ def convert_cmd(
     """Write a recording as a ROS bag (LaserScan, Odometry, Imu, NavSatFix) through rosbags."""
     from slamkit.data.formats.rosbag import write_bag
 
-    summary = write_bag(out, registry.load_recording(source), ros_version=1 if out.suffix == ".bag" else 2)
+    # a bag holds its messages in time order: the scans sorted by stamp
+    summary = write_bag(out, registry.load_recording(source, order="stamp"),
+                        ros_version=1 if out.suffix == ".bag" else 2)
     typer.echo(f"wrote {summary.path}: " + ", ".join(f"{t} {n}" for t, n in summary.messages.items())
                + ("; skipped " + ", ".join(f"{k} {n}" for k, n in summary.skipped_events.items())
                   if summary.skipped_events else ""))

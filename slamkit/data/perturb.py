@@ -11,7 +11,8 @@ Kinds (``PERTURBATION_KINDS``), applied together for perturbation ``index`` = 1,
 
 * ``start_offset``: the sequence starts ``index`` measurements later (scans when it has any,
   otherwise its first measurement type: range-bearing, range, GPS): every event before that
-  measurement is dropped, and so is odometry ending at its stamp (it brought the robot there).
+  measurement in the sequence's order is dropped, odometry ending at its stamp included (it
+  comes before it and brought the robot there).
   The ground truth keeps its poses from there on, and the initial pose moves to the truth at the
   new start (or, without truth, to the odometry integrated up to it).
 * ``range_jitter``: every range (scan beams, range-bearing and range-only ranges) moves by
@@ -85,13 +86,12 @@ def start_later(sequence: Sequence, measurements: int) -> Sequence:
     if measurements >= len(at):
         raise ConfigError(f"perturbations: cannot start {measurements} {kind.__name__} events later: "
                           f"{sequence.name!r} has {len(at)}")
-    start_s = sequence.events[at[measurements]].stamp_s
-    # odometry stamped t covers the motion up to t: the one sharing the new start's stamp brought
-    # the robot to the new initial pose, so it goes with the dropped part (else it counts twice)
-    starts_before = [e.stamp_s < start_s or (isinstance(e, Odometry) and e.stamp_s <= start_s)
-                     for e in sequence.events]
-    dropped = tuple(e for e, gone in zip(sequence.events, starts_before) if gone)
-    events = tuple(e for e, gone in zip(sequence.events, starts_before) if not gone)
+    # by position, not stamp (a log in the order it was taken may have late stamps): odometry
+    # stamped t covers the motion up to t and comes before the measurement taken at t, so the
+    # odometry that brought the robot to the new initial pose goes with the dropped part
+    first = at[measurements]
+    start_s = sequence.events[first].stamp_s
+    dropped, events = sequence.events[:first], sequence.events[first:]
     truth, initial = sequence.ground_truth, sequence.initial_world_xytheta_body
     if truth is not None:
         keep = np.flatnonzero(truth.stamps_s >= start_s - 1e-9)

@@ -377,8 +377,10 @@ def load_pose_graph_source(name_or_path: str | Path, policy: str = "keep") -> tu
     return load_pose_graph(target, policy=policy), None
 
 
-def load_recording(source: str | Path):
-    """A Sequence from a registry laser log (``intel-log``), a CARMEN log file or a .slamseq file."""
+def load_recording(source: str | Path, order: str = "log"):
+    """A Sequence from a registry laser log (``intel-log``), a CARMEN log file or a .slamseq file;
+    a CARMEN log's scans in ``order`` (``log``: as taken; ``stamp``: sorted by ipc stamp, see
+    ``slamkit.data.formats.carmen.CarmenLog.to_sequence``)."""
     from slamkit.data.formats.carmen import load_carmen_sequence
     from slamkit.data.formats.sequence import SequenceReader
 
@@ -386,11 +388,11 @@ def load_recording(source: str | Path):
     if isinstance(target, Path):
         if target.suffix == ".slamseq":
             return SequenceReader(target)
-        return load_carmen_sequence(target)
+        return load_carmen_sequence(target, order=order)
     if target.format != "carmen":
         raise DataError(f"dataset {target.name!r} is a {target.kind} ({target.format}), not a laser log "
                         "or a .slamseq recording")
-    return load_carmen_sequence(path_of(target.name), target.name.removesuffix("-log"))
+    return load_carmen_sequence(path_of(target.name), target.name.removesuffix("-log"), order)
 
 
 def relations_of(name: str) -> Path | None:

@@ -599,9 +599,13 @@ def trim_to_free_space(sequence: Sequence, grid: OccupancyGrid | None) -> Sequen
 
 
 def _write_trajectory(folder, stamps_s: np.ndarray, poses: np.ndarray, stem: str) -> None:
+    """``poses`` at ``stamps_s`` as a TUM file, in stamp order (a log processed in the order it
+    was taken has late stamps: slamkit.data.formats.carmen)."""
     from slamkit.data.formats.tum import write_tum
 
-    write_tum(file_in(folder.trajectories, stem, ".tum", "run name"), Trajectory.from_se2(stamps_s, poses))
+    order = np.argsort(stamps_s, kind="stable")
+    write_tum(file_in(folder.trajectories, stem, ".tum", "run name"),
+              Trajectory.from_se2(np.asarray(stamps_s)[order], np.asarray(poses)[order]))
 
 
 def report_markdown(config: Mapping[str, Any], sim_runs: list[RunRecord], log_runs: list[RunRecord]) -> str:

@@ -77,7 +77,7 @@ def _nearest(stamps: np.ndarray, query: np.ndarray) -> tuple[np.ndarray, np.ndar
 
 def relation_errors(stamps_s: np.ndarray, world_xytheta_body: np.ndarray, relations: Relations,
                     tolerance_s: float = DEFAULT_TOLERANCE_S) -> RelationErrors:
-    """Score a planar trajectory ((N,) increasing stamps, (N, 3) poses) on ``relations``."""
+    """Score a planar trajectory ((N,) stamps in any order, (N, 3) poses) on ``relations``."""
     t = np.asarray(stamps_s, dtype=float)
     poses = np.asarray(world_xytheta_body, dtype=float)
     if len(t) < 2 or poses.shape != (len(t), 3):

@@ -71,7 +71,8 @@ def test_malformed_lines_name_file_and_line(tmp_path) -> None:
 
 @pytest.mark.slow
 def test_intel_converts_to_a_ros2_bag_and_back_identically(shared_datasets, tmp_path) -> None:
-    seq = _log(shared_datasets, "intel").to_sequence()
+    # a bag holds its messages in time order: what `slamkit data convert` writes is the stamp order
+    seq = _log(shared_datasets, "intel").to_sequence(order="stamp")
     assert len(seq.of_type(Scan)) == 13631 and len(seq.of_type(Odometry)) == 13630
     write_bag(tmp_path / "intel", seq)
     back = read_bag(tmp_path / "intel", name=seq.name)
@@ -79,3 +80,34 @@ def test_intel_converts_to_a_ros2_bag_and_back_identically(shared_datasets, tmp_
     for a, b in zip(seq, back):
         for f in a.__dataclass_fields__:
             assert np.array_equal(np.asarray(getattr(a, f)), np.asarray(getattr(b, f)), equal_nan=True), (a, f)
+
+
+def test_intel_in_log_order_is_the_order_the_scans_were_taken(shared_datasets) -> None:
+    """Intel's ipc stamps are late in bursts: 631 scans are stamped before their predecessor in the
+    log (by up to 0.9 s). The odometry each line carries says the log order is the physical one:
+    in log order the heading never steps more than 15.8 deg from scan to scan, sorted by stamp it
+    steps more than 20 deg 88 times (late scans interleave with later ones). Issue 28: a
+    lidar-only matcher on the stamp order was on a knife edge (0.026 or 0.999 m)."""
+    log = _log(shared_datasets, "intel")
+    in_log, by_stamp = log.to_sequence(), log.to_sequence(order="stamp")
+    assert in_log.metadata["event_order"] == "log" and by_stamp.metadata["event_order"] == "stamp"
+    scans_log, scans_stamp = in_log.of_type(Scan), by_stamp.of_type(Scan)
+    assert len(scans_log) == len(scans_stamp) == 13631
+    assert sorted(s.stamp_s for s in scans_log) == [s.stamp_s for s in scans_stamp]
+    stamps = np.array([s.stamp_s for s in scans_log])
+    assert int(np.sum(np.diff(stamps) < 0)) == 631 and float(np.max(-np.diff(stamps))) == pytest.approx(0.897, abs=1e-3)
+
+    def heading_steps_deg(seq):
+        return np.rad2deg(np.abs([o.omega_radps * o.dt_s for o in seq.of_type(Odometry)]))
+
+    assert heading_steps_deg(in_log).max() == pytest.approx(15.8, abs=0.05)
+    assert int(np.sum(heading_steps_deg(by_stamp) > 20.0)) == 88
+    # every odometry event goes right before the scan it ends at, with a positive dt: the
+    # measured one, or the median scan period where the next scan's stamp is late
+    events = in_log.events
+    odo = [k for k, e in enumerate(events) if isinstance(e, Odometry)]
+    assert all(isinstance(events[k + 1], Scan) and events[k + 1].stamp_s == events[k].stamp_s for k in odo)
+    dts = np.array([events[k].dt_s for k in odo])
+    period = np.median(np.diff(stamps)[np.diff(stamps) > 0])
+    late = np.diff(stamps) < 0
+    assert np.all(dts > 0) and np.all(dts[late] == period) and np.array_equal(dts[~late], np.diff(stamps)[~late])
