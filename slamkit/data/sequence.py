@@ -1,6 +1,8 @@
 """Sequences: timestamped sensor events plus ground truth, the input of every estimator.
 
-Events are small frozen dataclasses; a ``Sequence`` iterates them in time order. Frames: all
+Events are small frozen dataclasses; a ``Sequence`` iterates them in the order they were taken,
+which is time order except where a recording's stamps are known to be late (a CARMEN log in log
+order, ``metadata['event_order'] == 'log'``: slamkit.data.formats.carmen). Frames: all
 body-frame quantities are in the robot body frame (x forward, y left); world quantities in
 the world frame; angles in radians, distances in metres, times in seconds.
 """
