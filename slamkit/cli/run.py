@@ -22,12 +22,21 @@ def run_command(
                                            "'perturbations: {count: N}')"),
 ) -> None:
     """Run a pipeline config and write config.yaml, results.json, report.md, plots and a recording."""
-    from slamkit.experiments.pipeline import load_config, run_pipeline
+    from slamkit.errors import ConfigError
+    from slamkit.experiments.pipeline import PIPELINES, load_config, pipeline_of, run_pipeline
     from slamkit.viz.pipelines import observer_for
 
     config = pipeline
     if perturbations is not None:
         config = load_config(pipeline)
+        def takes(kind: str) -> bool:
+            model = pipeline_of(kind).config_model
+            return model is not None and "perturbations" in model.model_fields
+
+        if not takes(config["pipeline"]):
+            takers = sorted(n for n in PIPELINES.names() if takes(n))
+            raise ConfigError(f"{pipeline}: --perturbations: pipeline {config['pipeline']!r} does not rerun its data "
+                              f"on perturbations; these do: {', '.join(takers)}")
         config["perturbations"] = {**(config.get("perturbations") or {}), "count": perturbations}
     result = run_pipeline(config, out, progress=not quiet,
                           observer_factory=lambda kind, path: observer_for(kind, path, spawn))

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import shutil
+from pathlib import Path
 
 import pytest
 from typer.testing import CliRunner
@@ -158,3 +159,22 @@ def test_an_old_planner_spelling_runs_with_one_warning_line() -> None:
                                                        "--planner", "rrt_start"])
     assert unknown.exit_code == 2
     assert "error: unknown planner 'rrt_start' (did you mean 'rrt_star'?)" in unknown.stderr
+
+
+def test_run_perturbations_option(tmp_path) -> None:
+    """``slamkit run CFG --perturbations N`` sets ``perturbations.count`` (kept kinds), and a
+    pipeline that does not rerun its data says so with exit 2, writing nothing."""
+    cfg = tmp_path / "fvs.yaml"
+    cfg.write_text("pipeline: filter_vs_smoother\nseeds: 1\nworkers: 1\nrecord: false\n"
+                   "scenarios: [{preset: mild, params: {duration_s: 5.0}}]\nestimators: {ekf: {}}\n"
+                   "perturbations: {count: 1, kinds: [range_jitter]}\n")
+    result = _run("run", str(cfg), "--out", str(tmp_path / "out"), "--quiet", "--perturbations", "2")
+    assert result.exit_code == 0, result.output
+    data = json.loads((tmp_path / "out" / "results.json").read_text())
+    assert sorted(r.get("params", {}).get("perturbation", 0) for r in data["runs"]) == [0, 1, 2]
+    written = (tmp_path / "out" / "config.yaml").read_text()
+    assert "count: 2" in written and "range_jitter" in written and "start_offset" not in written
+    pose_graph = Path(__file__).resolve().parents[2] / "pipelines" / "pose_graph.yaml"
+    bad = _run("run", str(pose_graph), "--out", str(tmp_path / "pg"), "--quiet", "--perturbations", "2")
+    assert bad.exit_code == 2 and "does not rerun its data" in bad.output and "lidar_slam" in bad.output
+    assert not (tmp_path / "pg").exists()
