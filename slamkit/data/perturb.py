@@ -9,10 +9,10 @@ median and the worst of every metric beside the unperturbed run
 
 Kinds (``PERTURBATION_KINDS``), applied together for perturbation ``index`` = 1, 2, ...:
 
-* ``start_offset``: the sequence starts ``index`` measurements later (scans when it has any,
-  otherwise its first measurement type: range-bearing, range, GPS): every event before that
-  measurement in the sequence's order is dropped, odometry ending at its stamp included (it
-  comes before it and brought the robot there).
+* ``start_offset``: the sequence starts ``index`` steps of its densest stream later (a laser
+  log's scans, a landmark world's odometry; :func:`start_later`): every event before that step
+  in the sequence's order is dropped, odometry ending at the new start included (it brought the
+  robot there).
   The ground truth keeps its poses from there on, and the initial pose moves to the truth at the
   new start (or, without truth, to the odometry integrated up to it).
 * ``range_jitter``: every range (scan beams, range-bearing and range-only ranges) moves by
@@ -36,8 +36,8 @@ from slamkit.models import diff_drive
 
 PERTURBATION_KINDS = ("start_offset", "range_jitter", "event_order")
 
-#: measurement types a start offset counts, first present wins
-_MEASUREMENTS = (Scan, RangeBearing, Range, Gps)
+#: the kinds a start offset may count in steps, in the order that breaks a tie in frequency
+_STEP_KINDS = (Scan, RangeBearing, Range, Gps, Odometry)
 
 
 @dataclass(frozen=True)
@@ -77,20 +77,27 @@ def perturb(sequence: Sequence, index: int, config: PerturbationConfig) -> Seque
     return replace(out, metadata=meta)
 
 
-def start_later(sequence: Sequence, measurements: int) -> Sequence:
-    """``sequence`` from its ``measurements``-th measurement on (0-based: 0 keeps the first one)."""
-    kind = next((k for k in _MEASUREMENTS if any(isinstance(e, k) for e in sequence.events)), None)
-    if kind is None or measurements <= 0:
+def start_later(sequence: Sequence, steps: int) -> Sequence:
+    """``sequence`` from its ``steps``-th step on (0 keeps it whole): a step is an event of the
+    sequence's most frequent kind (ties go to a measurement: scans, range-bearing, range, GPS;
+    then odometry), so the start moves by a sampling period of its densest stream -- a landmark
+    world's 10 Hz odometry, not its 0.5 Hz sightings (starting 5 of those later would cut 10 s of
+    a 20 s run, which is no longer a small change)."""
+    counts = {kind: sum(isinstance(e, kind) for e in sequence.events) for kind in _STEP_KINDS}
+    kind = max(_STEP_KINDS, key=lambda k: counts[k])
+    if counts[kind] == 0 or steps <= 0:
         return sequence
     at = [k for k, e in enumerate(sequence.events) if isinstance(e, kind)]
-    if measurements >= len(at):
-        raise ConfigError(f"perturbations: cannot start {measurements} {kind.__name__} events later: "
+    if steps >= len(at):
+        raise ConfigError(f"perturbations: cannot start {steps} {kind.__name__} events later: "
                           f"{sequence.name!r} has {len(at)}")
-    # by position, not stamp (a log in the order it was taken may have late stamps): odometry
-    # stamped t covers the motion up to t and comes before the measurement taken at t, so the
-    # odometry that brought the robot to the new initial pose goes with the dropped part
-    first = at[measurements]
-    start_s = sequence.events[first].stamp_s
+    # by position, not stamp (a log in the order it was taken may have late stamps). Odometry
+    # stamped t covers the motion up to t and comes before what was measured at t: a cut at a
+    # measurement drops the odometry that brought the robot there, a cut at an odometry step
+    # drops that step too (the new start is where it ended)
+    last = at[steps - 1] if kind is Odometry else at[steps]
+    first = last + 1 if kind is Odometry else last
+    start_s = sequence.events[last].stamp_s
     dropped, events = sequence.events[:first], sequence.events[first:]
     truth, initial = sequence.ground_truth, sequence.initial_world_xytheta_body
     if truth is not None:

@@ -117,3 +117,24 @@ def test_bad_configs_are_refused() -> None:
         PerturbationConfig(count=-1)
     with pytest.raises(ConfigError, match="range_jitter_m"):
         PerturbationConfig(range_jitter_m=float("nan"))
+
+
+def test_start_offset_counts_steps_of_the_densest_stream() -> None:
+    """A landmark world: odometry at 10 Hz, sightings at 2 Hz. One step later is 0.1 s later,
+    not one sighting (0.5 s) later: the odometry step that ends at 0.1 s goes, the sighting
+    taken at 0.1 s stays, and the robot starts where that step ended."""
+    events, poses, pose = [RangeBearing(0.0, np.array([1]), np.array([2.0]), np.array([0.1]))], [np.zeros(3)], np.zeros(3)
+    for k in range(1, 21):
+        t = 0.1 * k
+        events.append(Odometry(t, 0.1, 1.0, 0.0))
+        pose = np.asarray(diff_drive.motion(pose, np.array([1.0, 0.0]), 0.1))
+        poses.append(pose)
+        if k % 5 == 0 or k == 1:
+            events.append(RangeBearing(t, np.array([1]), np.array([2.0 - t]), np.array([0.1])))
+    truth = Trajectory.from_se2(0.1 * np.arange(21), np.array(poses))
+    seq = Sequence("lm", tuple(events), truth, initial_world_xytheta_body=np.zeros(3))
+    later = start_later(seq, 1)
+    assert isinstance(later.events[0], RangeBearing) and later.events[0].stamp_s == pytest.approx(0.1)
+    assert len(later.of_type(Odometry)) == 19 and len(later.of_type(RangeBearing)) == 5
+    np.testing.assert_allclose(later.initial_world_xytheta_body, [0.1, 0.0, 0.0], atol=1e-12)
+    assert later.ground_truth.stamps_s[0] == pytest.approx(0.1)
