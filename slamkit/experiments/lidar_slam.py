@@ -46,7 +46,8 @@ from slamkit.data.trajectory import Trajectory
 from slamkit.errors import ConfigError
 from slamkit.experiments.observers import StepSnapshot
 from slamkit.data.perturb import perturb
-from slamkit.experiments.perturbation import PARAM as PERTURBATION, perturbation_config, perturbation_indices, unperturbed
+from slamkit.experiments.perturbation import (perturbation_config, perturbation_indices, twin_params, twin_suffix,
+                                              unperturbed)
 from slamkit.experiments.results import RunRecord, markdown_table
 from slamkit.frontend.correlative import CorrelativeConfig
 from slamkit.frontend.icp import IcpConfig
@@ -519,7 +520,7 @@ def run(config: Mapping[str, Any], folder, progress, observer=None):
                 second = trim_to_free_space(second, grid)
             for (robust, prior), twin in ((v, t) for v in variants for t in indices):
                 label = _label(robust, prior)
-                tag = _twin_tag(twin)
+                tag = twin_suffix(twin)
                 res = run_slam(perturb(seq, twin, twins), grid, replace(slam_by_prior[prior], robust=robust),
                                observer if twin == 0 else None, n_false, false_seed,
                                label=f"{seq.name}_{robust}" + ("" if prior == "odometry" else f"_{prior}") + tag)
@@ -530,7 +531,7 @@ def run(config: Mapping[str, Any], folder, progress, observer=None):
                     metrics.update(localize_on_map(res, second, mcl_cfg))
                 runs.append(RunRecord(seq.name, label, metrics, seed=int(seed),
                                       params={"robust": robust, "motion_prior": prior,
-                                              "false_loop_closures": n_false, **_twin_param(twin)}))
+                                              "false_loop_closures": n_false, **twin_params(twin)}))
                 stem = f"{seq.name}_s{seed}_{robust}" + ("" if prior == "odometry" else f"_{prior}") + tag
                 _write_trajectory(folder, res.stamps_s, res.optimised_poses, stem)
                 _write_trajectory(folder, res.stamps_s, res.frontend_poses, f"{stem}_frontend")
@@ -544,14 +545,14 @@ def run(config: Mapping[str, Any], folder, progress, observer=None):
         relations = read_relations(entry.relations) if entry.relations else None
         for (robust, prior), twin in ((v, t) for v in variants for t in indices):
             suffix = (("" if len(robusts) == 1 else f"_{robust}") + ("" if prior == "odometry" else f"_{prior}")
-                      + _twin_tag(twin))
+                      + twin_suffix(twin))
             res = run_slam(perturb(seq, twin, twins), None, replace(slam_by_prior[prior], robust=robust),
                            observer if twin == 0 else None, relations=relations, label=f"{entry.name}{suffix}")
             if twin == 0:
                 results.append(res)
             runs.append(RunRecord(entry.name, _label(robust, prior), dict(res.metrics),
                                   params={"robust": robust, "motion_prior": prior, "source": entry.source,
-                                          "relations": entry.relations or "", **_twin_param(twin)}))
+                                          "relations": entry.relations or "", **twin_params(twin)}))
             _write_trajectory(folder, res.scan_stamps_s, res.scan_poses, f"{entry.name}{suffix}")
             advance()
     _plot(folder.plots, results)
@@ -560,15 +561,6 @@ def run(config: Mapping[str, Any], folder, progress, observer=None):
                              [r for r in unperturbed(runs) if r.seed is None])
     # the runner hands this output (``payload``: the LidarSlamResult list) to observer.on_output
     return PipelineOutput(runs, report, payload=results)
-
-
-def _twin_tag(twin: int) -> str:
-    """The file-name suffix of perturbation ``twin`` (none for the data as given)."""
-    return "" if twin == 0 else f"_p{twin}"
-
-
-def _twin_param(twin: int) -> dict[str, int]:
-    return {} if twin == 0 else {PERTURBATION: twin}
 
 
 def _sim_parts(sim):

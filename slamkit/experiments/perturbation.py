@@ -48,6 +48,16 @@ def perturbation_indices(config: Mapping[str, Any]) -> list[int]:
     return list(range(perturbation_config(config).count + 1))
 
 
+def twin_suffix(index: int) -> str:
+    """The file-name suffix of twin ``index`` (none for the data as given)."""
+    return "" if index == 0 else f"_p{index}"
+
+
+def twin_params(index: int) -> dict[str, int]:
+    """What a run record of twin ``index`` adds to its params (nothing for the data as given)."""
+    return {} if index == 0 else {PARAM: int(index)}
+
+
 def index_of(run: RunRecord) -> int:
     return int(run.params.get(PARAM, 0)) if run.params else 0
 

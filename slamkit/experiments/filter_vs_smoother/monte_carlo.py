@@ -29,7 +29,7 @@ from slamkit.experiments.filter_vs_smoother.config import (INERTIAL_PRESETS, NAM
                                                             ScenarioSpec, parse_estimators, parse_scenarios,
                                                             parse_seeds, parse_workers)
 from slamkit.experiments.observers import PipelineObserver
-from slamkit.experiments.perturbation import PARAM as PERTURBATION, perturbation_config
+from slamkit.experiments.perturbation import perturbation_config, twin_params, twin_suffix
 from slamkit.experiments.results import RunRecord
 from slamkit.experiments.runner import EstimatorRun, ErrorSeries, run_estimators, score
 from slamkit.metrics.inertial import inertial_metrics
@@ -149,8 +149,7 @@ def run_task(task: Task, observer: PipelineObserver | None = None) -> TaskResult
             params["setting"] = setting
         if run.failed:
             params["failed"] = run.failed
-        if task.perturbation:
-            params[PERTURBATION] = task.perturbation
+        params.update(twin_params(task.perturbation))
         records.append(RunRecord(task.scenario.name, choice.label, scored.metrics, task.seed, params))
         notes.extend(scored.notes)
         if scored.series is not None:
@@ -158,7 +157,7 @@ def run_task(task: Task, observer: PipelineObserver | None = None) -> TaskResult
         if task.trajectories_dir is not None and run.estimate is not None:
             from slamkit.data.formats.tum import write_tum
 
-            twin = f"_p{task.perturbation}" if task.perturbation else ""
+            twin = twin_suffix(task.perturbation)
             write_tum(file_in(task.trajectories_dir, f"{task.scenario.name}_{choice.label}_seed{task.seed}{twin}", ".tum",
                               "scenario name / estimator label"),
                       run.estimate.trajectory)
