@@ -111,3 +111,86 @@ def test_intel_in_log_order_is_the_order_the_scans_were_taken(shared_datasets) -
     period = np.median(np.diff(stamps)[np.diff(stamps) > 0])
     late = np.diff(stamps) < 0
     assert np.all(dts > 0) and np.all(dts[late] == period) and np.array_equal(dts[~late], np.diff(stamps)[~late])
+
+
+# issue 31: impossible values are refused, decompression is streamed with a cap, every bz2 stream read
+
+_SCAN = "FLASER 3 {r} 0 0 0 0 0 0 {t} host {t}\n"
+
+
+def _write(path, text: str):
+    path.write_text(text)
+    return path
+
+
+def test_a_negative_range_is_refused_naming_file_and_line(tmp_path) -> None:
+    # a range is a distance; CARMEN says "no return" with the maximum range, never with a sign
+    path = _write(tmp_path / "neg.clf", _SCAN.format(r="1.0 2.0 3.0", t=1.5) + _SCAN.format(r="1.0 -0.5 3.0", t=2.5))
+    with pytest.raises(DataError, match=r"neg.clf:2: FLASER: reading 2 is -0.5, negative"):
+        read_carmen(path)
+    robot = ("ROBOTLASER1 0 -1.5708 3.1416 1.5708 81.9 0.01 0 2 1.0 -2.0 0 "
+             "0 0 0 0 0 0 0 0 0 0 0 1.5 host 1.5\n")
+    with pytest.raises(DataError, match=r"rl.clf:1: ROBOTLASER1: reading 2 is -2, negative"):
+        read_carmen(_write(tmp_path / "rl.clf", robot))
+
+
+@pytest.mark.parametrize("value", ["inf", "nan", "0", "-80.0", "1e39", "x"])
+def test_front_laser_max_param_must_be_a_positive_finite_range(tmp_path, value) -> None:
+    text = "# header\nPARAM robot_front_laser_max " + value + "\n" + _SCAN.format(r="1.0 2.0 3.0", t=1.5)
+    with pytest.raises(DataError, match=r"p.clf:2: PARAM robot_front_laser_max is "):
+        read_carmen(_write(tmp_path / "p.clf", text))
+    ok = read_carmen(_write(tmp_path / "ok.clf", text.replace(" " + value + "\n", " 2.5\n")))
+    assert ok.front.max_range_m == 2.5 and np.isnan(ok.front.ranges_m[0, 2]) and ok.front.ranges_m[0, 1] == np.float32(2.0)
+
+
+def test_a_range_beyond_float32_is_refused_naming_the_line(tmp_path) -> None:
+    # 1e39 became inf in float32: the log's max range became inf and no reading meant "no return"
+    text = _SCAN.format(r="1.0 81.83 3.0", t=1.5) + _SCAN.format(r="1.0 1e39 3.0", t=2.5)
+    with pytest.raises(DataError, match=r"big.clf:2: FLASER: reading 2 is 1e\+39, too large for float32"):
+        read_carmen(_write(tmp_path / "big.clf", text))
+    robot = ("ROBOTLASER1 0 -1.5708 3.1416 1.5708 1e39 0.01 0 2 1.0 2.0 0 "
+             "0 0 0 0 0 0 0 0 0 0 0 1.5 host 1.5\n")
+    with pytest.raises(DataError, match=r"rmax.clf:1: ROBOTLASER1: max_range is 1e\+39"):
+        read_carmen(_write(tmp_path / "rmax.clf", robot))
+
+
+@pytest.mark.parametrize("compress,mib", [(gzip.compress, 64), (bz2.compress, 16)])
+def test_compressed_logs_are_streamed_and_capped(tmp_path, compress, mib) -> None:
+    import tracemalloc
+
+    # a few hundred kB that expand to 64 MiB (gz) / 16 MiB (bz2): refused at a 1 MiB cap with
+    # no more than a few MiB allocated (before: gzip had no cap and both grew to full size first)
+    body = (_SCAN.format(r="1.0 2.0 3.0", t=1.5) + "#" + " " * (mib << 20) + "\n").encode()
+    path = tmp_path / "bomb.clf.z"
+    path.write_bytes(compress(body))
+    tracemalloc.start()
+    try:
+        with pytest.raises(DataError, match=r"bomb.clf.z: decompresses to more than 1048576 bytes"):
+            read_carmen(path, max_bytes=1 << 20)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 8 << 20
+    assert len(read_carmen(path, max_bytes=len(body)).front.stamps_s) == 1
+
+
+@pytest.mark.parametrize("compress", [gzip.compress, bz2.compress])
+def test_a_corrupt_or_truncated_compressed_log_names_the_file(tmp_path, compress) -> None:
+    data = compress("".join(_SCAN.format(r=f"{k}.0 2.0 3.0", t=k + 0.5) for k in range(1, 2000)).encode())
+    corrupt = bytearray(data)
+    corrupt[len(data) // 2:len(data) // 2 + 16] = b"\xff" * 16
+    for name, blob in (("corrupt.clf.z", bytes(corrupt)), ("truncated.clf.z", data[:len(data) // 2])):
+        (tmp_path / name).write_bytes(blob)
+        with pytest.raises(DataError, match=rf"{name}: cannot decompress"):
+            read_carmen(tmp_path / name)
+
+
+@pytest.mark.parametrize("compress", [gzip.compress, bz2.compress])
+def test_every_stream_of_a_multi_stream_file_is_read(tmp_path, compress) -> None:
+    # pbzip2 writes one bz2 stream per block; before, only the first stream's scan was read
+    first, second = _SCAN.format(r="1.0 2.0 3.0", t=1.5), _SCAN.format(r="4.0 5.0 6.0", t=2.5)
+    path = tmp_path / "multi.clf.z"
+    path.write_bytes(compress(first.encode()) + compress(second.encode()))
+    laser = read_carmen(path).front
+    np.testing.assert_array_equal(laser.stamps_s, [1.5, 2.5])
+    assert laser.max_range_m == 6.0 and laser.ranges_m[0, 0] == np.float32(1.0) and laser.ranges_m[1, 1] == np.float32(5.0)

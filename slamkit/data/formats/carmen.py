@@ -20,7 +20,12 @@ do not state the maximum: it is the ``robot_front_laser_max`` PARAM when the log
 the largest reading in the log (81.83 m in Intel). Ranges are kept as float32 (the logs give
 centimetres) and beam angles follow :func:`slamkit.data.sequence.beam_angles_rad`, so a log
 converted to a ROS bag reads back bit for bit. A malformed line is a DataError naming the file
-and its one-based line (lines end at ``\\n`` only, see ``slamkit._text``).
+and its one-based line (lines end at ``\\n`` only, see ``slamkit._text``). Physically impossible
+values are refused, naming the line: a negative range (a range is a distance, and CARMEN marks
+"no return" with the maximum range, not a sign), a range beyond float32 (it would become inf, and
+the log's maximum range with it), a maximum range (PARAM or ROBOTLASER1 field) that is not a
+positive finite number. ``.gz`` and ``.bz2`` logs are decompressed in chunks, every stream of a
+multi-stream file (pbzip2), and refused once the text passes ``MAX_LOG_BYTES``.
 """
 
 from __future__ import annotations
@@ -28,6 +33,7 @@ from __future__ import annotations
 import bz2
 import gzip
 import math
+import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Mapping
@@ -148,17 +154,32 @@ def _scan_odometry(stamps_s: np.ndarray, poses: np.ndarray, what: str) -> list[O
             for k in range(len(held))]
 
 
-def _open_text(path: Path) -> str:
-    raw = read_bytes(path)
+def _open_text(path: Path, max_bytes: int = MAX_LOG_BYTES) -> str:
+    """The log's text; ``.gz`` / ``.bz2`` (recognised by their magic bytes) are decompressed in
+    chunks, every stream of a multi-stream file (pbzip2, concatenated files, multi-member gzip),
+    and refused as soon as the output passes ``max_bytes`` -- never first grown to full size."""
     try:
-        if raw[:3] == b"BZh":
-            raw = bz2.BZ2Decompressor().decompress(raw, max_length=MAX_LOG_BYTES)
-        elif raw[:2] == b"\x1f\x8b":
-            raw = gzip.decompress(raw)
-    except (OSError, EOFError, ValueError) as exc:
-        raise DataError(f"cannot decompress: {exc}", path) from None
-    if len(raw) >= MAX_LOG_BYTES:
-        raise DataError(f"decompresses to more than {MAX_LOG_BYTES} bytes", path)
+        with open(path, "rb") as f:
+            magic = f.read(3)
+    except FileNotFoundError:
+        raise DataError("no such file", path) from None
+    except IsADirectoryError:
+        raise DataError("is a directory, not a file", path) from None
+    if magic == b"BZh" or magic[:2] == b"\x1f\x8b":
+        opener = bz2.open if magic == b"BZh" else gzip.open
+        raw = bytearray()
+        try:
+            with opener(path, "rb") as f:
+                while chunk := f.read(1 << 20):
+                    raw += chunk
+                    if len(raw) > max_bytes:
+                        raise DataError(f"decompresses to more than {max_bytes} bytes", path)
+        except (OSError, EOFError, ValueError, zlib.error) as exc:
+            raise DataError(f"cannot decompress: {exc}", path) from None
+    else:
+        raw = read_bytes(path)
+        if len(raw) > max_bytes:
+            raise DataError(f"is larger than {max_bytes} bytes", path)
     try:
         return raw.decode("ascii")
     except UnicodeDecodeError as exc:
@@ -175,12 +196,14 @@ def _numbers(tokens: list[str], path: Path, line: int, what: str) -> np.ndarray:
     return values
 
 
-def read_carmen(path: str | Path) -> CarmenLog:
-    """Read a CARMEN log (see the module docstring)."""
+def read_carmen(path: str | Path, max_bytes: int = MAX_LOG_BYTES) -> CarmenLog:
+    """Read a CARMEN log (see the module docstring); a log whose text (decompressed) is larger
+    than ``max_bytes`` is refused."""
     path = Path(path)
-    text = _open_text(path)
+    text = _open_text(path, max_bytes)
     rows: dict[str, list] = {}
     params: dict[str, str] = {}
+    param_lines: dict[str, int] = {}
     counts: dict[str, int] = {}
     skipped: dict[str, int] = {}
     for lineno, line in enumerate(split_lines(text), start=1):
@@ -193,6 +216,7 @@ def read_carmen(path: str | Path) -> CarmenLog:
             if len(tokens) < 3:
                 raise DataError("PARAM needs a name and a value", path, lineno)
             params[tokens[1]] = tokens[2]
+            param_lines[tokens[1]] = lineno
             continue
         if tag not in ("FLASER", "RLASER", "ROBOTLASER1", "ODOM", "TRUEPOS") and not tag.startswith("RAWLASER"):
             skipped[tag] = skipped.get(tag, 0) + 1
@@ -206,7 +230,7 @@ def read_carmen(path: str | Path) -> CarmenLog:
     lasers = {}
     for tag, items in rows.items():
         if tag in ("FLASER", "RLASER"):
-            lasers[tag] = _flaser(tag, items, path, params)
+            lasers[tag] = _flaser(tag, items, path, params, param_lines)
         elif tag == "ROBOTLASER1" or tag.startswith("RAWLASER"):
             lasers[tag] = _robotlaser(tag, items, path)
     odom = _poses(rows.get("ODOM", []), 6, path, "ODOM")
@@ -223,7 +247,28 @@ def _poses(items: list, width: int, path: Path, tag: str) -> tuple[np.ndarray, n
     return stamps, poses
 
 
-def _flaser(tag: str, items: list, path: Path, params: Mapping[str, str]) -> LaserScans:
+#: the largest range float32 holds: a larger reading would become inf (and the log's maximum range with it)
+_FLOAT32_MAX = float(np.finfo(np.float32).max)
+
+
+def _check_ranges(ranges: np.ndarray, tag: str, path: Path, line: int) -> None:
+    """A range is a distance: a negative one is impossible (CARMEN has no negative code for "no
+    return"; that is the maximum range), and one beyond float32 would turn into inf."""
+    bad = np.flatnonzero((ranges < 0) | (ranges > _FLOAT32_MAX))
+    if len(bad):
+        k = int(bad[0])
+        what = "negative" if ranges[k] < 0 else "too large for float32"
+        raise DataError(f"{tag}: reading {k + 1} is {ranges[k]:g}, {what}", path, line)
+
+
+def _max_range(value: float, what: str, path: Path, line: int | None) -> float:
+    if not (math.isfinite(value) and 0 < value <= _FLOAT32_MAX):
+        raise DataError(f"{what} is {value!r}, expected a positive finite range", path, line)
+    return value
+
+
+def _flaser(tag: str, items: list, path: Path, params: Mapping[str, str],
+            param_lines: Mapping[str, int] | None = None) -> LaserScans:
     n = None
     ranges, laser, robot, stamps, lines = [], [], [], [], []
     for lineno, stamp, body in items:
@@ -234,6 +279,7 @@ def _flaser(tag: str, items: list, path: Path, params: Mapping[str, str]) -> Las
             n = int(count)
         elif int(count) != n:
             raise DataError(f"{tag}: {int(count)} readings where earlier scans had {n}", path, lineno)
+        _check_ranges(body[1:1 + n], tag, path, lineno)
         ranges.append(body[1:1 + n])
         laser.append(body[1 + n:4 + n])
         robot.append(body[4 + n:7 + n])
@@ -241,7 +287,13 @@ def _flaser(tag: str, items: list, path: Path, params: Mapping[str, str]) -> Las
         lines.append(lineno)
     r = np.array(ranges, dtype=np.float32)
     key = "robot_front_laser_max" if tag == "FLASER" else "robot_rear_laser_max"
-    max_range = float(params[key]) if key in params and is_number_token(params[key]) else float(str(r.max()))
+    if key in params:
+        line = (param_lines or {}).get(key)
+        if not is_number_token(params[key]):
+            raise DataError(f"PARAM {key} is {params[key]!r}, expected a number", path, line)
+        max_range = _max_range(float(params[key]), f"PARAM {key}", path, line)
+    else:
+        max_range = float(str(r.max()))
     r = np.where(r >= np.float32(max_range), np.float32(np.nan), r)
     # n beams over 180 degrees from -90 degrees (CARMEN's FLASER convention)
     angles = beam_angles_rad(-math.pi / 2, math.pi / (n - 1) if n > 1 else 0.0, n)
@@ -263,6 +315,8 @@ def _robotlaser(tag: str, items: list, path: Path) -> LaserScans:
         expected = pose_at + (11 if tag == "ROBOTLASER1" else 0)  # 2 poses, tv rv, 2 safety distances, turn axis
         if n_rem != int(n_rem) or n_rem < 0 or len(body) != expected:
             raise DataError(f"{tag}: expected {expected} numbers before the timestamps, got {len(body)}", path, lineno)
+        _max_range(float(max_range), f"{tag}: max_range", path, lineno)
+        _check_ranges(body[8:8 + n], tag, path, lineno)
         if header is None:
             header = max_range
         elif max_range != header:
