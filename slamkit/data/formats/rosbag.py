@@ -265,6 +265,11 @@ def _time(ts, stamp_s: float):
     nsec = int(round((stamp_s - sec) * 1e9))
     if nsec >= 1_000_000_000:
         sec, nsec = sec + 1, nsec - 1_000_000_000
+    # builtin_interfaces/Time holds the seconds in an int32 (rosbags writes ROS 1 time the same
+    # way): a stamp from 2^31 s on (2038-01-19) made struct.pack fail deep in the serializer
+    if not -2**31 <= sec < 2**31:
+        raise DataError(f"a stamp of {stamp_s!r} s does not fit a ROS time, whose seconds are a signed "
+                        "32-bit integer (-2147483648 .. 2147483647 s, up to 2038-01-19)")
     return ts.types["builtin_interfaces/msg/Time"](sec=int(sec), nanosec=nsec), int(sec) * 1_000_000_000 + nsec
 
 

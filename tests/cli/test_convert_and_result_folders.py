@@ -1,0 +1,47 @@
+"""Issue 31 at the CLI: ``data convert`` of stamps past a ROS time's int32 seconds, ``--out`` under
+a regular file, and a sweep folder that ``slamkit run --out`` must not replace. Real files in
+tmp_path, exit codes and messages stated."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from slamkit.cli import app
+
+runner = CliRunner()
+
+
+def _run(*args: str):
+    result = runner.invoke(app, [str(a) for a in args])
+    assert "Traceback" not in result.output
+    return result
+
+
+def _log(path: Path, *stamps: float) -> Path:
+    path.write_text("".join(f"FLASER 3 1.0 2.0 3.0 {0.1 * k} 0 0 {0.1 * k} 0 0 {t!r} host {t!r}\n"
+                            for k, t in enumerate(stamps)))
+    return path
+
+
+def test_convert_keeps_stamps_up_to_the_last_int32_second(tmp_path) -> None:
+    from slamkit.data.formats.rosbag import read_bag
+
+    log = _log(tmp_path / "late.clf", 2147483646.5, 2147483647.25)
+    result = _run("data", "convert", log, tmp_path / "late")
+    assert result.exit_code == 0, result.output
+    assert [e.stamp_s for e in read_bag(tmp_path / "late").events] == [2147483646.5, 2147483647.25, 2147483647.25]
+
+
+@pytest.mark.parametrize("out", ["bag2", "bag1.bag"])
+def test_convert_refuses_stamps_from_2_to_the_31_seconds_cleanly(tmp_path, out) -> None:
+    # before: exit 1, "internal error: 'i' format requires -2147483648 <= number <= 2147483647"
+    log = _log(tmp_path / "y2038.clf", 2147483647.5, 2147483648.5)
+    result = _run("data", "convert", log, tmp_path / out)
+    assert result.exit_code == 2, result.output
+    assert result.output.strip().splitlines() == [
+        "error: a stamp of 2147483648.5 s does not fit a ROS time, whose seconds are a signed 32-bit "
+        "integer (-2147483648 .. 2147483647 s, up to 2038-01-19)"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["y2038.clf"]  # nothing written, no temporary left
