@@ -77,10 +77,28 @@ def list_cmd(
 
 @data_app.command("info")
 def info_cmd(
-    name: str = typer.Argument(..., help="registry name, e.g. intel, city10000, torus3d"),
+    name: str = typer.Argument(..., help="registry name (e.g. intel, city10000, torus3d), or a ROS bag "
+                               "(a ROS 1 .bag file or a ROS 2 bag folder)"),
     as_json: bool = typer.Option(False, "--json", help="print one JSON object on stdout"),
 ) -> None:
-    """Everything recorded about a dataset: files, sources, licence, counts, reference values."""
+    """Everything recorded about a dataset (files, sources, licence, counts, reference values), or
+    a ROS bag's topics with their types, message counts and rates."""
+    from slamkit.data.formats.rosbag import bag_info, is_bag
+
+    if is_bag(Path(name).expanduser()):
+        bag = bag_info(Path(name).expanduser())
+        if as_json:
+            typer.echo(dumps_json(bag))
+            return
+        table = Table(title=f"{bag['path']}: {bag['kind']} bag ({bag['storage']}), {bag['messages']:,} "
+                            f"messages over {bag['duration_s']:.1f} s")
+        for column in ("topic", "type", "count", "rate_hz"):
+            table.add_column(column, justify="right" if column in ("count", "rate_hz") else "left")
+        for t in bag["topics"]:
+            table.add_row(t["topic"], t["type"], f"{t['count']:,}",
+                          "" if t["rate_hz"] != t["rate_hz"] else f"{t['rate_hz']:.2f}")
+        Console(width=max(Console().width, 110)).print(table)
+        return
     info = registry.describe(name)
     if as_json:
         typer.echo(dumps_json(info))

@@ -50,6 +50,7 @@ from slamkit.errors import ChecksumError, DataError, DatasetNotFoundError
 
 if TYPE_CHECKING:
     from slamkit.maps.occupancy_grid import OccupancyGrid
+    from slamkit.data.sequence import Sequence
 
 POSE_GRAPH_KINDS = ("pose_graph_2d", "pose_graph_3d")
 WHEEL_PREFIX = "gtsam_data/"
@@ -377,17 +378,38 @@ def load_pose_graph_source(name_or_path: str | Path, policy: str = "keep") -> tu
     return load_pose_graph(target, policy=policy), None
 
 
-def load_recording(source: str | Path, order: str = "log"):
-    """A Sequence from a registry laser log (``intel-log``), a CARMEN log file or a .slamseq file;
-    a CARMEN log's scans in ``order`` (``log``: as taken; ``stamp``: sorted by ipc stamp, see
-    ``slamkit.data.formats.carmen.CarmenLog.to_sequence``)."""
-    from slamkit.data.formats.carmen import load_carmen_sequence
-    from slamkit.data.formats.sequence import SequenceReader
+def recording_source(source: str | Path) -> DatasetEntry | Path:
+    """What a recording ``source`` names: an existing file, a ROS 2 bag folder (a folder holding
+    ``metadata.yaml``), else a registry entry (:func:`resolve`'s errors otherwise)."""
+    from slamkit.data.formats.rosbag import is_bag
 
-    target = resolve(source)
+    path = Path(source).expanduser()
+    if path.is_dir():
+        if is_bag(path):
+            return path
+        raise DataError("a folder is not a recording unless it is a ROS 2 bag (it has no metadata.yaml)", path)
+    return resolve(source)
+
+
+def load_recording(source: str | Path, order: str = "log", scan_topic: str | None = None,
+                   odom_topic: str | None = None) -> Sequence:
+    """A Sequence from a registry laser log (``intel-log``), a CARMEN log file, a .slamseq file,
+    a ROS 1 ``.bag`` file or a ROS 2 bag folder (sqlite3 or MCAP storage).
+
+    A CARMEN log's scans come in ``order`` (``log``: as taken; ``stamp``: sorted by ipc stamp,
+    see ``slamkit.data.formats.carmen.CarmenLog.to_sequence``); a bag's are in stamp order (as
+    it stores them), read by :func:`slamkit.data.formats.rosbag.read_laser_bag` with
+    ``scan_topic`` / ``odom_topic`` (chosen automatically when the bag has one of each type)."""
+    from slamkit.data.formats.carmen import load_carmen_sequence
+    from slamkit.data.formats.rosbag import is_bag, read_laser_bag
+    from slamkit.data.formats.sequence import load_sequence
+
+    target = recording_source(source)
     if isinstance(target, Path):
+        if is_bag(target):
+            return read_laser_bag(target, scan_topic=scan_topic, odom_topic=odom_topic)
         if target.suffix == ".slamseq":
-            return SequenceReader(target)
+            return load_sequence(target)
         return load_carmen_sequence(target, order=order)
     if target.format != "carmen":
         raise DataError(f"dataset {target.name!r} is a {target.kind} ({target.format}), not a laser log "

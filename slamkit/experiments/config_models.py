@@ -274,6 +274,9 @@ class LogEntryModel(BaseModel):
     path: str
     relations: str | None = None
     duration_s: Annotated[float, Field(gt=0, le=1e6)] | None = None
+    #: a ROS bag's LaserScan / Odometry topic (needed only when it has several of a type)
+    scan_topic: str | None = None
+    odom_topic: str | None = None
 
 
 class LidarSlamPipeline(PipelineConfig):

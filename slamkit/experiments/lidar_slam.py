@@ -443,11 +443,15 @@ class LogEntry:
     source: str
     relations: str | None
     duration_s: float | None = None
+    scan_topic: str | None = None
+    odom_topic: str | None = None
 
 
 def log_entry(raw: str | Mapping[str, Any]) -> LogEntry:
     """A ``logs`` item: a registry name (``intel-log``; its relations come from the registry) or
-    ``{name, path, relations, duration_s}`` (``path`` a file or a registry name)."""
+    ``{name, path, relations, duration_s, scan_topic, odom_topic}`` (``path`` a CARMEN log, a
+    .slamseq file, a ROS 1 .bag, a ROS 2 bag folder or a registry name; the topics choose a
+    bag's scans and odometry when it has several of a type)."""
     from slamkit.data import registry
 
     if isinstance(raw, str):
@@ -455,7 +459,7 @@ def log_entry(raw: str | Mapping[str, Any]) -> LogEntry:
     raw = dict(raw)
     if "path" not in raw:
         raise ConfigError("lidar_slam.logs: an entry is a registry name or {name, path, relations}")
-    target = registry.resolve(str(raw["path"]))
+    target = registry.recording_source(str(raw["path"]))
     rel = raw.get("relations")
     if isinstance(target, Path):
         name = str(raw.get("name") or target.name.split(".")[0])
@@ -465,7 +469,8 @@ def log_entry(raw: str | Mapping[str, Any]) -> LogEntry:
             rel = registry.relations_of(target.name)
     duration = raw.get("duration_s")
     return LogEntry(name, str(raw["path"]), None if rel is None else str(rel),
-                    None if duration is None else float(duration))
+                    None if duration is None else float(duration),
+                    raw.get("scan_topic"), raw.get("odom_topic"))
 
 
 def first_seconds(sequence: Sequence, duration_s: float) -> Sequence:
@@ -539,7 +544,8 @@ def run(config: Mapping[str, Any], folder, progress, observer=None):
     from slamkit.data import registry
 
     for entry in logs:
-        seq = replace(registry.load_recording(entry.source), name=entry.name)
+        seq = replace(registry.load_recording(entry.source, scan_topic=entry.scan_topic,
+                                              odom_topic=entry.odom_topic), name=entry.name)
         if entry.duration_s is not None:
             seq = first_seconds(seq, entry.duration_s)
         relations = read_relations(entry.relations) if entry.relations else None

@@ -8,7 +8,8 @@ named in :class:`BagTopics` (``None`` skips one):
   angle_min + k angle_increment; a reading outside [range_min, range_max] or not finite is "no
   return" (NaN, REP 117); ``max_range_m`` = range_max.
 * ``nav_msgs/Odometry`` -> :class:`~slamkit.data.sequence.Odometry` (v, omega over the time since
-  the previous message). ``odometry_source``: ``"twist"`` takes the message's body-frame twist
+  the previous message); the first message's pose is the Sequence's
+  ``initial_world_xytheta_body``. ``odometry_source``: ``"twist"`` takes the message's body-frame twist
   (linear.x, angular.z); ``"pose"`` converts consecutive poses with
   :func:`slamkit.data.odometry.odometry_from_poses`; ``"auto"`` (default) uses the twist unless
   every twist in the topic is zero (many drivers fill only the pose).
@@ -36,7 +37,7 @@ from __future__ import annotations
 
 import math
 import shutil
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Literal
 
@@ -46,7 +47,7 @@ from slamkit.data.odometry import odometry_from_poses
 from slamkit.data.sequence import beam_angles_rad, Gps, Imu, Odometry, RangeBearing, Scan, Sequence, WheelEncoders
 from slamkit.errors import DataError, OutputError
 from slamkit.models.diff_drive import motion
-from slamkit.paths import temporary_sibling
+from slamkit.paths import check_no_file_above, temporary_sibling
 
 #: WGS84 semi-major axis (m) and first eccentricity squared
 WGS84_A_M = 6378137.0
@@ -209,7 +210,13 @@ def read_bag(path: str | Path, topics: BagTopics = BagTopics(), name: str | None
     stamps = np.array([e.stamp_s for e in events])
     if not np.isfinite(stamps).all():
         raise DataError("a message has a non-finite stamp", path)
-    return Sequence.from_events(name or path.stem, events, metadata=metadata)
+    # the robot starts where the first odometry message puts it (write_bag's first message is
+    # the start pose), as a CARMEN log's first ODOM line does
+    initial = None
+    if rows.get("odom"):
+        p0 = rows["odom"][0][1].pose.pose
+        initial = np.array([p0.position.x, p0.position.y, _yaw(p0.orientation)])
+    return Sequence.from_events(name or path.stem, events, metadata=metadata, initial_world_xytheta_body=initial)
 
 
 def _twists_all_zero(rows: dict[str, list]) -> bool:
@@ -257,6 +264,179 @@ def _odometry_events(rows: dict[str, list], odometry_source: str, tf_odometry, p
                      float(msgs[k][1].twist.twist.angular.z)) for k in range(1, len(msgs))]
 
 
+# --- what a bag holds; a laser log from a bag -------------------------------------------------
+
+
+@dataclass(frozen=True)
+class BagTopicInfo:
+    """One topic of a bag: its message type, how many messages and their mean rate (messages
+    per second over the span of the topic's receive times; NaN with fewer than two)."""
+
+    topic: str
+    msgtype: str
+    count: int
+    rate_hz: float
+    first_s: float
+    last_s: float
+
+
+def is_bag(path: str | Path) -> bool:
+    """A ROS 2 bag folder (one holding ``metadata.yaml``) or a ROS 1 bag file (``#ROSBAG`` magic)."""
+    path = Path(path)
+    if path.is_dir():
+        return (path / "metadata.yaml").is_file()
+    if path.is_file():
+        with open(path, "rb") as f:
+            return f.read(7) == b"#ROSBAG"
+    return False
+
+
+def _open(path: Path):
+    from rosbags.highlevel import AnyReader
+
+    if not path.exists():
+        raise DataError("no such bag", path)
+    if path.is_file() and path.suffix != ".bag" and is_bag(path):
+        raise DataError("a ROS 1 bag (it starts with #ROSBAG) is read only under a .bag name (rosbags "
+                        "chooses the format by the suffix); rename it", path)
+    try:
+        reader = AnyReader([path], default_typestore=_typestore())
+        reader.open()
+    except Exception as exc:  # rosbags raises its own errors for damaged or foreign files
+        raise DataError(f"cannot open as a ROS bag: {type(exc).__name__}: {exc}", path) from None
+    return reader
+
+
+def bag_topics(path: str | Path) -> list[BagTopicInfo]:
+    """Every topic of the bag at ``path`` (sorted by name) with type, count and rate."""
+    path = Path(path)
+    reader = _open(path)
+    try:
+        times: dict[str, list[int]] = {}
+        types: dict[str, str] = {}
+        for c in reader.connections:
+            times.setdefault(c.topic, [])
+            types[c.topic] = c.msgtype
+        for conn, t_ns, _ in reader.messages():
+            times[conn.topic].append(t_ns)
+    finally:
+        reader.close()
+    out = []
+    for topic in sorted(times):
+        t = np.sort(np.array(times[topic], dtype=np.int64))
+        span_s = (t[-1] - t[0]) * 1e-9 if len(t) else 0.0
+        rate = (len(t) - 1) / span_s if len(t) > 1 and span_s > 0 else float("nan")
+        out.append(BagTopicInfo(topic, types[topic], len(t), float(rate),
+                                float(t[0]) * 1e-9 if len(t) else float("nan"),
+                                float(t[-1]) * 1e-9 if len(t) else float("nan")))
+    return out
+
+
+def bag_info(path: str | Path) -> dict[str, Any]:
+    """What ``slamkit data info BAG`` prints: the bag's kind, duration and every topic."""
+    path = Path(path)
+    topics = bag_topics(path)
+    firsts = [t.first_s for t in topics if t.count]
+    lasts = [t.last_s for t in topics if t.count]
+    return {"path": str(path), "kind": "ros1" if path.is_file() else "ros2",
+            "storage": _storage_of(path), "messages": sum(t.count for t in topics),
+            "duration_s": float(max(lasts) - min(firsts)) if firsts else 0.0,
+            "topics": [{"topic": t.topic, "type": t.msgtype, "count": t.count, "rate_hz": float(t.rate_hz)}
+                       for t in topics]}
+
+
+def _storage_of(path: Path) -> str:
+    if path.is_file():
+        return "rosbag1"
+    if any(path.glob("*.mcap")):
+        return "mcap"
+    return "sqlite3"
+
+
+def _unique_topic(present: dict[str, str], msgtype: str, chosen: str | None, what: str, key: str,
+                  required: bool, path: Path) -> str | None:
+    listing = ", ".join(f"{t} ({m})" for t, m in sorted(present.items())) or "none"
+    if chosen is not None:
+        if chosen not in present:
+            raise DataError(f"{key} {chosen!r} is not in the bag; it has: {listing}", path)
+        if present[chosen] != msgtype:
+            raise DataError(f"{key} {chosen!r} carries {present[chosen]}, not {msgtype}", path)
+        return chosen
+    found = sorted(t for t, m in present.items() if m == msgtype)
+    if len(found) == 1:
+        return found[0]
+    if not found and not required:
+        return None
+    how = (f"no {what} topic of type {msgtype}" if not found
+           else f"{len(found)} {what} topics of type {msgtype} ({', '.join(found)}); set {key} to choose one")
+    raise DataError(f"{how}. The bag's topics: {listing}", path)
+
+
+def _static_mount(reader, tf_conns, base_frame: str, laser_frame: str) -> tuple[float, float, float] | None:
+    """base_frame -> laser_frame (x, y, yaw) composed along the static tf tree, or None."""
+    parent_of: dict[str, tuple[str, tuple[float, float, float]]] = {}
+    for conn, _, raw in reader.messages(connections=tf_conns):
+        for tr in reader.deserialize(raw, conn.msgtype).transforms:
+            tt = tr.transform.translation
+            parent_of[tr.child_frame_id.lstrip("/")] = (tr.header.frame_id.lstrip("/"),
+                                                        (tt.x, tt.y, _yaw(tr.transform.rotation)))
+    # walk from the laser frame up to the base frame: base_T_laser = base_T_a a_T_b ... x_T_laser
+    chain, frame, seen = [], laser_frame.lstrip("/"), set()
+    while frame != base_frame.lstrip("/"):
+        if frame not in parent_of or frame in seen:
+            return None
+        seen.add(frame)
+        parent, pose = parent_of[frame]
+        chain.append(pose)
+        frame = parent
+    x = y = th = 0.0
+    for px, py, pth in reversed(chain):
+        x, y, th = x + math.cos(th) * px - math.sin(th) * py, y + math.sin(th) * px + math.cos(th) * py, th + pth
+    return (float(x), float(y), float(math.atan2(math.sin(th), math.cos(th))))
+
+
+def read_laser_bag(path: str | Path, scan_topic: str | None = None, odom_topic: str | None = None,
+                   name: str | None = None) -> Sequence:
+    """A laser log (scans, and odometry when the bag has it) from a ROS bag.
+
+    The ``sensor_msgs/LaserScan`` and ``nav_msgs/Odometry`` topics are the bag's only ones of
+    those types unless ``scan_topic`` / ``odom_topic`` name them; with several (or no scan
+    topic) a DataError lists the bag's topics and types. The laser's mounting on the robot,
+    ``metadata['body_xytheta_lidar']``, comes from the static transforms (``/tf_static``) from
+    the odometry's ``child_frame_id`` (``base_link`` without odometry) to the scans' frame, when
+    the bag has them."""
+    path = Path(path)
+    reader = _open(path)
+    try:
+        present = {c.topic: c.msgtype for c in reader.connections}
+        scan = _unique_topic(present, MSG_SCAN, scan_topic, "scan", "scan_topic", True, path)
+        odom = _unique_topic(present, MSG_ODOM, odom_topic, "odometry", "odom_topic", False, path)
+        mount = None
+        tf_conns = [c for c in reader.connections if c.topic == "/tf_static" and c.msgtype == MSG_TF]
+        if tf_conns:
+            first = {}
+            for topic in (scan, odom):
+                if topic is None:
+                    continue
+                for conn, _, raw in reader.messages(connections=[c for c in reader.connections if c.topic == topic]):
+                    first[topic] = reader.deserialize(raw, conn.msgtype)
+                    break
+            laser_frame = first[scan].header.frame_id if scan in first else ""
+            base_frame = (first[odom].child_frame_id if odom in first and first[odom].child_frame_id
+                          else "base_link")
+            if laser_frame:
+                mount = _static_mount(reader, tf_conns, base_frame, laser_frame)
+    finally:
+        reader.close()
+    seq = read_bag(path, BagTopics(scan=scan, odom=odom, imu=None, gps=None, tf=None), name=name)
+    metadata = {**seq.metadata, "scan_topic": scan, "odom_topic": odom}
+    if mount is not None:
+        metadata["body_xytheta_lidar"] = list(mount)
+    # the stamp order (a bag stores its messages by time)
+    metadata.setdefault("event_order", "stamp")
+    return replace(seq, metadata=metadata)
+
+
 # --- writing ---------------------------------------------------------------------------------
 
 
@@ -286,14 +466,19 @@ def _quat_yaw(ts, yaw: float):
 
 
 def write_bag(path: str | Path, sequence: Sequence, topics: BagTopics = BagTopics(),
-              ros_version: Literal[1, 2] = 2, gps_origin_lla: tuple[float, float, float] = (0.0, 0.0, 0.0)
-              ) -> BagWriteSummary:
-    """Write ``sequence`` as a ROS bag (see the module docstring); returns what was written."""
+              ros_version: Literal[1, 2] = 2, gps_origin_lla: tuple[float, float, float] = (0.0, 0.0, 0.0),
+              storage: Literal["sqlite3", "mcap"] = "sqlite3") -> BagWriteSummary:
+    """Write ``sequence`` as a ROS bag (see the module docstring); returns what was written.
+    ``storage`` is the ROS 2 storage plugin (``sqlite3``: NAME/NAME.db3, ``mcap``: NAME/NAME.mcap)."""
     path = Path(path)
     if path.exists() or path.is_symlink():
         raise OutputError(f"{path} exists; a bag is only written to a new path")
+    check_no_file_above(path, "choose another output path")
+    path.parent.mkdir(parents=True, exist_ok=True)
     if ros_version not in (1, 2):
         raise DataError(f"ros_version must be 1 or 2, got {ros_version!r}")
+    if storage not in ("sqlite3", "mcap"):
+        raise DataError(f"storage must be sqlite3 or mcap, got {storage!r}")
     ts = _typestore(ros_version)
     T = ts.types
     by_kind: dict[type, list] = {}
@@ -362,10 +547,19 @@ def write_bag(path: str | Path, sequence: Sequence, topics: BagTopics = BagTopic
                 latitude=float(lat), longitude=float(lon), altitude=float(alt), position_covariance=cov,
                 position_covariance_type=2 if known else 0)))
     out.sort(key=lambda row: row[0])
+    # assembled under a hidden temporary folder and renamed into place when complete; a ROS 2
+    # bag is written as <tmp>/<name> because rosbags names the database (and metadata.yaml lists
+    # it) after the bag folder: NAME/NAME.db3 (or .mcap), an ordinary name, not the temporary one
     tmp = temporary_sibling(path)
     try:
-        counts = _write_messages(tmp, out, ts, ros_version)
-        tmp.rename(path)
+        if ros_version == 2:
+            tmp.mkdir()
+            counts = _write_messages(tmp / path.name, out, ts, ros_version, storage)
+            (tmp / path.name).rename(path)
+            tmp.rmdir()
+        else:
+            counts = _write_messages(tmp, out, ts, ros_version)
+            tmp.rename(path)
     except BaseException:
         if tmp.is_dir():
             shutil.rmtree(tmp, ignore_errors=True)
@@ -375,12 +569,13 @@ def write_bag(path: str | Path, sequence: Sequence, topics: BagTopics = BagTopic
     return BagWriteSummary(path, counts, skipped)
 
 
-def _write_messages(path: Path, rows: list, ts, ros_version: int) -> dict[str, int]:
+def _write_messages(path: Path, rows: list, ts, ros_version: int, storage: str = "sqlite3") -> dict[str, int]:
     counts: dict[str, int] = {}
     if ros_version == 2:
-        from rosbags.rosbag2 import Writer
+        from rosbags.rosbag2 import StoragePlugin, Writer
 
-        writer = Writer(path, version=9)
+        writer = Writer(path, version=9,
+                        storage_plugin=StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3)
         serialize = ts.serialize_cdr
     elif ros_version == 1:
         from rosbags.rosbag1 import Writer
@@ -399,4 +594,5 @@ def _write_messages(path: Path, rows: list, ts, ros_version: int) -> dict[str, i
     return counts
 
 
-__all__ = ["BagTopics", "BagWriteSummary", "read_bag", "write_bag", "lla_to_local", "local_to_lla"]
+__all__ = ["BagTopicInfo", "BagTopics", "BagWriteSummary", "bag_info", "bag_topics", "is_bag", "read_bag",
+           "read_laser_bag", "write_bag", "lla_to_local", "local_to_lla"]
