@@ -13,7 +13,7 @@ import os
 from pathlib import Path
 from typing import Iterator
 
-from slamkit.errors import ConfigError
+from slamkit.errors import ConfigError, OutputError
 
 #: longest accepted component (most file systems allow 255 bytes; suffixes need room)
 MAX_COMPONENT_CHARS = 200
@@ -70,6 +70,18 @@ def check_output_file(path: str | Path, is_ours, what: str) -> Path:
         raise OutputError(f"{path} exists and is not a {what} slamkit wrote; slamkit will not "
                           "replace it: remove it or choose another path")
     return path
+
+
+def check_no_file_above(path: str | Path, hint: str = "choose another --out") -> None:
+    """An OutputError when an existing ancestor of ``path`` is not a folder (``--out
+    file.txt/sub``): nothing can be created under it, and ``mkdir`` would fail with an OSError
+    deep in the writer. Missing ancestors are fine (the writer creates them)."""
+    final = Path(os.path.abspath(path))
+    for parent in final.parents:
+        if parent.is_dir():
+            return
+        if parent.exists() or parent.is_symlink():
+            raise OutputError(f"{final} cannot be created: {parent} is a file, not a folder; {hint}")
 
 
 def temporary_sibling(path: Path) -> Path:

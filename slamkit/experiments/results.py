@@ -25,6 +25,7 @@ from scipy import stats as _stats
 
 import slamkit
 from slamkit.errors import OutputError
+from slamkit.paths import check_no_file_above
 
 
 @dataclass(frozen=True)
@@ -275,6 +276,7 @@ def check_output_folder(out: str | Path) -> Path:
     Anything else -- a regular file, a symbolic link, a folder of someone else's files -- is an
     OutputError, and nothing is touched."""
     final = Path(os.path.abspath(out))
+    check_no_file_above(final)
     if final.is_symlink():
         raise OutputError(f"{final} is a symbolic link; slamkit writes results only to a real "
                           "folder: choose another --out")

@@ -4,6 +4,7 @@ tmp_path, exit codes and messages stated."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
@@ -45,3 +46,39 @@ def test_convert_refuses_stamps_from_2_to_the_31_seconds_cleanly(tmp_path, out) 
         "error: a stamp of 2147483648.5 s does not fit a ROS time, whose seconds are a signed 32-bit "
         "integer (-2147483648 .. 2147483647 s, up to 2038-01-19)"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["y2038.clf"]  # nothing written, no temporary left
+
+
+# --- results folders -------------------------------------------------------------------------------
+
+_PIPELINE = {"pipeline": "pose_graph", "name": "pg", "datasets": ["intel"], "solvers": ["lm"], "inits": ["file"],
+             "robust": "none", "record": False}
+
+
+def _configs(tmp_path: Path) -> tuple[Path, Path]:
+    import yaml
+
+    run_cfg, sweep_cfg = tmp_path / "pg.yaml", tmp_path / "sweep.yaml"
+    run_cfg.write_text(yaml.safe_dump(_PIPELINE))
+    sweep_cfg.write_text(yaml.safe_dump({"pipeline": _PIPELINE, "axes": {"options.max_iterations": [50]}}))
+    return run_cfg, sweep_cfg
+
+
+def _snapshot(folder: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def test_out_under_a_regular_file_exits_2_with_one_line(tmp_path) -> None:
+    # before: exit 1, "internal error: NotADirectoryError" (run, sweep) / FileExistsError (convert)
+    run_cfg, sweep_cfg = _configs(tmp_path)
+    (tmp_path / "file.txt").write_text("keep")
+    log = _log(tmp_path / "ok.clf", 1.5, 2.5)
+    for args, hint in (((["run", run_cfg, "--out"]), "choose another --out"),
+                       ((["sweep", sweep_cfg, "--workers", "1", "--out"]), "choose another --out"),
+                       ((["data", "convert", log]), "choose another output path")):
+        for sub in ("file.txt/sub", "file.txt/a/b.bag"):
+            result = _run(*args, tmp_path / sub)
+            assert result.exit_code == 2, (args, result.output)
+            assert result.output.strip().splitlines()[-1] == (
+                f"error: {tmp_path / sub} cannot be created: {tmp_path / 'file.txt'} is a file, not a folder; {hint}")
+    assert (tmp_path / "file.txt").read_text() == "keep"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["file.txt", "ok.clf", "pg.yaml", "sweep.yaml"]
