@@ -235,6 +235,8 @@ def summary_markdown(summary: list[dict[str, Any]], lead: list[str] = ["dataset"
 
 #: the file that proves a folder is a slamkit results folder (written first, into the partial)
 MARKER = ".slamkit-results"
+#: the marker's ``pipeline`` in a sweep folder (``slamkit sweep``)
+SWEEP_KIND = "sweep"
 
 
 def _rename_exchange():
@@ -289,6 +291,25 @@ def check_output_folder(out: str | Path) -> Path:
         return final
     raise OutputError(f"{final} exists and is not a slamkit results folder (no {MARKER} marker); "
                       "slamkit only replaces folders it wrote: remove it or choose another --out")
+
+
+def folder_kind(path: Path) -> str | None:
+    """The ``pipeline`` a results folder's marker records (``sweep`` for a sweep folder), or None
+    when ``path`` is not a results folder or its marker is unreadable."""
+    if not is_results_folder(path):
+        return None
+    try:
+        kind = json.loads((path / MARKER).read_text()).get("pipeline")
+    except (OSError, ValueError, AttributeError):
+        return None
+    return kind if isinstance(kind, str) else None
+
+
+def _refuse_a_sweep(final: Path, pipeline: str) -> None:
+    """A run never replaces a sweep folder (hours of cells), as a sweep never replaces a run."""
+    if pipeline != SWEEP_KIND and folder_kind(final) == SWEEP_KIND:
+        raise OutputError(f"{final} is a sweep folder (written by slamkit sweep); a run would replace the "
+                          "whole sweep: choose another --out")
 
 
 def _lock_path(final: Path) -> Path:
@@ -348,11 +369,13 @@ class ResultsFolder:
 
     def __init__(self, out: str | Path, pipeline: str = ""):
         self.final = check_output_folder(out)
+        _refuse_a_sweep(self.final, pipeline)
         self.final.parent.mkdir(parents=True, exist_ok=True)
         self._lock_fd = self._acquire_lock()
         self.committed = False
         try:
             self.final = check_output_folder(self.final)  # again, now that we hold the lock
+            _refuse_a_sweep(self.final, pipeline)
             self._clean_leftovers()
             self.path = self.final.parent / f".{self.final.name}.partial-{uuid.uuid4().hex[:8]}"
             self.path.mkdir()

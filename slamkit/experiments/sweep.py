@@ -59,14 +59,14 @@ from slamkit.config import STRICT, YamlDocument, load_yaml, validate
 from slamkit.errors import ConfigError, OutputError
 from slamkit.experiments.config_models import PlainName, Seeds, check_pipeline, seed_list
 from slamkit.experiments.executors import Executor, TaskFailure, make_executor
-from slamkit.experiments.results import (MARKER, ResultsFolder, RunRecord, _jsonable, acquire_folder_lock,
-                                         check_output_folder, is_results_folder, markdown_table,
+from slamkit.experiments.results import (MARKER, SWEEP_KIND, ResultsFolder, RunRecord, _jsonable,
+                                         acquire_folder_lock, check_output_folder, is_results_folder, markdown_table,
                                          paired_comparisons, paired_markdown, release_folder_lock, summarise,
                                          summary_markdown)
 from slamkit.paths import atomic_file, file_in
 
 #: ``results.json``'s ``pipeline`` and the marker's, for a sweep folder
-SWEEP = "sweep"
+SWEEP = SWEEP_KIND
 #: the name of the seed axis in cells, results and reports
 SEED_AXIS = "seed"
 

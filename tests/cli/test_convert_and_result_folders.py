@@ -82,3 +82,25 @@ def test_out_under_a_regular_file_exits_2_with_one_line(tmp_path) -> None:
                 f"error: {tmp_path / sub} cannot be created: {tmp_path / 'file.txt'} is a file, not a folder; {hint}")
     assert (tmp_path / "file.txt").read_text() == "keep"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["file.txt", "ok.clf", "pg.yaml", "sweep.yaml"]
+
+
+def test_a_run_never_replaces_a_sweep_folder_but_replaces_its_own_kind(tmp_path) -> None:
+    # before: `slamkit run --out SWEEP` replaced the whole sweep with one run, exit 0
+    run_cfg, sweep_cfg = _configs(tmp_path)
+    sweep = tmp_path / "sweep"
+    assert _run("sweep", sweep_cfg, "--workers", "1", "--out", sweep).exit_code == 0
+    before = _snapshot(sweep)
+    assert '"pipeline": "sweep"' in before[".slamkit-results"].decode() and len(before) >= 5
+    result = _run("run", run_cfg, "--out", sweep)
+    assert result.exit_code == 2, result.output
+    assert result.output.strip().splitlines() == [
+        f"error: {sweep} is a sweep folder (written by slamkit sweep); a run would replace the whole sweep: "
+        "choose another --out"]
+    assert _snapshot(sweep) == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["pg.yaml", "sweep", "sweep.yaml"]  # no lock, no partial
+    # `make run`: a second run into a folder a run of the same pipeline wrote replaces it
+    runs = tmp_path / "runs"
+    assert _run("run", run_cfg, "--out", runs).exit_code == 0
+    (runs / "results.json").write_text("{}")
+    assert _run("run", run_cfg, "--out", runs).exit_code == 0
+    assert json.loads((runs / "results.json").read_text())["pipeline"] == "pose_graph"
