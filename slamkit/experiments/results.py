@@ -352,7 +352,8 @@ class ResultsFolder:
     The rules (issue 10: never lose a user's files):
 
     * only a folder slamkit can prove it wrote (the :data:`MARKER` file) or an empty folder is
-      replaced; anything else is refused with an :class:`~slamkit.errors.OutputError`;
+      replaced; anything else is refused with an :class:`~slamkit.errors.OutputError`; a sweep
+      folder (its marker's ``pipeline`` is ``sweep``) is never replaced by a run;
     * a run holds ``.<name>.lock`` (``flock``) beside the folder for its whole life; a second run
       into the same folder is refused with a clear message while the first is running;
     * the folder is assembled in ``.<name>.partial-<id>`` (marker first) and swapped with the
