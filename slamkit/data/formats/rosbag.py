@@ -25,6 +25,11 @@ named in :class:`BagTopics` (``None`` skips one):
 
 Stamps are the messages' header stamps (the bag's receive time when a header stamp is zero).
 
+:func:`read_laser_bag` (what ``load_recording`` and a lidar_slam log ``path:`` use) picks the
+topics itself: the bag's only LaserScan and Odometry topics unless named, with the laser's
+mounting from ``/tf_static``. :func:`bag_info` (``slamkit data info BAG``) lists every topic with
+its type, message count and rate.
+
 Writing (:func:`write_bag`, ROS 2 sqlite3 by default, ``ros_version=1`` for a ``.bag``) is the
 inverse for Scan, Odometry (a first message at the start pose, then the exact-arc integrated pose
 and the twist of every event), Imu and Gps events; RangeBearing and WheelEncoders have no
