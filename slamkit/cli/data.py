@@ -147,13 +147,15 @@ def convert_cmd(
     source: str = typer.Argument(..., help="a registry laser log (intel-log, fr079-log, ...), a CARMEN "
                                  ".clf[.gz|.bz2] file or a .slamseq file"),
     out: Path = typer.Argument(..., help="the bag to write (a ROS 2 bag folder; a .bag name writes ROS 1)"),
+    storage: str = typer.Option("sqlite3", "--storage", help="ROS 2 storage: sqlite3 (OUT/OUT.db3) or mcap "
+                                "(OUT/OUT.mcap)"),
 ) -> None:
     """Write a recording as a ROS bag (LaserScan, Odometry, Imu, NavSatFix) through rosbags."""
     from slamkit.data.formats.rosbag import write_bag
 
     # a bag holds its messages in time order: the scans sorted by stamp
     summary = write_bag(out, registry.load_recording(source, order="stamp"),
-                        ros_version=1 if out.suffix == ".bag" else 2)
+                        ros_version=1 if out.suffix == ".bag" else 2, storage=storage)
     typer.echo(f"wrote {summary.path}: " + ", ".join(f"{t} {n}" for t, n in summary.messages.items())
                + ("; skipped " + ", ".join(f"{k} {n}" for k, n in summary.skipped_events.items())
                   if summary.skipped_events else ""))

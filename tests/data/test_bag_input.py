@@ -308,3 +308,17 @@ def test_data_convert_writes_a_bag_with_ordinary_names(tmp_path) -> None:
     back = registry.load_recording(str(tmp_path / "out"))
     assert [type(e) for e in back] == [type(e) for e in _toy()]
     assert [e.stamp_s for e in back] == [e.stamp_s for e in _toy()]
+
+
+def test_data_convert_to_mcap(tmp_path) -> None:
+    from typer.testing import CliRunner
+
+    from slamkit.cli.app import app
+
+    src = save_sequence(tmp_path / "toy.slamseq", _toy())
+    res = CliRunner().invoke(app, ["data", "convert", str(src), str(tmp_path / "m"), "--storage", "mcap"])
+    assert res.exit_code == 0, res.output
+    assert sorted(p.name for p in (tmp_path / "m").iterdir()) == ["m.mcap", "metadata.yaml"]
+    assert bag_info(tmp_path / "m")["storage"] == "mcap"
+    bad = CliRunner().invoke(app, ["data", "convert", str(src), str(tmp_path / "z"), "--storage", "zip"])
+    assert bad.exit_code == 2 and "storage must be sqlite3 or mcap" in bad.output and not (tmp_path / "z").exists()
