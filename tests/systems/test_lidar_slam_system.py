@@ -239,15 +239,21 @@ def test_benchmark_goals(name, prior):
         assert full - 10 <= m["relation_count"] <= full and (twin > 0 or m["relation_count"] == full)
         assert m["relation_trans_mean_m"] <= goal, (twin, m["relation_trans_mean_m"])
         assert m["relation_rot_mean_deg"] < 1.0, (twin, m["relation_rot_mean_deg"])
-        if twin == 0:
-            unperturbed = res
-    res = unperturbed
     if (name, prior) == ("intel", "odometry"):
+        # the wall boxes below are fixed in the frame of the run on the stamp-ordered log, where
+        # they were drawn. A map's orientation about its first pose follows its first matches
+        # (the robot turns on the spot for 28 s): read in the order it was taken, the log gives
+        # an equally good map (relations above) turned by ~1 deg, 0.2 m at the left corridor,
+        # which moves the arcs across their boxes. The check is of the back end (no bend of its
+        # own), so it runs on the stamp-ordered log (0.0153 m relation error), not re-drawn boxes
+        res = run_slam(registry.load_recording(f"{name}-log", order="stamp"), None, logs_config(prior),
+                       relations=relations)
         # Intel's inner corridor walls are arcs (radius ~21 m) in the raw scans themselves: the
         # map must show the bend single scans see and add none of its own. Measured (map / single
-        # scans, 1/m): left +0.048 / +0.050, right -0.045 / -0.044. The inner block's 15 m wall
-        # along the bottom corridor is straight (two steps of ~5 cm): curvature -0.0045 1/m, line
-        # residual 0.032 m; a graph that bends the loops fails here (odometry edges' information
+        # scans, 1/m): left +0.048 / +0.050, right -0.045 / -0.044 (+0.049 / +0.045 and -0.046 /
+        # -0.044 since the final solve keeps the chain out of the robust kernel). The inner
+        # block's 15 m wall along the bottom corridor is straight (two steps of ~5 cm): curvature
+        # -0.0045 1/m, line residual 0.032 m (-0.0039, 0.031); a graph that bends the loops fails here (odometry edges' information
         # x 0.1: -0.016 1/m, 0.10 m; no robust kernel: -0.009 1/m, 0.069 m)
         for side, box in INTEL_INNER_WALLS.items():
             in_map, in_scans, _ = wall_curvature(res, box, "y")
