@@ -75,6 +75,11 @@ def mean_ci95(values: Iterable[float]) -> tuple[float, tuple[float, float], int]
     return mean, (mean - half, mean + half), n
 
 
+def _canonical(v: Any) -> str:
+    """A hashable key for a plain value, lists and mappings included: its canonical JSON."""
+    return json.dumps(_jsonable(v), sort_keys=True)
+
+
 def _by_dataset_estimator(r: RunRecord) -> dict[str, Any]:
     return {"dataset": r.dataset, "estimator": r.estimator}
 
@@ -153,18 +158,22 @@ def paired_comparisons(runs: Iterable[RunRecord], treatment: Callable[[RunRecord
     recording is no sample). Each row holds the context's fields, ``metric``,
     ``treatment``, ``best``, the :func:`paired_difference` of treatment minus best and
     ``significant`` (p < alpha; with fewer than 6 pairs the exact test cannot reach 0.05)."""
-    table: dict[tuple, dict[Any, dict[Any, float]]] = {}
+    # treatments and pairs are keyed by their canonical JSON: a swept value may be a list or a
+    # mapping (``counts: [[0, 5], [0, 10]]``), which is not hashable; ``values`` maps back
+    table: dict[tuple, dict[str, dict[str, float]]] = {}
     fields: dict[tuple, Mapping[str, Any]] = {}
+    values: dict[str, Any] = {}
     for r in runs:
         ctx = context(r)
-        key = tuple((k, json.dumps(_jsonable(v), sort_keys=True)) for k, v in ctx.items())
+        key = tuple((k, _canonical(v)) for k, v in ctx.items())
         fields.setdefault(key, ctx)
-        t = treatment(r)
+        t = _canonical(treatment(r))
+        values.setdefault(t, treatment(r))
         for metric, value in r.metrics.items():
             if (metric_direction(metric) is None or isinstance(value, bool)
                     or not isinstance(value, (int, float, np.floating, np.integer))):
                 continue
-            table.setdefault(key + (metric,), {}).setdefault(t, {})[pair(r)] = float(value)
+            table.setdefault(key + (metric,), {}).setdefault(t, {})[_canonical(pair(r))] = float(value)
     out = []
     for key, by_treatment in table.items():
         if len(by_treatment) < 2:
@@ -173,7 +182,7 @@ def paired_comparisons(runs: Iterable[RunRecord], treatment: Callable[[RunRecord
         shared = set.intersection(*(set(v) for v in by_treatment.values()))
         if len(shared) < min_pairs:
             continue
-        order = sorted(shared, key=lambda p: json.dumps(_jsonable(p), sort_keys=True))
+        order = sorted(shared)
         means = {t: float(np.nanmean([v[p] for p in order])) for t, v in by_treatment.items()}
         finite = {t: m for t, m in means.items() if math.isfinite(m)}
         if not finite:
@@ -184,10 +193,15 @@ def paired_comparisons(runs: Iterable[RunRecord], treatment: Callable[[RunRecord
             if t == best:
                 continue
             diff = paired_difference([v[p] for p in order], [by_treatment[best][p] for p in order])
-            out.append({**_jsonable(dict(fields[key[:-1]])), "metric": metric, "treatment": _jsonable(t),
-                        "best": _jsonable(best), **_jsonable(diff),
+            out.append({**_jsonable(dict(fields[key[:-1]])), "metric": metric, "treatment": _jsonable(values[t]),
+                        "best": _jsonable(values[best]), **_jsonable(diff),
                         "significant": bool(math.isfinite(diff["wilcoxon_p"]) and diff["wilcoxon_p"] < alpha)})
     return out
+
+
+def _cell_text(v: Any) -> Any:
+    """A list or mapping (a swept list value) as compact JSON, as :func:`summary_markdown` writes it."""
+    return json.dumps(_jsonable(v), separators=(",", ":")) if isinstance(v, (list, tuple, dict)) else v
 
 
 def paired_markdown(rows: list[dict[str, Any]], lead: list[str], treatment_name: str = "estimator") -> str:
@@ -196,7 +210,8 @@ def paired_markdown(rows: list[dict[str, Any]], lead: list[str], treatment_name:
     table = []
     for r in rows:
         lo, hi = r["ci95"]
-        table.append([*(r[k] for k in lead), r["metric"], r["treatment"], r["best"], r["pairs"],
+        table.append([*(_cell_text(r[k]) for k in lead), r["metric"], _cell_text(r["treatment"]),
+                      _cell_text(r["best"]), r["pairs"],
                       r["mean_difference"], "" if lo is None else f"[{lo:.3g}, {hi:.3g}]",
                       r["wilcoxon_p"], "**yes**" if r["significant"] else "no"])
     return markdown_table([*lead, "metric", treatment_name, "best", "pairs", "difference to best", "95% CI",

@@ -13,7 +13,8 @@ A sweep file names a pipeline config and the axes to vary::
 
 A value for a field that the pipeline config holds as a list and that is not a list itself is
 put in a one-element list (``datasets: [intel, m3500]`` as an axis gives one dataset per cell);
-the seed axis sets ``seeds: [s]``. Every cell's resolved config is validated with its pipeline's
+the seed axis sets ``seeds: [s]``. An axis value may itself be a list or mapping (``counts: [[0, 5],
+[0, 10]]``): results, report and paired statistics key it by its JSON. Every cell's resolved config is validated with its pipeline's
 model before anything runs (an error names the axis values and the field).
 
 Each cell is one pipeline run (:func:`slamkit.experiments.pipeline.run_pipeline`) into

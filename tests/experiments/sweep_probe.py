@@ -1,6 +1,7 @@
 """A pipeline for the sweep tests, imported as a sweep plugin in every worker: it appends the key of
 its config to ``log`` (one line per run, so a test can count how often each cell ran), sleeps
-``sleep_s``, raises when ``fail`` is true, and reports ``value_m = 2 x + seed / 10`` per seed."""
+``sleep_s``, raises when ``fail`` is true, and reports ``value_m = 2 x + sum(offsets) + seed / 10``
+per seed (``offsets``, a list, defaults to none)."""
 
 from __future__ import annotations
 
@@ -21,7 +22,7 @@ def run(config, folder, progress, observer) -> PipelineOutput[None]:
     time.sleep(float(config.get("sleep_s", 0.0)))
     if config.get("fail"):
         raise RuntimeError(f"probe asked to fail at x={config.get('x')}")
-    x = float(config.get("x", 0.0))
+    x = float(config.get("x", 0.0)) + sum(float(o) for o in config.get("offsets", [])) / 2
     seeds = config.get("seeds", [0])
     runs = [RunRecord(str(config.get("dataset", "probe")), "probe", {"value_m": 2 * x + s / 10}, s) for s in seeds]
     return PipelineOutput(runs, "# probe\n")

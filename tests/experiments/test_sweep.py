@@ -172,6 +172,34 @@ def test_axis_values_are_compared_paired_on_the_seed(tmp_path: Path) -> None:
     assert "| a | probe | value_m | 2 | 1 | 6 | 2 | [2, 2] | 0.03125 | **yes** |" in report
 
 
+def test_a_list_valued_axis_runs_and_is_summarised_and_paired_by_its_value(tmp_path: Path) -> None:
+    # issue 31: a list as an axis value (``counts: [[0, 5], [0, 10]]``, ``solvers: [[lm]]``) ran every
+    # cell, then failed with "unhashable type: 'list'" and wrote no results.json.
+    # value_m = 2 x + sum(offsets) + seed / 10: offsets [0, 3] exceed [0, 1] by 2 on every seed and x
+    sweep = write_sweep(tmp_path, seeds=6, axes={"x": [1.0, 2.0], "offsets": [[0, 1], [0, 3]]})
+    result = run_sweep(sweep, tmp_path / "out", workers=2, progress=False)
+    assert (result.ran, result.failed) == (24, 0)
+    saved = json.loads((result.out_dir / "results.json").read_text())
+    assert saved["axes"]["offsets"] == [[0, 1], [0, 3]]
+    rows = {json.dumps(s["value"]): s for s in saved["summary"] if s["axis"] == "offsets"}
+    assert rows["[0, 1]"]["mean"] == pytest.approx(2 * 1.5 + 1 + 0.25) and rows["[0, 1]"]["n"] == 12
+    assert rows["[0, 3]"]["mean"] == pytest.approx(2 * 1.5 + 3 + 0.25) and rows["[0, 3]"]["n"] == 12
+    paired = saved["paired"]["axes"]
+    offsets = [r for r in paired if r["axis"] == "offsets"]
+    assert sorted(r["x"] for r in offsets) == [1.0, 2.0]
+    for r in offsets:
+        assert (r["treatment"], r["best"], r["pairs"]) == ([0, 3], [0, 1], 6)
+        assert r["mean_difference"] == pytest.approx(2.0) and r["wilcoxon_p"] == pytest.approx(2 / 64)
+    # the list axis is also part of the other axis' pairing context
+    xs = [r for r in paired if r["axis"] == "x"]
+    assert sorted(json.dumps(r["offsets"]) for r in xs) == ["[0, 1]", "[0, 3]"]
+    assert all((r["treatment"], r["best"]) == (2.0, 1.0) for r in xs)
+    report = (result.out_dir / "report.md").read_text()
+    assert "| [0,1] | probe | probe | 4.25 ± " in report
+    assert "| probe | probe | 1 | value_m | [0,3] | [0,1] | 6 | 2 | [2, 2] | 0.03125 | **yes** |" in report
+    assert (result.out_dir / "plots" / "value_m_vs_offsets.png").is_file()
+
+
 def test_resume_runs_only_unfinished_cells_and_retry_failed_only_failures(tmp_path: Path) -> None:
     log = tmp_path / "runs.log"
     sweep = write_sweep(tmp_path, pipeline={"pipeline": "sweep_probe", "log": str(log)},
