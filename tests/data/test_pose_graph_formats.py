@@ -169,6 +169,41 @@ def test_malformed_toro_and_isam_name_the_line(tmp_path, reader, text, line):
     assert info.value.line == line
 
 
+@pytest.mark.parametrize("reader, name, text, line", [
+    # issue 31: one such EDGE2 line made `slamkit optimize` fail with numpy's LinAlgError
+    (read_isam, "g.isam", "EDGE2 0 1 1e300 0 0 1 0 0 1 0 1\n", 1),
+    # |t|^2 = 1e310 overflows; 1e154 (below) does not
+    (read_isam, "g.isam", "EDGE2 0 1 1 0 0 1 0 0 1 0 1\nEDGE2 1 2 1e155 0 0 1 0 0 1 0 1\n", 2),
+    # t^T I t = 1e100^2 * (1e100)^2 (iSAM stores the square root of the information) overflows
+    (read_isam, "g.isam", "EDGE2 0 1 1e100 0 0 1e100 0 0 1 0 1\n", 1),
+    (read_g2o, "g.g2o", f"EDGE_SE2 0 1 1e300 0 0 {INFO6}\n", 1),
+    (read_g2o, "g.g2o", f"VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0\nEDGE_SE2 0 1 1e300 0 0 {INFO6}\n", 3),
+    (read_g2o, "g.g2o", f"EDGE_SE3:QUAT 0 1 0 0 1e200 0 0 0 1 {INFO21}\n", 1),
+    (read_toro, "g.graph", "EDGE2 0 1 1e300 0 0 1 0 1 1 0 0\n", 1),
+])
+def test_a_translation_whose_squared_error_overflows_is_refused_at_its_line(tmp_path, reader, name, text, line):
+    with pytest.raises(DataError, match=r"edge translation \(.*\) is too large: its squared error overflows") as info:
+        reader(write(tmp_path, text, name))
+    assert info.value.line == line and info.value.path == str(tmp_path / name)
+
+
+def test_the_largest_translation_whose_square_is_finite_is_read(tmp_path):
+    graph = read_isam(write(tmp_path, "EDGE2 0 1 1e154 0 0 1 0 0 1 0 1\n", "g.isam"))
+    assert graph.measurements[0, 0] == 1e154 and graph.information[0, 0, 0] == 1.0
+
+
+def test_optimize_refuses_an_overflowing_isam_edge_in_one_line_exit_2(tmp_path):
+    from typer.testing import CliRunner
+
+    from slamkit.cli import app
+
+    path = write(tmp_path, "EDGE2 0 1 1e300 0 0 1 0 0 1 0 1\n", "one.isam")
+    result = CliRunner().invoke(app, ["optimize", str(path)])
+    assert result.exit_code == 2, result.output
+    assert result.output.strip().splitlines() == [
+        f"error: {path}:1: edge translation (1e+300, 0) is too large: its squared error overflows to infinity"]
+
+
 @pytest.mark.parametrize("text", ["", "# only a comment\n\n", "FIX 0\n"])
 def test_empty_graph_is_an_error(tmp_path, text):
     with pytest.raises(DataError, match="empty graph"):

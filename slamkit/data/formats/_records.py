@@ -14,6 +14,8 @@ reader behaves the same:
 
 * wrong token count or a token that is not a number -> ``DataError`` naming file and line;
 * NaN or infinity anywhere in a record -> ``DataError`` naming file and line;
+* an edge translation whose square (``|t|^2``, or ``t^T I_tt t`` under its translation
+  information) overflows to infinity -> ``DataError`` naming file and line;
 * two vertices with the same id -> ``DataError`` naming the second line;
 * an edge to a vertex the file never declares -> ``DataError`` naming the edge's line, unless the
   file declares no vertices at all: then initial poses are chained from the edges in file order
@@ -420,6 +422,7 @@ def assemble(*, path: str | Path, dim: int, vertex_ids: np.ndarray, poses: np.nd
     if len(vertex_ids) == 0 and len(edge_from) == 0:
         raise DataError("empty graph: no vertices and no edges", path)
 
+    _check_translation_scale(path, dim, measurements, information, edge_lines)
     has_initial = len(vertex_ids) > 0
     if has_initial:
         order = np.argsort(vertex_ids, kind="stable")
@@ -491,6 +494,30 @@ def assemble(*, path: str | Path, dim: int, vertex_ids: np.ndarray, poses: np.nd
             notes=graph.notes + (f"disconnected: {count} connected components",),
         )
     return graph
+
+
+def _check_translation_scale(path, dim: int, measurements: np.ndarray, information: np.ndarray,
+                             edge_lines: np.ndarray) -> None:
+    """Refuse an edge whose translation squares to infinity, alone (``|t|^2``) or weighted by its
+    translation information (``t^T I_tt t``): every solver and the certificate form these terms
+    (a single ``EDGE2 0 1 1e300 ...`` made the certificate's eigensolver fail). Edges whose
+    information itself is not finite are left to the information check."""
+    if not len(measurements):
+        return
+    t = np.asarray(measurements, dtype=float)[:, :dim]
+    info = np.asarray(information, dtype=float)
+    with np.errstate(over="ignore", invalid="ignore"):
+        squared = np.einsum("ki,ki->k", t, t)
+        weighted = (np.einsum("ki,kij,kj->k", t, info[:, :dim, :dim], t) if info.ndim == 3
+                    else np.zeros(len(t)))
+    bad = ~(np.isfinite(squared) & np.isfinite(weighted))
+    if info.ndim == 3:
+        bad &= np.isfinite(info).all(axis=(1, 2))
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        shown = ", ".join(f"{v:.3g}" for v in t[k])
+        raise DataError(f"edge translation ({shown}) is too large: its squared error overflows to infinity",
+                        path, int(edge_lines[k]))
 
 
 def note_ignored(blocks: dict[str, Block], handled: set[str]) -> list[str]:
