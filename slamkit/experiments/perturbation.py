@@ -160,8 +160,13 @@ def plot_perturbation_spread(plots: Path, rows: list[dict[str, Any]], metrics: S
                     label="perturbed" if k == 0 else None)
             ax.plot([k], [r["unperturbed"]], "x", color="tab:red", ms=9, mew=2,
                     label="unperturbed" if k == 0 else None)
-        labels = [f"{r['dataset']}\n{r['estimator']}" for r in picked]
-        ax.set_xticks(range(len(picked)), labels, rotation=60, ha="right", fontsize=7)
+        few = len(picked) <= 6
+        # few groups: upright labels, the estimator's path broken at its slashes
+        labels = [f"{r['dataset']}\n" + (r["estimator"].replace("/", "/\n") if few else r["estimator"])
+                  for r in picked]
+        ax.set_xticks(range(len(picked)), labels, rotation=0 if few else 60, ha="center" if few else "right",
+                      fontsize=7)
+        ax.set_xlim(-0.5, len(picked) - 0.5)
         ax.set_ylabel(metric)
         positive = [v for r in picked for v in [*r["values"], r["unperturbed"]] if math.isfinite(v) and v > 0]
         if positive and max(positive) / max(min(positive), 1e-300) > 30:
