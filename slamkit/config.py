@@ -294,5 +294,23 @@ def model_of(cls: type) -> type[pydantic.BaseModel]:
     return pydantic.create_model(f"{cls.__name__}Fields", __config__=STRICT, **fields)
 
 
+def params_model_of(fn: Any, exclude: typing.Iterable[str] = ()) -> type[pydantic.BaseModel]:
+    """The pydantic model of the keyword parameters of the function ``fn`` (a dataset reader whose
+    parameters a config may set), as :func:`model_of` makes one of a dataclass: the parameters
+    with a default, less ``exclude``, all optional; unknown keys and NaN/inf refused, suffix
+    bounds applied."""
+    import inspect
+
+    hints = typing.get_type_hints(fn)
+    skip = set(exclude)
+    fields: dict[str, Any] = {}
+    for p in inspect.signature(fn).parameters.values():
+        if (p.default is inspect.Parameter.empty or p.name in skip
+                or p.kind in (inspect.Parameter.VAR_POSITIONAL, inspect.Parameter.VAR_KEYWORD)):
+            continue
+        fields[p.name] = (typing.Optional[_field_type(p.name, hints.get(p.name, Any))], None)
+    return pydantic.create_model(f"{getattr(fn, '__name__', 'reader')}_params", __config__=STRICT, **fields)
+
+
 def finite(x: float) -> bool:
     return isinstance(x, (int, float)) and math.isfinite(x)

@@ -137,6 +137,10 @@ def setup_of(sequence: Sequence, **overrides: Any) -> InertialSetup:
 
 # ---- GPS outages ---------------------------------------------------------------------------------
 
+#: the most GPS outage windows one sequence may have (a drive of hours has a few hundred)
+MAX_OUTAGE_WINDOWS = 10_000
+
+
 def outage_windows(start_s: float, end_s: float, outage_s: float, gap_s: float,
                    first_after_s: float) -> np.ndarray:
     """(K, 2) windows [t0, t0 + outage_s) starting ``first_after_s`` after ``start_s``, separated
@@ -144,6 +148,10 @@ def outage_windows(start_s: float, end_s: float, outage_s: float, gap_s: float,
     if not (outage_s > 0 and gap_s >= 0 and first_after_s >= 0):
         raise ConfigError(f"outage windows need outage_s > 0, gap_s >= 0, first_after_s >= 0; got "
                           f"{outage_s}, {gap_s}, {first_after_s}")
+    count = (end_s - outage_s - start_s - first_after_s) / (outage_s + gap_s)
+    if count > MAX_OUTAGE_WINDOWS:  # outage_s 1e-9 with gap_s 0 asked for terabytes of windows
+        raise ConfigError(f"outage_s {outage_s:g} and gap_s {gap_s:g} make {count:.3g} GPS outage windows in "
+                          f"{end_s - start_s:g} s; at most {MAX_OUTAGE_WINDOWS} (lengthen outage_s or gap_s)")
     starts = np.arange(start_s + first_after_s, end_s - outage_s, outage_s + gap_s)
     return np.column_stack([starts, starts + outage_s]) if len(starts) else np.zeros((0, 2))
 

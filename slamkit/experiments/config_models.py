@@ -16,7 +16,7 @@ import pydantic
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field
 
 from slamkit.config import STRICT, YamlDocument, model_of, validate
-from slamkit.errors import ConfigError
+from slamkit.errors import ConfigError, SlamkitError
 from slamkit.naming import suggestion
 from slamkit.paths import path_component
 
@@ -397,6 +397,22 @@ def _check_estimators(raw: Any, doc: YamlDocument | None, source: str,
         validate(model, params, doc, source, (*path, label))
 
 
+def _check_dataset_params(entry: ScenarioEntry, k: int, doc: YamlDocument | None, source: str) -> None:
+    """A ``dataset:`` scenario's ``params`` against its reader's keyword parameters (names, types,
+    NaN/inf, suffix bounds: :func:`slamkit.config.params_model_of`)."""
+    from slamkit.config import params_model_of
+    from slamkit.data import registry
+    from slamkit.experiments.filter_vs_smoother.monte_carlo import dataset_reader
+
+    where = doc.where(("scenarios", k, "dataset")) if doc is not None else source
+    try:
+        registry.get(entry.dataset)
+        reader, exclude = dataset_reader(entry.dataset)
+    except SlamkitError as exc:
+        raise ConfigError(f"{where}: scenarios.{k}.dataset: {exc}") from None
+    _nested(params_model_of(reader, exclude), entry.params, doc, source, ("scenarios", k, "params"))
+
+
 def _check_scenarios(model: FilterVsSmootherPipeline, doc: YamlDocument | None, source: str) -> None:
     from slamkit.sim.inertial_world import PRESETS as INERTIAL_PRESETS, InertialScenario
     from slamkit.sim.landmark_world import LandmarkScenario
@@ -420,6 +436,8 @@ def _check_scenarios(model: FilterVsSmootherPipeline, doc: YamlDocument | None, 
             if entry.preset is not None:
                 scenario = InertialScenario if entry.preset in INERTIAL_PRESETS else LandmarkScenario
                 _nested(model_of(scenario), entry.params, doc, source, ("scenarios", k, "params"))
+            if entry.dataset is not None:
+                _check_dataset_params(entry, k, doc, source)
             if entry.scenario is not None:
                 from slamkit.sim.scenario import load_scenario
 

@@ -87,6 +87,40 @@ def test_a_pipeline_that_runs_nothing_is_an_error(tmp_path) -> None:
     assert not (tmp_path / "out").exists()
 
 
+FVS = "pipeline: filter_vs_smoother\nestimators: [es_ekf]\nscenarios:\n  - dataset: {dataset}\n    params: {params}\n"
+
+
+@pytest.mark.parametrize("dataset, params, message", [
+    # issue 31: dataset params were never validated: an unknown key was a TypeError at run time,
+    # max_duration_s -1 or .nan ran to exit 0 with only total_time_s in the results
+    ("kitti-imu-gps", "{foo: 10}", "c.yaml:5: scenarios.0.params.foo: unknown key; valid keys: "
+     "first_outage_after_s, gap_s, max_duration_s, outage_s, start_fix"),
+    ("kitti-imu-gps", "{max_duration_s: -1}",
+     "c.yaml:5: scenarios.0.params.max_duration_s: Input should be greater than or equal to 0 (got -1)"),
+    ("kitti-imu-gps", "{max_duration_s: .nan}",
+     "c.yaml:5: scenarios.0.params.max_duration_s: Input should be a finite number (got nan)"),
+    ("kitti-imu-gps", "{gap_s: 1.0e+20}",
+     "c.yaml:5: scenarios.0.params.gap_s: Input should be less than or equal to 86400 (got 1e+20)"),
+    ("plaza1", "{range_scal: 2}", "c.yaml:5: scenarios.0.params.range_scal: unknown key (did you mean 'range_scale'?)"),
+    ("citytrees10000", "{robot: A}", "c.yaml:5: scenarios.0.params.robot: unknown key; valid keys: max_poses, pose_dt_s"),
+    ("citytrees10000", "{max_poses: -3}",
+     "c.yaml:5: scenarios.0.params.max_poses: Input should be greater than or equal to 0 (got -3)"),
+    ("mrclam1", "{max_duration_s: .inf}",
+     "c.yaml:5: scenarios.0.params.max_duration_s: Input should be a finite number (got inf)"),
+    ("no-such-set", "{}", "c.yaml:4: scenarios.0.dataset: no dataset named 'no-such-set'"),
+])
+def test_dataset_scenario_params_are_checked_against_the_readers_signature(tmp_path, dataset, params,
+                                                                           message) -> None:
+    assert message in _refused(tmp_path, FVS.format(dataset=dataset, params=params))
+
+
+def test_the_shipped_dataset_params_are_valid(tmp_path) -> None:
+    text = FVS.format(dataset="kitti-imu-gps", params="{outage_s: 10.0, gap_s: 30.0, max_duration_s: 120}")
+    path = tmp_path / "c.yaml"
+    path.write_text(text)
+    validate_pipeline_config(path)
+
+
 def test_scenario_and_ros_map_yaml_are_validated(tmp_path) -> None:
     assert "c.yaml:2: duration_s: Input should be less than or equal to 86400 (got 1e+20)" in _refused(
         tmp_path, "kind: grid\nduration_s: 1.0e+20\n", load_scenario)

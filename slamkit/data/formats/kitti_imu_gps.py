@@ -29,13 +29,14 @@ and pitch the direction of that velocity, roll 0; the sigmas of this guess are
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
 
 from slamkit.data.inertial import InertialSetup, NavState, outage_windows, setup_to_metadata, withhold_gps
 from slamkit.data.sequence import Gps, Imu, Sequence
-from slamkit.errors import DataError
+from slamkit.errors import ConfigError, DataError
 from slamkit.geometry import so3
 from slamkit.models.imu import ImuNoise
 
@@ -82,9 +83,17 @@ def read_kitti_imu_gps(imu_path: str | Path, gps_path: str | Path, metadata_path
                             np.full(3, s["accel_bias"]), np.full(3, s["gyro_bias"])])
     start = NavState(0.0, p0, v0, so3.from_euler_zyx(yaw, pitch, 0.0))
     setup = InertialSetup(start, sigma, noise, np.array([0.0, 0.0, -GRAVITY_MPS2]), gps_sigma)
+    if max_duration_s is not None and not (math.isfinite(max_duration_s) and max_duration_s > 0):
+        raise ConfigError(f"max_duration_s must be a finite number > 0 (or unset: the whole run), got "
+                          f"{max_duration_s!r}")
     end = np.inf if max_duration_s is None else t0 + float(max_duration_s)
     imu_rows = imu[(imu[:, 0] > t0) & (imu[:, 0] <= end)]
     gps_rows = gps[(gps[:, 0] > t0) & (gps[:, 0] <= end)]
+    if not len(imu_rows) or not len(gps_rows):
+        # an empty sequence would run every estimator on nothing and report only its run time
+        raise DataError(f"max_duration_s {max_duration_s!r} keeps {len(imu_rows)} IMU rows and {len(gps_rows)} GPS "
+                        f"fixes after fix {start_fix} (the next fix is {float(gps[start_fix + 1, 0] - t0):.3g} s "
+                        "later): nothing to estimate", imu_path)
     events: list = [Imu(float(r[0] - t0), r[5:8].copy(), r[2:5].copy()) for r in imu_rows]
     events += [Gps(float(r[0] - t0), r[1:4].copy(), gps_sigma) for r in gps_rows]
     metadata = {"inertial": setup_to_metadata(setup), "time_offset_s": t0,

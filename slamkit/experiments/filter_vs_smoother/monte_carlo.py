@@ -36,6 +36,34 @@ from slamkit.metrics.inertial import inertial_metrics
 from slamkit.paths import file_in
 
 
+def dataset_reader(dataset: str) -> tuple[Any, tuple[str, ...]]:
+    """The reader whose keyword parameters a ``dataset:`` scenario's ``params`` are (as
+    :func:`build_sequence` reaches it through the registry loaders) and the parameters the loader
+    sets itself; the config check validates ``params`` against them (one place for names and
+    bounds: the reader's signature)."""
+    from slamkit.data import registry
+
+    entry = registry.get(dataset)
+    if entry.kind == "inertial":
+        from slamkit.data.formats.kitti_imu_gps import read_kitti_imu_gps
+
+        return read_kitti_imu_gps, ("name",)
+    if entry.format == "plaza":
+        from slamkit.data.formats.plaza import read_plaza_sequence
+
+        return read_plaza_sequence, ("name",)
+    from slamkit.data.formats import landmark_datasets as lm
+
+    if entry.name in ("citytrees10000", "victoria-park"):
+        return lm.read_isam_landmark_sequence, ("name", "ground_truth_path", "covariance_entries")
+    if entry.name == "mrclam5a":
+        return lm.read_pyfg_landmark_sequence, ("name",)
+    if entry.name == "mrclam1":
+        return lm.read_mrclam_sequence, ("name",)
+    raise ConfigError(f"dataset {dataset!r} is not a dataset filter_vs_smoother reads as a sequence; use one "
+                      f"of {', '.join(lm.LANDMARK_DATASETS)}, the Plaza runs or kitti-imu-gps")
+
+
 def build_sequence(scenario: ScenarioSpec, seed: int) -> Sequence:
     """The sequence of one scenario and seed (datasets ignore the seed)."""
     if scenario.scenario is not None:
@@ -68,6 +96,13 @@ def build_sequence(scenario: ScenarioSpec, seed: int) -> Sequence:
         except TypeError as exc:
             raise ConfigError(f"filter_vs_smoother: scenario {scenario.name!r}: {exc}") from None
         return simulate_landmark_sequence(config, np.random.default_rng(seed))
+    try:
+        return _load_dataset(scenario)
+    except ConfigError as exc:  # a parameter the reader refused (bounds that need the data)
+        raise ConfigError(f"filter_vs_smoother: scenario {scenario.name!r}: params: {exc}") from None
+
+
+def _load_dataset(scenario: ScenarioSpec) -> Sequence:
     from slamkit.data import registry
 
     if registry.get(scenario.dataset).kind == "inertial":
