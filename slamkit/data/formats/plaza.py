@@ -42,6 +42,9 @@ stored in ``metadata`` (``odometry_sigma``, ``sigma_range_m``, ``range_gate_m``)
 
 from __future__ import annotations
 
+import io
+import struct
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -63,21 +66,78 @@ _MOVING_STEP_M = 0.05
 def _mat_tables(path: Path) -> tuple[np.ndarray, np.ndarray]:
     """(GT (N, 4), TL (B, 3)) from a Plaza ``.mat`` file."""
     from scipy.io import loadmat
+    from scipy.io.matlab import MatReadError
 
     try:
-        mat = loadmat(str(path))
+        data = path.read_bytes()
     except FileNotFoundError:
         raise DataError("no such file", path) from None
-    except (ValueError, OSError) as exc:
-        raise DataError(f"not a readable MAT v5 file: {exc}", path) from None
-    for key, width in (("GT", 4), ("TL", 3)):
+    except OSError as exc:
+        raise DataError(f"cannot read: {exc}", path) from None
+    _check_mat_streams(data, path)
+    try:
+        mat = loadmat(io.BytesIO(data))
+    except (ValueError, OSError, TypeError, KeyError, IndexError, EOFError, OverflowError, struct.error,
+            zlib.error, MatReadError) as exc:
+        # scipy's MAT parser meets corrupt bytes with any of these (a bad zlib stream, an element
+        # tag that is not miMATRIX: TypeError)
+        raise DataError(f"not a readable MAT v5 file: {type(exc).__name__}: {exc}", path) from None
+    tables = []
+    for key, width, least in (("GT", 4, 2), ("TL", 3, 1)):
         table = mat.get(key)
         if table is None or np.ndim(table) != 2 or np.shape(table)[1] != width:
             raise DataError(f"needs a {key} table of {width} columns, found "
                             f"{None if table is None else np.shape(table)}", path)
+        try:
+            table = np.asarray(table, dtype=float)
+        except (TypeError, ValueError):
+            raise DataError(f"the {key} table is not numbers (MAT class {np.asarray(table).dtype})", path) from None
+        if len(table) < least:
+            raise DataError(f"the {key} table has {len(table)} rows; at least {least} are needed", path)
         if not np.all(np.isfinite(table)):
             raise DataError(f"the {key} table holds non-finite values", path)
-    return np.asarray(mat["GT"], dtype=float), np.asarray(mat["TL"], dtype=float)
+        tables.append(table)
+    return tables[0], tables[1]
+
+
+#: the most bytes the compressed elements of a Plaza ``.mat`` may expand to (the files: 1.1 MB)
+MAX_MAT_EXPANDED_BYTES = 64 * 1024 * 1024
+
+
+def _check_mat_streams(data: bytes, path: Path) -> None:
+    """Walk the MAT v5 elements of ``data`` and inflate every compressed one with its Adler-32
+    check, before scipy sees the file: scipy inflates without the check and hands corrupt bytes
+    to its compiled element reader, which can crash the process (4 bytes changed at offset 264 of
+    Plaza1_.mat: a segmentation fault in scipy 1.17)."""
+    if len(data) < 128 or data[126:128] not in (b"IM", b"MI"):
+        raise DataError("not a MAT v5 file (no endian indicator at byte 126)", path)
+    order = "<" if data[126:128] == b"IM" else ">"
+    offset, expanded = 128, 0
+    while offset < len(data):
+        if offset + 8 > len(data):
+            raise DataError(f"truncated MAT element tag at byte {offset}", path)
+        kind, size = struct.unpack(order + "II", data[offset:offset + 8])
+        if kind >> 16:  # small data element: tag and data in 8 bytes
+            offset += 8
+            continue
+        end = offset + 8 + size
+        if end > len(data):
+            raise DataError(f"MAT element at byte {offset} declares {size} bytes; the file ends first", path)
+        if kind == 15:  # miCOMPRESSED
+            stream = zlib.decompressobj()
+            try:
+                expanded += len(stream.decompress(data[offset + 8:end], MAX_MAT_EXPANDED_BYTES - expanded + 1))
+                if expanded > MAX_MAT_EXPANDED_BYTES:
+                    raise DataError(f"compressed MAT elements expand to more than {MAX_MAT_EXPANDED_BYTES} "
+                                    "bytes", path)
+                stream.flush()
+            except zlib.error as exc:
+                raise DataError(f"corrupt compressed MAT element at byte {offset}: {exc}", path) from None
+            if not stream.eof:
+                raise DataError(f"compressed MAT element at byte {offset} is truncated", path)
+            offset = end
+        else:
+            offset = end + (-size % 8)
 
 
 def heading_offset_rad(world_xy: np.ndarray, heading_rad: np.ndarray) -> float:
