@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
-from slamkit.data.formats.kitti import read_kitti, write_kitti
+from slamkit.data.formats.kitti import read_kitti, read_kitti_calib, write_kitti
 from slamkit.data.formats.tum import read_tum, write_tum
 from slamkit.data.trajectory import Trajectory
 from slamkit.errors import DataError
@@ -138,3 +138,35 @@ def test_only_newline_ends_a_line(tmp_path, brk):
     with pytest.raises(DataError) as info:
         read_kitti(path)
     assert str(info.value) == f"{path}:2: KITTI line needs 12 numbers, got 13"
+
+
+P0 = "P0: 718.856 0 607.1928 0 0 718.856 185.2157 0 0 0 1 0\n"
+
+
+def test_kitti_calib_worked_example_and_unnamed_lines(tmp_path: Path):
+    path = tmp_path / "calib.txt"
+    path.write_text(P0 + "1 0 0 -386.1448 0 1 0 0 0 0 1 0\n")
+    calib = read_kitti_calib(path)
+    assert list(calib) == ["P0", "P1"] and calib["P0"][0, 0] == 718.856 and calib["P1"][0, 3] == -386.1448
+
+
+@pytest.mark.parametrize("data, line, fragment", [
+    # issue 31: a non-UTF-8 calib.txt raised UnicodeDecodeError (exit 1 from the VO pipeline)
+    (P0.encode() + b"P1: 7\xff8 0 0 0 0 1 0 0 0 0 1 0\n", 2, "not a text file (invalid start byte at byte 59)"),
+    (b"\xfe" + P0.encode(), 1, "not a text file"),
+    ((P0 + "P1: 1 0 0 0 0 1 0 0 0 0 1\n").encode(), 2, "a projection matrix needs 12 finite numbers, got 11"),
+    ((P0 + "P1: 1 0 0 nan 0 1 0 0 0 0 1 0\n").encode(), 2, "a projection matrix needs 12 finite numbers"),
+])
+def test_kitti_calib_bad_bytes_name_file_and_line(tmp_path: Path, data, line, fragment):
+    path = tmp_path / "calib.txt"
+    path.write_bytes(data)
+    with pytest.raises(DataError) as info:
+        read_kitti_calib(path)
+    assert info.value.path == str(path) and info.value.line == line and fragment in str(info.value)
+
+
+def test_kitti_calib_missing_or_a_folder_is_a_data_error(tmp_path: Path):
+    with pytest.raises(DataError, match="calib.txt: no such file"):
+        read_kitti_calib(tmp_path / "calib.txt")
+    with pytest.raises(DataError, match="is a directory, not a file"):
+        read_kitti_calib(tmp_path)

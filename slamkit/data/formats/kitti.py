@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from slamkit._text import read_text
 from slamkit.data.formats._atomic import atomic_write_text
 from slamkit.data.formats.tum import check_stamps, format_rows, read_numeric_rows
 from slamkit.data.trajectory import Trajectory
@@ -65,10 +66,7 @@ def read_kitti_calib(path: str | Path) -> dict[str, np.ndarray]:
     """KITTI odometry ``calib.txt``: ``NAME: 12 numbers`` per line (``P0:`` ...; the name may be
     missing, then ``P0``, ``P1`` ... by line), each a 3x4 row-major projection matrix."""
     path = Path(path)
-    try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise DataError("no such calibration file", path) from None
+    text = read_text(path)  # missing, a folder or not UTF-8: a DataError naming file (and line)
     out: dict[str, np.ndarray] = {}
     for number, line in enumerate(text.splitlines(), start=1):
         if not line.strip():
