@@ -23,18 +23,14 @@ def run_command(
 ) -> None:
     """Run a pipeline config and write config.yaml, results.json, report.md, plots and a recording."""
     from slamkit.errors import ConfigError
-    from slamkit.experiments.pipeline import PIPELINES, load_config, pipeline_of, run_pipeline
+    from slamkit.experiments.pipeline import PIPELINES, has_config_field, load_config, run_pipeline
     from slamkit.viz.pipelines import observer_for
 
     config = pipeline
     if perturbations is not None:
         config = load_config(pipeline)
-        def takes(kind: str) -> bool:
-            model = pipeline_of(kind).config_model
-            return model is not None and "perturbations" in model.model_fields
-
-        if not takes(config["pipeline"]):
-            takers = sorted(n for n in PIPELINES.names() if takes(n))
+        if not has_config_field(config["pipeline"], "perturbations"):
+            takers = sorted(n for n in PIPELINES.names() if has_config_field(n, "perturbations"))
             raise ConfigError(f"{pipeline}: --perturbations: pipeline {config['pipeline']!r} does not rerun its data "
                               f"on perturbations; these do: {', '.join(takers)}")
         config["perturbations"] = {**(config.get("perturbations") or {}), "count": perturbations}

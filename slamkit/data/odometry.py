@@ -36,14 +36,19 @@ def arc_increments(world_xytheta_body: np.ndarray) -> tuple[np.ndarray, np.ndarr
 
 
 def odometry_from_poses(stamps_s: np.ndarray, world_xytheta_body: np.ndarray,
-                        what: str = "odometry") -> list[Odometry]:
+                        what: str = "odometry", late_stamps: bool = False) -> list[Odometry]:
     """One :class:`Odometry` event per consecutive pose pair, stamped at the later pose, with
     dt = the stamp difference. Stamps must increase strictly (a repeated stamp would need an
-    infinite velocity): a DataError names ``what`` and the index otherwise."""
+    infinite velocity): a DataError names ``what`` and the index otherwise. ``late_stamps``:
+    the poses are in the order they were taken but some stamps are late (a CARMEN log in log
+    order); where a stamp does not increase, the motion is held over the median of the
+    increasing steps instead, since such a stamp does not say when the pose was taken."""
     t = np.asarray(stamps_s, dtype=float)
     if len(t) != len(world_xytheta_body):
         raise DataError(f"{what}: {len(t)} stamps for {len(world_xytheta_body)} poses")
     dt = np.diff(t)
+    if late_stamps and np.any(dt > 0):
+        dt = np.where(dt > 0, dt, float(np.median(dt[dt > 0])))
     bad = np.flatnonzero(~(dt > 0))
     if len(bad):
         k = int(bad[0]) + 1

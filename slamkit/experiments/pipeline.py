@@ -121,6 +121,12 @@ def pipeline_of(kind: str) -> Pipeline:
     return PIPELINES[name].pipeline(name)
 
 
+def has_config_field(kind: str, field_name: str) -> bool:
+    """Whether pipeline ``kind``'s config model declares ``field_name`` (e.g. ``perturbations``)."""
+    model = pipeline_of(kind).config_model
+    return model is not None and field_name in model.model_fields
+
+
 def register_pipeline(pipeline: Pipeline) -> None:
     """Make ``pipeline`` runnable by name (``pipeline: <name>`` in a config)."""
     PIPELINES.register(pipeline.name, _Entry(pipeline))

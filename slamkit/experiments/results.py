@@ -95,7 +95,7 @@ def summarise(runs: Iterable[RunRecord],
     fields: dict[tuple, Mapping[str, Any]] = {}
     for r in runs:
         group = by(r)
-        key = tuple((k, json.dumps(_jsonable(v), sort_keys=True)) for k, v in group.items())
+        key = tuple((k, _canonical(v)) for k, v in group.items())
         fields.setdefault(key, group)
         for metric, value in r.metrics.items():
             if isinstance(value, (int, float, np.floating, np.integer)) and not isinstance(value, bool):
@@ -200,7 +200,7 @@ def paired_comparisons(runs: Iterable[RunRecord], treatment: Callable[[RunRecord
 
 
 def _cell_text(v: Any) -> Any:
-    """A list or mapping (a swept list value) as compact JSON, as :func:`summary_markdown` writes it."""
+    """A value as a table cell: a list or mapping (a swept list value) as compact JSON."""
     return json.dumps(_jsonable(v), separators=(",", ":")) if isinstance(v, (list, tuple, dict)) else v
 
 

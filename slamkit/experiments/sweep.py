@@ -66,8 +66,6 @@ from slamkit.experiments.results import (MARKER, SWEEP_KIND, ResultsFolder, RunR
                                          summary_markdown)
 from slamkit.paths import atomic_file, file_in
 
-#: ``results.json``'s ``pipeline`` and the marker's, for a sweep folder
-SWEEP = SWEEP_KIND
 #: the name of the seed axis in cells, results and reports
 SEED_AXIS = "seed"
 
@@ -345,7 +343,7 @@ def _sweep_folder(out: str | Path, resume: bool) -> Path:
             kind = json.loads((final / MARKER).read_text()).get("pipeline")
         except (OSError, ValueError):
             kind = None
-        if kind != SWEEP:
+        if kind != SWEEP_KIND:
             raise OutputError(f"{final} holds a slamkit run of {kind!r}, not a sweep; choose another --out")
         if not resume:
             raise OutputError(f"{final} holds a sweep already; continue it with --resume, or remove it "
@@ -354,7 +352,7 @@ def _sweep_folder(out: str | Path, resume: bool) -> Path:
 
 
 def _write_marker(out: Path, complete: bool) -> None:
-    _write_atomic(out / MARKER, json.dumps({"slamkit_version": slamkit.__version__, "pipeline": SWEEP,
+    _write_atomic(out / MARKER, json.dumps({"slamkit_version": slamkit.__version__, "pipeline": SWEEP_KIND,
                                             "complete": complete}) + "\n")
 
 
@@ -469,7 +467,7 @@ def aggregate(sweep: Sweep, outcomes: Mapping[str, CellOutcome], out: Path) -> t
             "axis": a, "dataset": r.dataset, "estimator": r.estimator,
             **{o: r.params[o] for o in _context_axes(swept, a)}})]
     results = _jsonable({
-        "pipeline": SWEEP, "sweep": sweep.name, "base_pipeline": sweep.base.get("pipeline"),
+        "pipeline": SWEEP_KIND, "sweep": sweep.name, "base_pipeline": sweep.base.get("pipeline"),
         "slamkit_version": slamkit.__version__,
         "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
         "axes": {**{a: v for a, v in sweep.model.axes.items()},

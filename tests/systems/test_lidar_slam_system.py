@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 from slamkit.data import registry
+from slamkit.data.perturb import PerturbationConfig, perturb
 from slamkit.data.sequence import Scan
 from slamkit.errors import ConfigError, DataError
 from slamkit.experiments.lidar_slam import (_sim_parts, _simulate, ate_keyframes_m, first_seconds, run_slam,

@@ -41,9 +41,9 @@ from typing import Mapping
 import numpy as np
 
 from slamkit._text import is_number_token, read_bytes, split_lines
-from slamkit.data.odometry import arc_increments, odometry_from_poses
-from slamkit.data.sequence import Odometry, Scan, Sequence, beam_angles_rad
-from slamkit.errors import DataError
+from slamkit.data.odometry import odometry_from_poses
+from slamkit.data.sequence import Scan, Sequence, beam_angles_rad
+from slamkit.errors import ConfigError, DataError
 from slamkit.geometry import se2
 
 #: bytes a decompressed log may have (the largest benchmark log is ~80 MB decompressed)
@@ -106,7 +106,7 @@ class CarmenLog:
         median scan period, as its stamp does not say when it was taken. Freiburg 079 is in
         stamp order either way."""
         if order not in ("log", "stamp"):
-            raise DataError(f"order must be 'log' or 'stamp', got {order!r}", self.path)
+            raise ConfigError(f"order must be 'log' or 'stamp', got {order!r}")
         laser = self.front
         _, first = np.unique(laser.stamps_s, return_index=True)
         keep = np.zeros(len(laser.stamps_s), bool)
@@ -118,7 +118,7 @@ class CarmenLog:
         events: list = []
         poses = laser.world_xytheta_robot[rows]
         if np.isfinite(poses).all() and len(poses) >= 2:
-            events += _scan_odometry(stamps, poses, f"{self.path}: scan odometry")
+            events += odometry_from_poses(stamps, poses, f"{self.path}: scan odometry", late_stamps=order == "log")
         per_scan = isinstance(laser.angles_rad, tuple)
         scans = [Scan(float(laser.stamps_s[k]), laser.angles_rad[k] if per_scan else laser.angles_rad,
                       laser.ranges_m[k], laser.max_range_m) for k in rows.tolist()]
@@ -139,19 +139,6 @@ class CarmenLog:
                                   "body_xytheta_lidar": body_lidar,
                                   "scans_out_of_order": int(np.sum(np.diff(laser.stamps_s) < 0)),
                                   "scans_with_repeated_stamp": int(np.sum(~keep))})
-
-
-def _scan_odometry(stamps_s: np.ndarray, poses: np.ndarray, what: str) -> list[Odometry]:
-    """Odometry between consecutive scans (``odometry_from_poses``); where a stamp does not
-    increase (log order, a late stamp), the motion is held over the median scan period instead."""
-    dt = np.diff(stamps_s)
-    if np.all(dt > 0):
-        return odometry_from_poses(stamps_s, poses, what)
-    period = float(np.median(dt[dt > 0])) if np.any(dt > 0) else 0.1
-    held = np.where(dt > 0, dt, period)
-    d, a = arc_increments(poses)
-    return [Odometry(float(stamps_s[k + 1]), float(held[k]), float(d[k] / held[k]), float(a[k] / held[k]))
-            for k in range(len(held))]
 
 
 def _open_text(path: Path, max_bytes: int = MAX_LOG_BYTES) -> str:

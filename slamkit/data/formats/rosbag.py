@@ -51,6 +51,7 @@ import numpy as np
 from slamkit.data.odometry import odometry_from_poses
 from slamkit.data.sequence import beam_angles_rad, Gps, Imu, Odometry, RangeBearing, Scan, Sequence, WheelEncoders
 from slamkit.errors import DataError, OutputError
+from slamkit.geometry import se2
 from slamkit.models.diff_drive import motion
 from slamkit.paths import check_no_file_above, temporary_sibling
 
@@ -394,10 +395,10 @@ def _static_mount(reader, tf_conns, base_frame: str, laser_frame: str) -> tuple[
         parent, pose = parent_of[frame]
         chain.append(pose)
         frame = parent
-    x = y = th = 0.0
-    for px, py, pth in reversed(chain):
-        x, y, th = x + math.cos(th) * px - math.sin(th) * py, y + math.sin(th) * px + math.cos(th) * py, th + pth
-    return (float(x), float(y), float(math.atan2(math.sin(th), math.cos(th))))
+    base_T_laser = np.zeros(3)
+    for pose in reversed(chain):
+        base_T_laser = se2.compose(base_T_laser, np.asarray(pose, float))
+    return tuple(float(v) for v in base_T_laser)
 
 
 def read_laser_bag(path: str | Path, scan_topic: str | None = None, odom_topic: str | None = None,
