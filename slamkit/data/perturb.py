@@ -36,6 +36,11 @@ from slamkit.models import diff_drive
 
 PERTURBATION_KINDS = ("start_offset", "range_jitter", "event_order")
 
+#: at most this many twins per dataset (each is a whole rerun)
+MAX_TWINS = 100
+#: the largest range jitter (m) a twin may have
+MAX_RANGE_JITTER_M = 1e-3
+
 #: the kinds a start offset may count in steps, in the order that breaks a tie in frequency
 _STEP_KINDS = (Scan, RangeBearing, Range, Gps, Odometry)
 
@@ -53,10 +58,14 @@ class PerturbationConfig:
         unknown = sorted(set(self.kinds) - set(PERTURBATION_KINDS))
         if unknown:
             raise ConfigError(f"perturbations.kinds: unknown {unknown}; known: {list(PERTURBATION_KINDS)}")
-        if self.count < 0:
-            raise ConfigError(f"perturbations.count: must be >= 0, got {self.count}")
-        if not (np.isfinite(self.range_jitter_m) and self.range_jitter_m >= 0):
-            raise ConfigError(f"perturbations.range_jitter_m: must be finite and >= 0, got {self.range_jitter_m}")
+        if not 0 <= self.count <= MAX_TWINS:
+            raise ConfigError(f"perturbations.count: must lie in [0, {MAX_TWINS}], got {self.count}")
+        # a twin must not change what a good algorithm concludes: jitter far below any range sensor
+        if not (np.isfinite(self.range_jitter_m) and 0 <= self.range_jitter_m <= MAX_RANGE_JITTER_M):
+            raise ConfigError(f"perturbations.range_jitter_m: must lie in [0, {MAX_RANGE_JITTER_M}] m, got "
+                              f"{self.range_jitter_m}")
+        if self.seed < 0:
+            raise ConfigError(f"perturbations.seed: must be >= 0, got {self.seed}")
 
 
 def perturb(sequence: Sequence, index: int, config: PerturbationConfig) -> Sequence:

@@ -36,7 +36,8 @@ PARAM = "perturbation"
 
 def perturbation_config(config: Mapping[str, Any]) -> PerturbationConfig:
     """The validated ``perturbations`` mapping of a pipeline config as its dataclass."""
-    raw = dict(config.get("perturbations") or {})
+    # a key written as null means its default, as everywhere in a config
+    raw = {k: v for k, v in dict(config.get("perturbations") or {}).items() if v is not None}
     if "kinds" in raw:
         raw["kinds"] = tuple(raw["kinds"])
     names = {f.name for f in dataclasses.fields(PerturbationConfig)}

@@ -117,6 +117,12 @@ def test_bad_configs_are_refused() -> None:
         PerturbationConfig(count=-1)
     with pytest.raises(ConfigError, match="range_jitter_m"):
         PerturbationConfig(range_jitter_m=float("nan"))
+    with pytest.raises(ConfigError, match="range_jitter_m"):
+        PerturbationConfig(range_jitter_m=0.5)  # no longer a change a good algorithm ignores
+    with pytest.raises(ConfigError, match="count"):
+        PerturbationConfig(count=10**9)
+    with pytest.raises(ConfigError, match="seed"):
+        PerturbationConfig(seed=-1)
 
 
 def test_start_offset_counts_steps_of_the_densest_stream() -> None:

@@ -92,3 +92,8 @@ def test_perturbation_settings_are_validated_where_they_are_written(tmp_path) ->
         run_pipeline({"pipeline": "pose_graph", "datasets": ["intel"], "perturbations": {"count": 2}},
                      tmp_path / "c", progress=False)
     assert not any((tmp_path / n).exists() for n in "abc")
+    # null means the default, as for every config key: {count: 1, kinds: null} is one twin of each default kind
+    from slamkit.experiments.perturbation import perturbation_config
+
+    assert perturbation_config({"perturbations": {"count": 1, "kinds": None, "seed": None}}).kinds == \
+        ("start_offset", "range_jitter")
