@@ -107,3 +107,104 @@ def test_never_writes_over_an_existing_path(tmp_path) -> None:
     with pytest.raises(OutputError, match="exists; a bag is only written to a new path"):
         write_bag(tmp_path / "b", _sequence())
     assert list((tmp_path / "b").iterdir()) == []
+
+
+# --- issue 31: impossible values, damaged bags, a database that disagrees with its metadata ---
+
+
+def _bag_with(path, *, ros_version: int = 2, scan: dict | None = None, twist: tuple[float, float] = (0.5, 0.1)):
+    """A bag written with rosbags itself: three odometry messages (the last two with ``twist``
+    (v, omega)) and three scans whose fields ``scan`` overrides."""
+    from rosbags.typesys import Stores, get_typestore
+
+    ts = get_typestore(Stores.ROS2_HUMBLE if ros_version == 2 else Stores.ROS1_NOETIC)
+    T = ts.types
+
+    def header(k):
+        H = T["std_msgs/msg/Header"]
+        stamp = T["builtin_interfaces/msg/Time"](sec=100 + k, nanosec=0)
+        return H(seq=0, stamp=stamp, frame_id="f") if "seq" in H.__dataclass_fields__ else H(stamp=stamp, frame_id="f")
+
+    v3 = T["geometry_msgs/msg/Vector3"]
+    cov = np.zeros(36)
+    fields = dict(angle_min=-1.0, angle_max=1.0, angle_increment=0.5, time_increment=0.0, scan_time=0.0,
+                  range_min=0.1, range_max=8.0, ranges=np.array([1, 2, 3, 4, 5], np.float32),
+                  intensities=np.zeros(0, np.float32))
+    fields.update(scan or {})
+    rows = []
+    for k in range(3):
+        v, w = (0.0, 0.0) if k == 0 else twist
+        pose = T["geometry_msgs/msg/Pose"](position=T["geometry_msgs/msg/Point"](x=0.1 * k, y=0.0, z=0.0),
+                                           orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0))
+        tw = T["geometry_msgs/msg/Twist"](linear=v3(x=v, y=0.0, z=0.0), angular=v3(x=0.0, y=0.0, z=w))
+        rows.append(("/odom", "nav_msgs/msg/Odometry", T["nav_msgs/msg/Odometry"](
+            header=header(k), child_frame_id="base_link",
+            pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=cov),
+            twist=T["geometry_msgs/msg/TwistWithCovariance"](twist=tw, covariance=cov)), k))
+        rows.append(("/scan", "sensor_msgs/msg/LaserScan", T["sensor_msgs/msg/LaserScan"](header=header(k), **fields), k))
+    if ros_version == 2:
+        from rosbags.rosbag2 import Writer
+        writer, serialize = Writer(path, version=9), ts.serialize_cdr
+    else:
+        from rosbags.rosbag1 import Writer
+        writer, serialize = Writer(path), ts.serialize_ros1
+    with writer:
+        conns = {}
+        for topic, msgtype, msg, k in rows:
+            if topic not in conns:
+                conns[topic] = writer.add_connection(topic, msgtype, typestore=ts)
+            writer.write(conns[topic], (100 + k) * 10**9, serialize(msg, msgtype))
+    return path
+
+
+@pytest.mark.parametrize("ros_version", [2, 1])
+def test_the_test_bag_reads(tmp_path, ros_version) -> None:
+    seq = read_bag(_bag_with(tmp_path / ("b.bag" if ros_version == 1 else "b"), ros_version=ros_version),
+                   topics=BagTopics(imu=None, gps=None))
+    assert len(seq.of_type(Scan)) == 3 and [e.v_mps for e in seq.of_type(Odometry)] == [0.5, 0.5]
+    np.testing.assert_array_equal(seq.of_type(Scan)[0].angles_rad, [-1.0, -0.5, 0.0, 0.5, 1.0])
+
+
+@pytest.mark.parametrize("ros_version", [2, 1])
+@pytest.mark.parametrize("scan, twist, expected", [
+    ({}, (math.nan, 0.1), r"/odom message 1: twist\.linear\.x is nan"),
+    ({}, (0.5, math.inf), r"/odom message 1: twist\.angular\.z is inf"),
+    ({"angle_min": math.nan}, (0.5, 0.1), r"/scan message 0: angle_min is nan"),
+    ({"angle_increment": math.nan}, (0.5, 0.1), r"/scan message 0: angle_increment is nan"),
+    ({"range_max": 0.0}, (0.5, 0.1), r"/scan message 0: range_max is 0\.0; a laser's maximum range must be > 0"),
+    ({"range_max": -math.inf}, (0.5, 0.1), r"/scan message 0: range_max is -inf, not a finite number"),
+    ({"range_min": -1.0}, (0.5, 0.1), r"/scan message 0: range_min -1\.0 must be >= 0"),
+])
+def test_impossible_values_are_refused_naming_message_and_field(tmp_path, ros_version, scan, twist, expected) -> None:
+    path = _bag_with(tmp_path / ("b.bag" if ros_version == 1 else "b"), ros_version=ros_version, scan=scan,
+                     twist=twist)
+    with pytest.raises(DataError, match=expected):
+        read_bag(path, topics=BagTopics(imu=None, gps=None))
+
+
+def test_a_corrupt_ros1_bag_is_a_data_error(tmp_path) -> None:
+    """Zeroed bytes inside the message records (the header and index still open) stop rosbags
+    mid-iteration (before: its ReaderError escaped as an internal error)."""
+    good = _bag_with(tmp_path / "good.bag", ros_version=1).read_bytes()
+    start = good.index(b"/scan") + 200
+    bad = tmp_path / "bad.bag"
+    bad.write_bytes(good[:start] + b"\x00" * 300 + good[start + 300:])
+    with pytest.raises(DataError, match=r"bad\.bag: cannot read the bag's messages: ReaderError"):
+        read_bag(bad, topics=BagTopics(imu=None, gps=None))
+    bad.write_bytes(good[:len(good) // 2])  # cut before its index
+    with pytest.raises(DataError, match=r"bad\.bag: cannot open as a ROS bag"):
+        read_bag(bad, topics=BagTopics(imu=None, gps=None))
+
+
+def test_a_database_that_disagrees_with_its_metadata_is_refused(tmp_path) -> None:
+    """metadata.yaml declares 3 scans; the database's topic was renamed, so no message matches it
+    (before: 0 scans, exit 0)."""
+    import sqlite3
+
+    path = _bag_with(tmp_path / "b")
+    db = sqlite3.connect(path / "b.db3")
+    db.execute("update topics set name = '/laser' where name = '/scan'")
+    db.commit()
+    db.close()
+    with pytest.raises(DataError, match=r"topic /scan: the bag declares 3 messages but holds 0"):
+        read_bag(path, topics=BagTopics(imu=None, gps=None))

@@ -25,6 +25,11 @@ named in :class:`BagTopics` (``None`` skips one):
 
 Stamps are the messages' header stamps (the bag's receive time when a header stamp is zero).
 
+A bag reads into a valid Sequence or is refused with a DataError naming the topic, message index
+and field: non-finite numbers, a scan's range_max <= 0 or range_min outside [0, range_max), a
+damaged bag (rosbags' errors while iterating), and a bag whose storage holds other message counts
+than its index or ``metadata.yaml`` declares.
+
 :func:`read_laser_bag` (what ``load_recording`` and a lidar_slam log ``path:`` use) picks the
 topics itself: the bag's only LaserScan and Odometry topics unless named, with the laser's
 mounting from ``/tf_static``. :func:`bag_info` (``slamkit data info BAG``) lists every topic with
@@ -130,6 +135,97 @@ def _stamp_s(msg: Any, bag_time_ns: int) -> float:
     return st.sec + st.nanosec * 1e-9
 
 
+def _messages(reader, connections, path: Path):
+    """``reader.messages(connections)`` with every failure of a damaged bag (rosbags' own errors,
+    struct and Unicode errors from a cut record) a DataError naming the bag; at the end, each
+    connection must have delivered the messages its index (ROS 1) or ``metadata.yaml`` (ROS 2)
+    declares: a database that disagrees with its metadata otherwise reads as a short or empty
+    bag without a word."""
+    seen: dict[int, int] = {c.id: 0 for c in connections}
+    it = iter(reader.messages(connections=connections))
+    while True:
+        try:
+            item = next(it)
+        except StopIteration:
+            break
+        except Exception as exc:
+            raise DataError(f"cannot read the bag's messages: {type(exc).__name__}: {exc}", path) from None
+        seen[item[0].id] = seen.get(item[0].id, 0) + 1
+        yield item
+    for c in connections:
+        declared = getattr(c, "msgcount", None)
+        if declared is not None and declared != seen.get(c.id, 0):
+            raise DataError(f"topic {c.topic}: the bag declares {declared} messages but holds {seen.get(c.id, 0)} "
+                            "(its storage and its index or metadata.yaml disagree)", path)
+
+
+def _decoded(reader, connections, path: Path):
+    """(connection, receive time ns, message) of :func:`_messages`, a message that does not
+    decode a DataError naming its topic and receive time."""
+    for conn, t_ns, raw in _messages(reader, connections, path):
+        try:
+            msg = reader.deserialize(raw, conn.msgtype)
+        except Exception as exc:
+            raise DataError(f"message on {conn.topic} at {t_ns} ns cannot be decoded: {type(exc).__name__}: {exc}",
+                            path) from None
+        yield conn, t_ns, msg
+
+
+def _finite(**values: float) -> str | None:
+    for field, v in values.items():
+        if not math.isfinite(v):
+            return f"{field} is {v!r}, not a finite number"
+    return None
+
+
+def _message_problem(kind: str, m: Any) -> str | None:
+    """What makes message ``m`` of ``kind`` physically impossible (names the field), or None.
+    A reader returns a valid Sequence or refuses: NaN angles, a non-positive or non-finite
+    range_max or a NaN twist would otherwise reach every estimator."""
+    if kind == "scan":
+        problem = _finite(angle_min=m.angle_min, angle_increment=m.angle_increment, range_min=m.range_min,
+                          range_max=m.range_max)
+        if problem:
+            return problem
+        if m.range_max <= 0:
+            return f"range_max is {m.range_max!r}; a laser's maximum range must be > 0"
+        if not 0 <= m.range_min < m.range_max:
+            return f"range_min {m.range_min!r} must be >= 0 and below range_max {m.range_max!r}"
+        if len(m.ranges) > 1 and m.angle_increment == 0:
+            return f"angle_increment is 0 for {len(m.ranges)} beams"
+        return None
+    if kind == "odom":
+        p, q, tw = m.pose.pose.position, m.pose.pose.orientation, m.twist.twist
+        return _finite(**{"pose.position.x": p.x, "pose.position.y": p.y, "pose.orientation.x": q.x,
+                          "pose.orientation.y": q.y, "pose.orientation.z": q.z, "pose.orientation.w": q.w,
+                          "twist.linear.x": tw.linear.x, "twist.angular.z": tw.angular.z})
+    if kind == "imu":
+        av, la = m.angular_velocity, m.linear_acceleration
+        return _finite(**{f"angular_velocity.{a}": getattr(av, a) for a in "xyz"},
+                       **{f"linear_acceleration.{a}": getattr(la, a) for a in "xyz"})
+    if kind == "gps":
+        if m.status.status < 0:  # NO_FIX: skipped, whatever it holds
+            return None
+        problem = _finite(latitude=m.latitude, longitude=m.longitude, altitude=m.altitude)
+        if problem:
+            return problem
+        if not (-90 <= m.latitude <= 90 and -180 <= m.longitude <= 360):
+            return f"latitude {m.latitude!r} / longitude {m.longitude!r} out of range"
+        if m.position_covariance_type > 0:
+            var = np.asarray(m.position_covariance, dtype=float).reshape(3, 3)[[0, 1], [0, 1]]
+            if not (np.isfinite(var).all() and (var >= 0).all() and var.sum() > 0):
+                return f"position_covariance variances {var.tolist()} must be finite, >= 0 and not both 0"
+        return None
+    if kind == "tf":
+        for tr in m.transforms:
+            tt, q = tr.transform.translation, tr.transform.rotation
+            problem = _finite(**{"transform.translation.x": tt.x, "transform.translation.y": tt.y,
+                                 "transform.rotation.z": q.z, "transform.rotation.w": q.w})
+            if problem:
+                return problem
+    return None
+
+
 def _yaw(q: Any) -> float:
     return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
 
@@ -169,14 +265,15 @@ def read_bag(path: str | Path, topics: BagTopics = BagTopics(), name: str | None
             raise DataError(f"none of the requested topics is in the bag; it has: {listing}", path)
         rows: dict[str, list] = {k: [] for k in conns}
         by_id = {c.id: kind for kind, cs in conns.items() for c in cs}
-        for conn, t_ns, raw in reader.messages(connections=[c for cs in conns.values() for c in cs]):
-            try:
-                msg = reader.deserialize(raw, conn.msgtype)
-            except Exception as exc:
-                raise DataError(f"message on {conn.topic} at {t_ns} ns cannot be decoded: {exc}", path) from None
+        for conn, t_ns, msg in _decoded(reader, [c for cs in conns.values() for c in cs], path):
             rows[by_id[conn.id]].append((t_ns, msg))
     finally:
         reader.close()
+    for kind, (topic, _) in wanted.items():
+        for k, (_, m) in enumerate(rows.get(kind, [])):
+            problem = _message_problem(kind, m)
+            if problem:
+                raise DataError(f"{topic} message {k}: {problem}", path)
 
     # odometry first: at a shared stamp the motion up to t comes before the measurement at t
     # (the order every slamkit reader and the simulator use; from_events keeps it, sorting stably)
@@ -323,7 +420,7 @@ def bag_topics(path: str | Path) -> list[BagTopicInfo]:
         for c in reader.connections:
             times.setdefault(c.topic, [])
             types[c.topic] = c.msgtype
-        for conn, t_ns, _ in reader.messages():
+        for conn, t_ns, _ in _messages(reader, list(reader.connections), path):
             times[conn.topic].append(t_ns)
     finally:
         reader.close()
@@ -378,11 +475,14 @@ def _unique_topic(present: dict[str, str], msgtype: str, chosen: str | None, wha
     raise DataError(f"{how}. The bag's topics: {listing}", path)
 
 
-def _static_mount(reader, tf_conns, base_frame: str, laser_frame: str) -> tuple[float, float, float] | None:
+def _static_mount(reader, tf_conns, base_frame: str, laser_frame: str, path: Path) -> tuple[float, float, float] | None:
     """base_frame -> laser_frame (x, y, yaw) composed along the static tf tree, or None."""
     parent_of: dict[str, tuple[str, tuple[float, float, float]]] = {}
-    for conn, _, raw in reader.messages(connections=tf_conns):
-        for tr in reader.deserialize(raw, conn.msgtype).transforms:
+    for k, (conn, _, msg) in enumerate(_decoded(reader, tf_conns, path)):
+        problem = _message_problem("tf", msg)
+        if problem:
+            raise DataError(f"{conn.topic} message {k}: {problem}", path)
+        for tr in msg.transforms:
             tt = tr.transform.translation
             parent_of[tr.child_frame_id.lstrip("/")] = (tr.header.frame_id.lstrip("/"),
                                                         (tt.x, tt.y, _yaw(tr.transform.rotation)))
@@ -424,14 +524,16 @@ def read_laser_bag(path: str | Path, scan_topic: str | None = None, odom_topic: 
             for topic in (scan, odom):
                 if topic is None:
                     continue
-                for conn, _, raw in reader.messages(connections=[c for c in reader.connections if c.topic == topic]):
-                    first[topic] = reader.deserialize(raw, conn.msgtype)
+                # the first message only (leaving the generator early skips the count check,
+                # which read_bag makes when it reads them all)
+                for _, _, msg in _decoded(reader, [c for c in reader.connections if c.topic == topic], path):
+                    first[topic] = msg
                     break
             laser_frame = first[scan].header.frame_id if scan in first else ""
             base_frame = (first[odom].child_frame_id if odom in first and first[odom].child_frame_id
                           else "base_link")
             if laser_frame:
-                mount = _static_mount(reader, tf_conns, base_frame, laser_frame)
+                mount = _static_mount(reader, tf_conns, base_frame, laser_frame, path)
     finally:
         reader.close()
     seq = read_bag(path, BagTopics(scan=scan, odom=odom, imu=None, gps=None, tf=None), name=name)
