@@ -12,15 +12,27 @@ users by default; the CLI prints it as ``warning: ...``). An unknown name is a
 
 Registries hold whatever their layer needs per name (a spec dataclass, a lazy ``module:attr``
 target); the registry itself only decides names.
+
+Plug-ins (issue 32): users extend a registry without editing slamkit. A registry built with a
+``group`` also holds the entries other installed packages declare as entry points of that group
+(``[project.entry-points."slamkit.estimators"] my_ekf = "my_pkg.slamkit_plugin:SPEC"``; the
+object is the registry's entry, adapted by the registry's ``adapt``, or a module whose import
+registers its entries itself), read with :mod:`importlib.metadata` on first use. A module named
+in a config's ``plugins:`` list or a ``--plugin`` option is imported by :func:`import_plugins`,
+which also records it in ``$SLAMKIT_PLUGINS`` so that worker processes (the local executor's,
+Ray's on this machine) import it too before their first lookup.
 """
 
 from __future__ import annotations
 
 import difflib
 import importlib
+import importlib.metadata
+import os
 import re
 import warnings
-from typing import Generic, Iterable, Iterator, Mapping, TypeVar
+from types import ModuleType
+from typing import Any, Callable, Generic, Iterable, Iterator, Mapping, TypeVar
 
 from slamkit.errors import ConfigError
 
@@ -28,6 +40,38 @@ from slamkit.errors import ConfigError
 NAME_RULE = re.compile(r"[a-z][a-z0-9_]*\Z")
 
 T = TypeVar("T")
+
+#: the environment variable listing plug-in modules (``os.pathsep``-separated) for child processes
+PLUGINS_ENV = "SLAMKIT_PLUGINS"
+#: entry-point groups are ``slamkit.<kind>s``: estimators, planners, controllers, datasets, pipelines
+ENTRY_POINT_PREFIX = "slamkit."
+
+
+def import_plugins(modules: Iterable[str], where: str = "plugins") -> list[ModuleType]:
+    """Import each plug-in module (its import registers its entries) and record it in
+    ``$SLAMKIT_PLUGINS`` for child processes. A module that cannot be imported is a ConfigError
+    naming it and ``where`` (the config field or option that listed it)."""
+    loaded = []
+    for name in modules:
+        if not isinstance(name, str) or not name.strip():
+            raise ConfigError(f"{where}: a plug-in is a module name such as 'my_pkg.slamkit_plugin', got {name!r}")
+        name = name.strip()
+        try:
+            loaded.append(importlib.import_module(name))
+        except ImportError as exc:
+            raise ConfigError(f"{where}: plug-in module {name!r} cannot be imported ({exc}); is its package "
+                              "installed in this environment, or its folder on PYTHONPATH?") from None
+        listed = [m for m in os.environ.get(PLUGINS_ENV, "").split(os.pathsep) if m]
+        if name not in listed:
+            os.environ[PLUGINS_ENV] = os.pathsep.join([*listed, name])
+    return loaded
+
+
+def _import_env_plugins() -> None:
+    """The modules a parent process passed down in ``$SLAMKIT_PLUGINS`` (imported once)."""
+    modules = [m for m in os.environ.get(PLUGINS_ENV, "").split(os.pathsep) if m]
+    if modules:
+        import_plugins(modules, f"${PLUGINS_ENV}")
 
 
 class SlamkitDeprecationWarning(FutureWarning):
@@ -59,19 +103,67 @@ class Registry(Mapping[str, T], Generic[T]):
 
     ``what`` names the kind of thing in messages (``"planner"``). ``deprecated`` maps old
     spellings that :func:`snake_case` does not already turn into a registered name.
+
+    ``group`` is the entry-point group whose entries this registry discovers on first use
+    (``"slamkit.planners"``); ``adapt(name, obj)`` turns a loaded entry-point object into an
+    entry (or raises a ConfigError saying what the object should be). ``derived()`` returns
+    entries another table of an inner layer owns (the estimation layer's filters for the
+    estimator table): they are read from that table at every lookup, never copied, so an entry
+    registered there is seen here too.
     """
 
     def __init__(self, what: str, entries: Mapping[str, T] | Iterable[tuple[str, T]],
-                 deprecated: Mapping[str, str] | None = None):
+                 deprecated: Mapping[str, str] | None = None, *, group: str | None = None,
+                 adapt: Callable[[str, Any], T] | None = None,
+                 derived: Callable[[], Mapping[str, T]] | None = None):
         self.what = what
-        self._entries: dict[str, T] = dict(entries)
-        bad = [n for n in self._entries if not NAME_RULE.match(n)]
+        self.group = group
+        self._adapt = adapt
+        self._derived = derived
+        self._own: dict[str, T] = dict(entries)
+        self._discovered = group is None
+        bad = [n for n in self._own if not NAME_RULE.match(n)]
         if bad:
             raise ValueError(f"{what} names must be snake_case ({NAME_RULE.pattern}): {bad}")
         self._deprecated = dict(deprecated or {})
-        missing = {o: n for o, n in self._deprecated.items() if n not in self._entries}
+        missing = {o: n for o, n in self._deprecated.items() if n not in self._own}
         if missing:
             raise ValueError(f"deprecated {what} spellings point to unknown names: {missing}")
+
+    @property
+    def _entries(self) -> dict[str, T]:
+        self.discover()
+        if self._derived is None:
+            return self._own
+        return {**self._derived(), **self._own}
+
+    # -- plug-ins ------------------------------------------------------------------------------
+
+    def discover(self, refresh: bool = False) -> None:
+        """Register the entries of this registry's entry-point group (once per process unless
+        ``refresh``) and the plug-in modules of ``$SLAMKIT_PLUGINS``."""
+        if self._discovered and not refresh:
+            return
+        self._discovered = True  # before loading: a plug-in module registering itself re-enters
+        _import_env_plugins()
+        if self.group is None:
+            return
+        for ep in importlib.metadata.entry_points(group=self.group):
+            where = f"entry point {ep.name!r} = {ep.value!r} (group {self.group!r}" + (
+                f", package {ep.dist.name!r})" if getattr(ep, "dist", None) is not None else ")")
+            try:
+                obj = ep.load()
+            except Exception as exc:  # a broken plug-in must name itself, not crash the lookup
+                raise ConfigError(f"{where}: cannot be loaded ({type(exc).__name__}: {exc})") from None
+            if isinstance(obj, ModuleType):
+                continue  # its import registered what it provides
+            try:
+                entry = self._adapt(ep.name, obj) if self._adapt is not None else obj
+            except ConfigError as exc:
+                raise ConfigError(f"{where}: {exc}") from None
+            if ep.name in self._own and self._own[ep.name] == entry:
+                continue  # the same distribution found twice on sys.path
+            self.register(ep.name, entry)
 
     # -- lookup --------------------------------------------------------------------------------
 
@@ -123,11 +215,11 @@ class Registry(Mapping[str, T], Generic[T]):
             raise ConfigError(f"{self.what} names must be snake_case ({NAME_RULE.pattern}), got {name!r}")
         if self._resolve(name) is not None:
             raise ConfigError(f"{self.what} {name!r} is already registered")
-        self._entries[name] = entry
+        self._own[name] = entry
 
     def unregister(self, name: str) -> None:
         """Remove an entry added with :meth:`register` (unknown names are a ConfigError)."""
-        del self._entries[self.canonical(name)]
+        del self._own[self.canonical(name)]
 
     def __repr__(self) -> str:
         return f"Registry({self.what!r}, {self.names()})"

@@ -20,12 +20,17 @@ def run_command(
                                       help="rerun every dataset on this many seeded twins and report the "
                                            "median and worst beside each figure (the config's "
                                            "'perturbations: {count: N}')"),
+    plugin: list[str] = typer.Option(None, "--plugin", metavar="MODULE",
+                                     help="import this module first (repeatable): it registers your own "
+                                          "estimators, planners, ... (the config's 'plugins:' list)"),
 ) -> None:
     """Run a pipeline config and write config.yaml, results.json, report.md, plots and a recording."""
     from slamkit.errors import ConfigError
     from slamkit.experiments.pipeline import PIPELINES, has_config_field, load_config, run_pipeline
+    from slamkit.naming import import_plugins
     from slamkit.viz.pipelines import observer_for
 
+    import_plugins(plugin or [], "--plugin")
     config = pipeline
     if perturbations is not None:
         config = load_config(pipeline)

@@ -23,9 +23,15 @@ def sweep_command(
     resume: bool = typer.Option(False, "--resume", help="continue the sweep in --out: run only unfinished cells"),
     retry_failed: bool = typer.Option(False, "--retry-failed", help="with --resume, run failed cells again"),
     quiet: bool = typer.Option(False, "--quiet", help="no progress bar or report"),
+    plugin: list[str] = typer.Option(None, "--plugin", metavar="MODULE",
+                                     help="import this module first (repeatable): it registers your own "
+                                          "estimators, planners, ... (the config's 'plugins:' list)"),
 ) -> None:
     """Run a pipeline over a grid of config values, seeds and datasets; resumable after any kill."""
     from slamkit.experiments.sweep import run_sweep
+    from slamkit.naming import import_plugins
+
+    import_plugins(plugin or [], "--plugin")
 
     result = run_sweep(sweep, out, workers=workers, executor=executor, address=address, resume=resume,
                        retry_failed=retry_failed, progress=not quiet)

@@ -9,6 +9,10 @@ deprecation warning; an unknown name is a ConfigError suggesting the closest).
 The three MPC names are one controller with its solver preset (``MPCConfig.solver``): ``mpc``
 (IPOPT), ``mpc_osqp`` (the real-time-iteration QP), ``mpc_fatrop``; a ``solver`` given in
 ``params`` wins over the preset, as it always did.
+
+A user's controller joins with :func:`register_controller` (from a module named in a config's
+``plugins:``) or as an entry point of the group ``slamkit.controllers`` whose object is a
+:class:`ControllerSpec`.
 """
 
 from __future__ import annotations
@@ -39,6 +43,13 @@ class ControllerSpec:
     needs_rng: bool = False
 
 
+def _adapt(name: str, entry: Any) -> ControllerSpec:
+    if not isinstance(entry, ControllerSpec):
+        raise ConfigError(f"a controller entry point names a ControllerSpec (slamkit.control.registry), "
+                          f"got {type(entry).__name__}")
+    return entry
+
+
 CONTROLLERS: Registry[ControllerSpec] = Registry("controller", {
     "potential_fields": ControllerSpec(PotentialFieldController, PotentialFieldConfig, needs_rng=True),
     "dwa": ControllerSpec(DWAController, DWAConfig),
@@ -46,7 +57,12 @@ CONTROLLERS: Registry[ControllerSpec] = Registry("controller", {
     "mpc": ControllerSpec(MPCController, MPCConfig, {"solver": "ipopt"}),
     "mpc_osqp": ControllerSpec(MPCController, MPCConfig, {"solver": "osqp"}),
     "mpc_fatrop": ControllerSpec(MPCController, MPCConfig, {"solver": "fatrop"}),
-})
+}, group="slamkit.controllers", adapt=_adapt)
+
+
+def register_controller(name: str, spec: ControllerSpec) -> None:
+    """Make controller ``name`` usable in configs, the CLI and the benchmark."""
+    CONTROLLERS.register(name, _adapt(name, spec))
 
 
 def controller_config(name: str, params: Mapping[str, Any] | None = None) -> Any:

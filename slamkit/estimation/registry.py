@@ -5,10 +5,11 @@ Sequence: the noise it assumes comes from ``sequence.metadata`` (``odometry_sigm
 ``range_bearing_sigma``; override with the ``NoiseParams`` field names in ``params``), the
 localization filters get the sequence's landmark map, and the remaining ``params`` fill the
 filter's config dataclass by field name. The cross-package table that also lists the GTSAM
-smoothers is ``slamkit.experiments.estimators``; this one stays inside the estimation layer so
-the filters' own tests and benchmark can iterate over every filter. Both are a
-:class:`slamkit.naming.Registry`: one naming rule, and an unknown name is one ConfigError with
-the closest suggestion.
+smoothers and users' plug-ins is ``slamkit.experiments.estimators``, the one place to register
+an estimator; it reads the rows of this table live (never a copy), and this one stays inside the
+estimation layer so the filters' own tests and benchmark can iterate over every filter. Both
+are a :class:`slamkit.naming.Registry`: one naming rule, and an unknown name is one ConfigError
+with the closest suggestion.
 """
 
 from __future__ import annotations
@@ -47,6 +48,8 @@ class FilterSpec:
     #: the sequences it runs on: 'planar' (odometry + range-bearing landmark worlds) or
     #: 'inertial' (IMU + GPS; the start state and noise come from slamkit.data.inertial)
     sequence_kind: str = "planar"
+    #: what it estimates: 'pose' (the robot's pose only) or 'pose_and_map' (SLAM: the landmarks too)
+    estimates: str = "pose"
 
 
 REGISTRY: Registry[FilterSpec] = Registry("filter", [(s.name, s) for s in [
@@ -60,8 +63,9 @@ REGISTRY: Registry[FilterSpec] = Registry("filter", [(s.name, s) for s in [
                "Monte Carlo localization: global init, KLD-sampling, augmented MCL"),
     FilterSpec("histogram", HistogramFilter, HistogramFilterConfig, True, False,
                "grid (histogram) Bayes filter localization"),
-    FilterSpec("ekf_slam", EKFSLAM, EKFSLAMConfig, False, False, "EKF-SLAM, O(n^2) updates"),
-    FilterSpec("fastslam", FastSLAM, FastSLAMConfig, False, True, "FastSLAM 1.0"),
+    FilterSpec("ekf_slam", EKFSLAM, EKFSLAMConfig, False, False, "EKF-SLAM, O(n^2) updates",
+               estimates="pose_and_map"),
+    FilterSpec("fastslam", FastSLAM, FastSLAMConfig, False, True, "FastSLAM 1.0", estimates="pose_and_map"),
     FilterSpec("es_ekf", ErrorStateEKF, ErrorStateEKFConfig, False, False,
                "15-state error-state EKF: IMU propagation, GPS updates (inertial sequences)", "inertial"),
 ]])

@@ -17,7 +17,7 @@ from pydantic import AfterValidator, BaseModel, ConfigDict, Field
 
 from slamkit.config import STRICT, YamlDocument, model_of, validate
 from slamkit.errors import ConfigError, SlamkitError
-from slamkit.naming import suggestion
+from slamkit.naming import import_plugins, suggestion
 from slamkit.paths import path_component
 
 def _plain_name(v: str) -> str:
@@ -70,6 +70,9 @@ class PipelineConfig(BaseModel):
     pipeline: str
     name: PlainName | None = None
     record: bool = True
+    #: modules imported before anything is validated; importing one registers a user's estimators,
+    #: planners, controllers, datasets or pipelines (slamkit.naming.import_plugins)
+    plugins: list[Annotated[str, Field(min_length=1)]] = []
 
     def check_options(self, config: dict[str, Any], doc: YamlDocument | None, source: str) -> None:
         """Validate the algorithm options this config nests (``config`` is the raw mapping)."""
@@ -360,6 +363,12 @@ def check_pipeline(config: dict[str, Any], doc: YamlDocument | None = None, sour
                           f"{type(config).__name__}")
     from slamkit.experiments.pipeline import PIPELINES, pipeline_of
 
+    plugins = config.get("plugins")
+    if plugins is not None:  # first: a plug-in may register the very pipeline this config names
+        where = doc.where(("plugins",)) if doc is not None else source
+        if not isinstance(plugins, list):
+            raise ConfigError(f"{where}: plugins: a list of module names, got {plugins!r}")
+        import_plugins(plugins, f"{where}: plugins")
     try:
         config["pipeline"] = PIPELINES.canonical(config.get("pipeline"))
     except ConfigError as exc:

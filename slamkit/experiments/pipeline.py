@@ -7,7 +7,9 @@ config model (a pydantic model of :mod:`slamkit.experiments.config_models`, whos
 ``check_options`` validates what the pipeline nests), the type of the payload its
 :class:`PipelineOutput` carries to observers, and its ``run`` function. :data:`PIPELINES` is the
 one table of pipeline kinds (a :class:`slamkit.naming.Registry` of lazy ``module:PIPELINE``
-targets, so importing this module stays cheap); :func:`register_pipeline` adds a user's own.
+targets, so importing this module stays cheap); :func:`register_pipeline` adds a user's own,
+and so does an entry point of the group ``slamkit.pipelines`` whose object is a
+:class:`Pipeline` (or a config's ``plugins:`` module calling ``register_pipeline``).
 
 Recording is not done here (experiments never import viz): the viz layer registers a recorder
 factory against a pipeline with :func:`register_recorder` (``slamkit.viz.pipelines`` does it for
@@ -103,6 +105,13 @@ class _Entry:
         return self._pipeline
 
 
+def _adapt(name: str, entry: Any) -> _Entry:
+    if not isinstance(entry, Pipeline) or entry.name != name:
+        raise ConfigError(f"a pipeline entry point names a Pipeline (slamkit.experiments.pipeline) called "
+                          f"{name!r}, got {entry!r}")
+    return _Entry(entry)
+
+
 #: every pipeline kind by registry name
 PIPELINES: Registry[_Entry] = Registry("pipeline", {
     "pose_graph": _Entry("slamkit.experiments.pose_graph:PIPELINE"),
@@ -112,7 +121,7 @@ PIPELINES: Registry[_Entry] = Registry("pipeline", {
     "lidar_slam": _Entry("slamkit.experiments.lidar_slam:PIPELINE"),
     "visual_odometry": _Entry("slamkit.experiments.visual_odometry:PIPELINE"),
     "navigation": _Entry("slamkit.experiments.navigation:PIPELINE"),
-})
+}, group="slamkit.pipelines", adapt=_adapt)
 
 
 def pipeline_of(kind: str) -> Pipeline:

@@ -4,12 +4,16 @@
 planner with its config's defaults overridden by the keyword arguments. Names follow the one
 naming rule of :mod:`slamkit.naming`; the old hyphenated spellings (``rrt-star``) still work and
 are reported as deprecated.
+
+A user's planner joins with :func:`register_planner` (from a module named in a config's
+``plugins:``) or as an entry point of the group ``slamkit.planners`` whose object is a
+:class:`PlannerSpec`; it is built like the built-in ones: ``planner(config, [rng=...,] hook=...)``.
 """
 
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -25,17 +29,33 @@ from slamkit.planning.rrt import RRTConfig, RRTPlanner
 from slamkit.planning.rrt_connect import RRTConnectConfig, RRTConnectPlanner
 from slamkit.planning.rrt_star import RRTStarConfig, RRTStarPlanner
 
+class PlannerSpec(NamedTuple):
+    """A registry row: ``planner(config_cls(**params), [rng=...,] hook=...)`` builds one."""
+
+    planner: type
+    config: type
+    #: the constructor takes ``rng`` (sampling planners)
+    needs_rng: bool = False
+
+
+def _adapt(name: str, entry: Any) -> PlannerSpec:
+    if not isinstance(entry, PlannerSpec):
+        raise ConfigError(f"a planner entry point names a PlannerSpec (slamkit.planning.registry), "
+                          f"got {type(entry).__name__}")
+    return entry
+
+
 #: name -> (planner class, config class, needs an rng)
-PLANNERS: Registry[tuple[type, type, bool]] = Registry("planner", {
-    "astar": (AStarPlanner, AStarConfig, False),
-    "dijkstra": (DijkstraPlanner, DijkstraConfig, False),
-    "dstar_lite": (DStarLitePlanner, DStarLiteConfig, False),
-    "prm": (PRMPlanner, PRMConfig, True),
-    "rrt": (RRTPlanner, RRTConfig, True),
-    "rrt_connect": (RRTConnectPlanner, RRTConnectConfig, True),
-    "rrt_star": (RRTStarPlanner, RRTStarConfig, True),
-    "informed_rrt_star": (InformedRRTStarPlanner, RRTStarConfig, True),
-})
+PLANNERS: Registry[PlannerSpec] = Registry("planner", {
+    "astar": PlannerSpec(AStarPlanner, AStarConfig, False),
+    "dijkstra": PlannerSpec(DijkstraPlanner, DijkstraConfig, False),
+    "dstar_lite": PlannerSpec(DStarLitePlanner, DStarLiteConfig, False),
+    "prm": PlannerSpec(PRMPlanner, PRMConfig, True),
+    "rrt": PlannerSpec(RRTPlanner, RRTConfig, True),
+    "rrt_connect": PlannerSpec(RRTConnectPlanner, RRTConnectConfig, True),
+    "rrt_star": PlannerSpec(RRTStarPlanner, RRTStarConfig, True),
+    "informed_rrt_star": PlannerSpec(InformedRRTStarPlanner, RRTStarConfig, True),
+}, group="slamkit.planners", adapt=_adapt)
 GRID_PLANNERS = ("astar", "dijkstra", "dstar_lite")
 
 
@@ -55,6 +75,11 @@ def make_planner(name: str, rng: np.random.Generator | None = None, hook: Hook |
     if needs_rng:
         return cls(cfg, rng=np.random.default_rng(0) if rng is None else rng, hook=hook)
     return cls(cfg, hook=hook)
+
+
+def register_planner(name: str, spec: PlannerSpec) -> None:
+    """Make planner ``name`` usable in configs, the CLI and the benchmark."""
+    PLANNERS.register(name, _adapt(name, spec))
 
 
 def planner_names() -> list[str]:

@@ -144,18 +144,24 @@ class TaskResult:
     runs: dict[str, EstimatorRun] | None = None
 
 
-#: what a landmark-sequence run estimates: the pose against the known map, or the map too
-SETTINGS = {"localisation": "localisation (map known)", "slam": "SLAM (map estimated)"}
+#: what a landmark-sequence run estimates: the pose against the known map, the pose alone with
+#: no map (odometry, a user's map-free estimator), or the map too
+SETTINGS = {"localisation": "localisation (map known)", "pose_only": "pose only (no map given or estimated)",
+            "slam": "SLAM (map estimated)"}
 
 
 def setting_of(estimator_type: str, sequence: Sequence) -> str | None:
     """'localisation' for an estimator given the sequence's landmark map, 'slam' for one that
-    estimates it; None on sequences without landmarks (inertial, grid worlds)."""
+    estimates it, 'pose_only' for one that does neither (its registry spec's ``estimates``);
+    None on sequences without landmarks (inertial, grid worlds)."""
     if not sequence.world_p_landmarks:
         return None
     from slamkit.experiments.estimators import spec
 
-    return "localisation" if spec(estimator_type).needs_landmark_map else "slam"
+    s = spec(estimator_type)
+    if s.needs_landmark_map:
+        return "localisation"
+    return "slam" if s.estimates == "pose_and_map" else "pose_only"
 
 
 def run_task(task: Task, observer: PipelineObserver | None = None) -> TaskResult:
