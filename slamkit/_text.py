@@ -104,14 +104,20 @@ def float_table(rows: list[list[str]], lines: list[int] | np.ndarray, path: str 
     raise DataError("could not convert values", path)  # pragma: no cover - the loop finds it
 
 
-def number_rows(path: str | Path, width: int, empty: str) -> tuple[np.ndarray, np.ndarray]:
-    """(one-based line numbers (K,), finite values (K, width)) of a whitespace-separated table;
-    ``#`` starts a comment, blank lines are skipped, no rows at all is ``DataError(empty)``."""
+def number_rows(path: str | Path, width: int, empty: str, header_lines: int = 0,
+                delimiter: str | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(one-based line numbers (K,), finite values (K, width)) of a whitespace-separated table
+    (``delimiter``: another separator, e.g. ``","``, with blanks around tokens ignored); ``#``
+    starts a comment, blank lines and the first ``header_lines`` lines are skipped, no rows at
+    all is ``DataError(empty)``."""
     lines, rows = [], []
     for lineno, line in enumerate(read_lines(path), start=1):
-        tokens = line.split("#", 1)[0].split()
-        if not tokens:
+        if lineno <= header_lines:
             continue
+        body = line.split("#", 1)[0]
+        if not body.strip():
+            continue
+        tokens = body.split() if delimiter is None else [t.strip() for t in body.split(delimiter)]
         if len(tokens) != width:
             raise DataError(f"expected {width} numbers, got {len(tokens)}", path, lineno)
         lines.append(lineno)

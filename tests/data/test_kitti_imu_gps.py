@@ -67,3 +67,71 @@ def test_setup_of_a_non_inertial_sequence_is_a_data_error(kitti):
     with pytest.raises(DataError, match="not inertial"):
         setup_of(dataclasses.replace(kitti, metadata={}))
     assert withhold_gps(kitti, np.zeros((0, 2))).metadata["withheld_gps"]["stamps_s"].shape == (0,)
+
+
+# --- issue 31: bad files are a DataError naming file and line (np.loadtxt let nan/inf through) ---
+
+_IMU_HEAD = "Time dt accelX accelY accelZ omegaX omegaY omegaZ\n"
+_META = ("BodyPtx BodyPty BodyPtz BodyPrx BodyPry BodyPrz AccelerometerSigma GyroscopeSigma IntegrationSigma "
+         "AccelerometerBiasSigma GyroscopeBiasSigma AverageDeltaT\n0 0 0 0 0 0 0.01 0.000175 0 0.000167 2.91e-006 0.01\n")
+
+
+def _files(tmp_path, imu_rows=None, gps_rows=None, meta=_META):
+    """Five IMU rows 0.01 s apart and four fixes 1 s apart unless overridden (rows as text)."""
+    imu_rows = imu_rows or [f"{10 + 0.01 * k} 0.01 0.1 0 9.8 0 0 0.01" for k in range(150, 155)]
+    gps_rows = gps_rows or [f"{10 + k},{2.0 * k},{1.0 * k},0" for k in range(4)]
+    paths = tmp_path / "imu.txt", tmp_path / "gps.txt", tmp_path / "meta.txt"
+    paths[0].write_text(_IMU_HEAD + "\n".join(imu_rows) + "\n")
+    paths[1].write_text("Time,X,Y,Z\n" + "\n".join(gps_rows) + "\n")
+    paths[2].write_text(meta)
+    return paths
+
+
+def test_small_files_read(tmp_path):
+    from slamkit.data.formats.kitti_imu_gps import read_kitti_imu_gps
+
+    seq = read_kitti_imu_gps(*_files(tmp_path))
+    # start at fix 1 (t = 11 s): the IMU rows at 11.5-11.54 s and fixes 2, 3 follow it
+    assert [round(e.stamp_s, 6) for e in seq.of_type(Imu)] == [0.5, 0.51, 0.52, 0.53, 0.54]
+    assert [e.stamp_s for e in seq.of_type(Gps)] == [1.0, 2.0]
+
+
+@pytest.mark.parametrize("which, row, expected", [
+    ("imu", "11.52 0.01 nan 0 9.8 0 0 0.01", r"imu\.txt:4: NaN or infinity"),
+    ("imu", "11.52 0.01 0.1 0 inf 0 0 0.01", r"imu\.txt:4: NaN or infinity"),
+    ("imu", "11.505 0.01 0.1 0 9.8 0 0 0.01", r"imu\.txt:4: time 11\.505 s does not follow 11\.51 s \(line 3\)"),
+    ("imu", "11.52 0.01 0.1 0 9.8 0 0", r"imu\.txt:4: expected 8 numbers, got 7"),
+    ("gps", "12,4.0,nan,0", r"gps\.txt:4: NaN or infinity"),
+    ("gps", "10.5,4.0,2.0,0", r"gps\.txt:4: time 10\.5 s does not follow 11\.0 s \(line 3\)"),
+    ("gps", "12,4.0,2.0", r"gps\.txt:4: expected 4 numbers, got 3"),
+])
+def test_bad_rows_name_file_and_line(tmp_path, which, row, expected):
+    from slamkit.data.formats.kitti_imu_gps import read_kitti_imu_gps
+
+    imu = [f"{10 + 0.01 * k} 0.01 0.1 0 9.8 0 0 0.01" for k in range(150, 155)]
+    gps = [f"{10 + k},{2.0 * k},{1.0 * k},0" for k in range(4)]
+    (imu if which == "imu" else gps)[2] = row  # line 4 of the file
+    with pytest.raises(DataError, match=expected):
+        read_kitti_imu_gps(*_files(tmp_path, imu, gps))
+
+
+@pytest.mark.parametrize("meta, expected", [
+    (_META.replace("0.000175", "inf"), r"meta\.txt:2: NaN or infinity"),
+    (_META.replace("0.000175", "0"), r"meta\.txt:2: GyroscopeSigma must be > 0, got 0\.0"),
+    (_META.replace(" 0.01\n", " -0.01\n"), r"meta\.txt:2: AverageDeltaT must be > 0"),
+    (_META + "0 0 0 0 0 0 0.01 0.000175 0 0.000167 2.91e-006 0.01\n", r"meta\.txt:3: expected one metadata row, got 2"),
+])
+def test_bad_metadata_names_file_and_line(tmp_path, meta, expected):
+    from slamkit.data.formats.kitti_imu_gps import read_kitti_imu_gps
+
+    with pytest.raises(DataError, match=expected):
+        read_kitti_imu_gps(*_files(tmp_path, meta=meta))
+
+
+def test_non_utf8_bytes_name_the_line(tmp_path):
+    from slamkit.data.formats.kitti_imu_gps import read_kitti_imu_gps
+
+    paths = _files(tmp_path)
+    paths[1].write_bytes(paths[1].read_bytes().replace(b"12,", b"1\xff2,"))
+    with pytest.raises(DataError, match=r"gps\.txt:4: not a text file"):
+        read_kitti_imu_gps(*paths)

@@ -21,6 +21,9 @@ fixes stay level, and iSAM2's own one-second IMU predictions then miss the next 
 They are kept as GTSAM's example has them, so filter and smoothers share them; estimators
 override them per run with ``imu_noise``.
 
+Bad input -> DataError naming the file and line: a malformed or non-finite number, a stamp that
+does not increase, a non-positive sigma, undecodable bytes.
+
 Start: the fix ``start_fix`` (default 1, as the example; fix 0 lies before a 1.9 s IMU gap). The
 start position is that fix, the velocity the central difference of its neighbours, the heading
 and pitch the direction of that velocity, roll 0; the sigmas of this guess are
@@ -34,6 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
+from slamkit._text import number_rows
 from slamkit.data.inertial import InertialSetup, NavState, outage_windows, setup_to_metadata, withhold_gps
 from slamkit.data.sequence import Gps, Imu, Sequence
 from slamkit.errors import ConfigError, DataError
@@ -55,23 +59,35 @@ def read_kitti_imu_gps(imu_path: str | Path, gps_path: str | Path, metadata_path
     """The KITTI files as a Sequence (see the module docstring). With ``outage_s``, GPS is
     withheld in windows of that length separated by ``gap_s`` of GPS, the first
     ``first_outage_after_s`` after the start (:func:`slamkit.data.inertial.withhold_gps`)."""
-    try:
-        imu = np.loadtxt(imu_path, skiprows=1, ndmin=2)
-        gps = np.loadtxt(gps_path, skiprows=1, delimiter=",", ndmin=2)
-        meta = np.loadtxt(metadata_path, skiprows=1, ndmin=1)
-    except (OSError, ValueError) as exc:
-        raise DataError(f"cannot read the KITTI IMU/GPS files ({imu_path}, {gps_path}): {exc}") from None
-    if imu.shape[1] != 8 or gps.shape[1] != 4 or meta.shape != (12,):
-        raise DataError(f"{imu_path}: expected 8 IMU columns, 4 GPS columns and 12 metadata numbers, "
-                        f"got {imu.shape[1]}, {gps.shape[1]}, {meta.shape}")
+    # the shared table rule: ASCII numbers, finite, one-based line numbers in every message
+    imu_lines, imu = number_rows(imu_path, 8, "no IMU rows", header_lines=1)
+    gps_lines, gps = number_rows(gps_path, 4, "no GPS rows", header_lines=1, delimiter=",")
+    meta_lines, meta = number_rows(metadata_path, 12, "no metadata row", header_lines=1)
+    for path, lines, t in ((imu_path, imu_lines, imu[:, 0]), (gps_path, gps_lines, gps[:, 0])):
+        back = np.flatnonzero(np.diff(t) <= 0)
+        if len(back):
+            k = int(back[0]) + 1
+            raise DataError(f"time {float(t[k])!r} s does not follow {float(t[k - 1])!r} s (line {int(lines[k - 1])}); "
+                            "stamps must increase", path, int(lines[k]))
+    if len(meta) != 1:
+        raise DataError(f"expected one metadata row, got {len(meta)}", metadata_path, int(meta_lines[1]))
+    meta = meta[0]
     if np.any(meta[:6] != 0):
-        raise DataError(f"{metadata_path}: only an identity body-to-IMU pose is supported, got {meta[:6]}")
+        raise DataError(f"only an identity body-to-IMU pose is supported, got {meta[:6]}", metadata_path,
+                        int(meta_lines[0]))
+    for k, field in ((6, "AccelerometerSigma"), (7, "GyroscopeSigma"), (9, "AccelerometerBiasSigma"),
+                     (10, "GyroscopeBiasSigma"), (11, "AverageDeltaT")):
+        if not meta[k] > 0:
+            raise DataError(f"{field} must be > 0, got {float(meta[k])!r}", metadata_path, int(meta_lines[0]))
     accel_sigma, gyro_sigma, _, accel_bias_sigma, gyro_bias_sigma, mean_dt = meta[6:]
     if not 1 <= start_fix < len(gps) - 1:
-        raise DataError(f"start_fix must be in [1, {len(gps) - 2}], got {start_fix}")
+        raise DataError(f"{len(gps)} fixes: start_fix must be in [1, {len(gps) - 2}], got {start_fix}", gps_path)
     t0 = float(gps[start_fix, 0])
     p0 = gps[start_fix, 1:]
     v0 = (gps[start_fix + 1, 1:] - gps[start_fix - 1, 1:]) / (gps[start_fix + 1, 0] - gps[start_fix - 1, 0])
+    if not np.isfinite(v0).all():  # fixes 1e308 m apart
+        raise DataError(f"the start velocity from fixes {start_fix - 1} and {start_fix + 1} is not finite: {v0}",
+                        gps_path, int(gps_lines[start_fix]))
     yaw = np.arctan2(v0[1], v0[0])
     pitch = -np.arcsin(np.clip(v0[2] / max(np.linalg.norm(v0), 1e-9), -1.0, 1.0))
     noise = ImuNoise(gyro_noise_density=float(gyro_sigma), gyro_bias_random_walk=float(gyro_bias_sigma / np.sqrt(mean_dt)),
