@@ -246,9 +246,16 @@ _MAPPING_TAG, _NAME_TAG = "<fields>", "<preset name>"
 MAX_COUNT = 1_000_000
 
 
+#: suffixes of a cut of the data to its first N seconds: 0 keeps nothing and every estimator then
+#: ran on an empty sequence (exit 0, only total_time_s in the results)
+_POSITIVE_SUFFIXES = ("max_duration_s",)
+
+
 def _bounds_for(name: str, tp: Any) -> Any:
     if tp is int and name.startswith(_COUNT_PREFIXES):
         return Annotated[int, Field(ge=0, le=MAX_COUNT)]
+    if tp is float and name.endswith(_POSITIVE_SUFFIXES):
+        return Annotated[float, Field(gt=0.0, le=86_400.0)]
     if tp is float:
         for suffix, lo, hi in _SUFFIX_BOUNDS:
             if name.endswith(suffix):

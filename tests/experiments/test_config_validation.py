@@ -96,7 +96,11 @@ FVS = "pipeline: filter_vs_smoother\nestimators: [es_ekf]\nscenarios:\n  - datas
     ("kitti-imu-gps", "{foo: 10}", "c.yaml:5: scenarios.0.params.foo: unknown key; valid keys: "
      "first_outage_after_s, gap_s, max_duration_s, outage_s, start_fix"),
     ("kitti-imu-gps", "{max_duration_s: -1}",
-     "c.yaml:5: scenarios.0.params.max_duration_s: Input should be greater than or equal to 0 (got -1)"),
+     "c.yaml:5: scenarios.0.params.max_duration_s: Input should be greater than 0 (got -1)"),
+    ("kitti-imu-gps", "{max_duration_s: 0}",
+     "c.yaml:5: scenarios.0.params.max_duration_s: Input should be greater than 0 (got 0)"),
+    ("plaza1", "{max_duration_s: 0.0}",
+     "c.yaml:5: scenarios.0.params.max_duration_s: Input should be greater than 0 (got 0.0)"),
     ("kitti-imu-gps", "{max_duration_s: .nan}",
      "c.yaml:5: scenarios.0.params.max_duration_s: Input should be a finite number (got nan)"),
     ("kitti-imu-gps", "{gap_s: 1.0e+20}",
