@@ -13,7 +13,7 @@ those stamps matches to < 0.1 ms, so 1 ms is the default).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -45,6 +45,8 @@ class RelationErrors:
     unmatched: int
     errors_m: np.ndarray
     errors_deg: np.ndarray
+    #: which relation each error belongs to (indices into the Relations scored)
+    index: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
 
     def to_dict(self) -> dict:
         return {"relation_trans_mean_m": self.translation_m.mean, "relation_trans_std_m": self.translation_m.std,
@@ -95,7 +97,7 @@ def relation_errors(stamps_s: np.ndarray, world_xytheta_body: np.ndarray, relati
     e_deg = np.abs(np.rad2deg(err[:, 2]))
     return RelationErrors(ErrorStats.from_errors(e_m), ErrorStats.from_errors(e_deg),
                           ErrorStats.from_errors(e_m**2), ErrorStats.from_errors(e_deg**2),
-                          int(ok.sum()), int((~ok).sum()), e_m, e_deg)
+                          int(ok.sum()), int((~ok).sum()), e_m, e_deg, np.flatnonzero(ok))
 
 
 def evaluate_relations(trajectory, relations_path: str | Path,

@@ -35,6 +35,8 @@ def test_stamps_outside_the_tolerance_are_unmatched() -> None:
     rel = Relations(np.array([10.0, 10.5]), np.array([11.0, 11.0]), np.zeros((2, 3)))
     r = relation_errors(np.array([10.0, 11.0]), np.zeros((2, 3)), rel)
     assert (r.matched, r.unmatched) == (1, 1)
+    # the error kept belongs to relation 0 (the map plot draws it between the poses at its stamps)
+    assert r.index.tolist() == [0]
     with pytest.raises(DataError, match="no relation has estimate poses within 0.001 s"):
         relation_errors(np.array([0.0, 1.0]), np.zeros((2, 3)), rel)
 
