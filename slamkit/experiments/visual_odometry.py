@@ -108,7 +108,10 @@ def run_vo(sequence: ImageSequence, config: VisualOdometryConfig = VisualOdometr
     system = VisualOdometry(sequence.camera, config)
     frames = []
     for stamp, path in zip(sequence.stamps_s, sequence.images):
-        frames.append(system.step(float(stamp), read_image(path)))
+        try:
+            frames.append(system.step(float(stamp), read_image(path)))
+        except DataError as exc:  # the system names the frame; the user needs its file
+            raise DataError(str(exc), path) from None
         if on_frame is not None:
             on_frame(frames[-1])
     run = VoRun(sequence, label, config, tuple(frames), system.estimate())

@@ -42,7 +42,7 @@ from typing import Literal, Protocol
 import numpy as np
 
 from slamkit.backend.bundle_adjustment import BundleAdjustmentConfig, bundle_adjust
-from slamkit.errors import ConfigError
+from slamkit.errors import ConfigError, DataError
 from slamkit.geometry import se3
 from slamkit.models.camera import PinholeCamera
 from slamkit.vision.image import good_features_to_track
@@ -145,8 +145,18 @@ class _Frame:
     image: np.ndarray | None = None  # the newest frame's image (KLT front-end)
 
 
+#: the smallest frame side: ORB describes a keypoint only 31 px (its edge threshold) from every
+#: border, so a smaller image has no pixel to describe (a 1 x 1 frame was an OpenCV assertion)
+MIN_FRAME_PX = 2 * 31 + 1
+
+
 class VisualOdometry:
-    """Streaming monocular VO: ``step(stamp_s, image) -> FrameResult``, ``estimate()``."""
+    """Streaming monocular VO: ``step(stamp_s, image) -> FrameResult``, ``estimate()``.
+
+    Every frame must be a 2-D grey image of the camera's size (``camera.height`` x
+    ``camera.width``, at least :data:`MIN_FRAME_PX` on each side); another is a DataError
+    naming the frame index -- a frame of another size would be projected with the wrong
+    intrinsics and give a wrong trajectory without a word."""
 
     def __init__(self, camera: PinholeCamera, config: VisualOdometryConfig = VisualOdometryConfig()):
         if not isinstance(config, VisualOdometryConfig):
@@ -200,10 +210,23 @@ class VisualOdometry:
 
     # -- the streaming interface ------------------------------------------------------------
 
+    def _check_frame(self, k: int, stamp_s: float, image) -> None:
+        shape = np.shape(image)
+        cam_hw = (self.camera.height, self.camera.width)
+        if len(shape) != 2:
+            raise DataError(f"frame {k} (t={stamp_s} s): expected a 2-D grey image, got an array of shape {shape}")
+        if min(shape) < MIN_FRAME_PX:
+            raise DataError(f"frame {k} (t={stamp_s} s): {shape[1]} x {shape[0]} pixels is too small for visual "
+                            f"odometry (at least {MIN_FRAME_PX} x {MIN_FRAME_PX})")
+        if shape != cam_hw:
+            raise DataError(f"frame {k} (t={stamp_s} s): {shape[1]} x {shape[0]} pixels, but the camera (and frame 0) "
+                            f"is {cam_hw[1]} x {cam_hw[0]}; every frame must have the camera's size")
+
     def step(self, stamp_s: float, image) -> FrameResult:
         t0 = time.perf_counter()
         cfg = self.config
         k = len(self._frames)
+        self._check_frame(k, stamp_s, image)
         prev = self._frames[k - 1] if k else None
         if cfg.frontend == "orb":
             feats = detect_orb(image, cfg.orb)
