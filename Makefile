@@ -8,7 +8,7 @@ SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 PIPELINE ?= pipelines/filter_vs_smoother.yaml
 OUT ?= runs/filter_vs_smoother
 
-.PHONY: setup run test test-all bench clean
+.PHONY: setup run test test-all docs bench clean
 
 setup: $(STAMP)
 
@@ -38,5 +38,9 @@ test: $(STAMP)
 test-all: $(STAMP)
 	$(BIN)/python -m pytest -q 
 
+# the documentation site into site/ (tests/docs builds it too, strict, and runs the tutorials)
+docs: $(STAMP)
+	$(BIN)/mkdocs build --strict
+
 clean:
-	rm -rf $(VENV) runs .pytest_cache
+	rm -rf $(VENV) runs site .pytest_cache
