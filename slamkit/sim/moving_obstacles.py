@@ -63,6 +63,19 @@ class MovingObstacles:
     def __len__(self) -> int:
         return len(self.radius_m)
 
+    # the moving-disc interface the plant uses, shared with slamkit.sim.social_force (whose
+    # people react to the robot, so each episode runs its own copy): shuttles need neither
+    def episode(self) -> "MovingObstacles":
+        """The obstacles of one episode: these (closed-form, they do not react to the robot)."""
+        return self
+
+    def observe_robot(self, t_s: float, xy_m: np.ndarray, radius_m: float) -> None:
+        """Shuttles ignore the robot."""
+
+    def routes_xy_m(self) -> list[np.ndarray]:
+        """Each obstacle's route (A, B), for plots."""
+        return [np.array([a, b]) for a, b in zip(self.a_xy_m, self.b_xy_m)]
+
     @property
     def length_m(self) -> np.ndarray:
         return np.linalg.norm(self.b_xy_m - self.a_xy_m, axis=1)

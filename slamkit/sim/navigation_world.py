@@ -41,6 +41,8 @@ class NavigationScenario:
     goal_xytheta: np.ndarray
     #: the A* path the scenario was drawn with (the obstacles are timed to meet a robot on it)
     path_xy_m: np.ndarray
+    #: shuttles, or people and forklifts of the social-force model
+    #: (:class:`slamkit.sim.social_force.SocialForceAgents`): the same moving-disc interface
     obstacles: MovingObstacles
 
 
@@ -74,7 +76,7 @@ class NavigationPlant:
 
     def __init__(self, scenario: NavigationScenario, rng: np.random.Generator, lidar: Lidar = Lidar(),
                  odometry_sigma_v_mps: float = 0.02, odometry_sigma_omega_radps: float = float(np.deg2rad(1.0)),
-                 lidar_blind_boxes_m: np.ndarray | None = None):
+                 lidar_blind_boxes_m: np.ndarray | None = None, robot_radius_m: float = 0.2):
         self.scenario = scenario
         #: (B, 4) boxes (x_min, y_min, x_max, y_max): with the robot inside one the lidar returns
         #: nothing (glass, a featureless hall, a dropout): an odometry-only stretch
@@ -87,11 +89,17 @@ class NavigationPlant:
         self.beams = lidar.angles_rad()
         self.beams.setflags(write=False)
         self.world_xytheta_body = np.asarray(scenario.start_xytheta, float).copy()
+        #: this episode's moving discs (people of the social-force model react to the robot, so
+        #: each plant runs its own copy; shuttles are shared)
+        self.obstacles = scenario.obstacles.episode()
+        self._robot_radius_m = float(robot_radius_m)
+        self.obstacles.observe_robot(0.0, self.world_xytheta_body[:2], self._robot_radius_m)
 
     def advance(self, command: np.ndarray, dt_s: float, t_end_s: float) -> Odometry:
         """Execute ``command`` (v, omega) for ``dt_s``; the odometry of that period ends at ``t_end_s``."""
         u = np.asarray(command, float).reshape(2)
         self.world_xytheta_body = motion(self.world_xytheta_body, u, dt_s)
+        self.obstacles.observe_robot(float(t_end_s), self.world_xytheta_body[:2], self._robot_radius_m)
         noisy = u + self.sigma * self.rng.standard_normal(2)
         return Odometry(float(t_end_s), float(dt_s), float(noisy[0]), float(noisy[1]))
 
@@ -106,7 +114,7 @@ class NavigationPlant:
         if self.lidar_blind():
             return Scan(float(t_s), self.beams, np.full(len(self.beams), np.nan), lid.max_range_m)
         expected = self.caster.scan(pose, self.beams, lid.max_range_m)[0]
-        obs = self.scenario.obstacles
+        obs = self.obstacles
         if len(obs):
             dyn = cast_circles(np.repeat(pose[None, :2], len(self.beams), axis=0), pose[2] + self.beams,
                                obs.position_at(t_s), obs.radius_m, lid.max_range_m)
@@ -137,7 +145,7 @@ class NavigationPlant:
                 lo = g.origin_xy_m + np.column_stack([ix + ix0, iy + iy0]) * g.resolution_m
                 gap = np.maximum(np.maximum(lo - xy, xy - (lo + g.resolution_m)), 0.0)
                 d_static = float(np.linalg.norm(gap, axis=1).min()) - robot_radius_m
-        obs = self.scenario.obstacles
+        obs = self.obstacles
         d_moving = math.inf
         if len(obs):
             centres = obs.position_at(t_s)
