@@ -233,6 +233,9 @@ class NavigationScenarios(BaseModel):
     worlds: Annotated[list[Literal["office", "warehouse", "willow", "passage"]], Field(min_length=1)] = ["office"]
     seeds: Seeds = 3
     n_obstacles: Annotated[int, Field(ge=0, le=20)] = 2
+    #: the crossing traffic: constant-velocity shuttles or social-force people and forklifts
+    #: (slamkit.sim.social_force.crossing_traffic)
+    agents: Literal["constant_velocity", "social_force"] = "constant_velocity"
     #: world 'willow': the dataset registry's ``willow`` (default) or a map_server YAML path
     willow_map: str | None = None
 

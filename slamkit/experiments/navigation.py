@@ -50,7 +50,7 @@ from slamkit.maps.inflation import costmap
 from slamkit.planning.astar import AStarPlanner
 from slamkit.planning.grid_search import costmap_to_cell_cost
 from slamkit.planning.protocols import PlanningProblem
-from slamkit.sim.moving_obstacles import crossing_obstacles
+from slamkit.sim.social_force import crossing_traffic
 from slamkit.sim.navigation_world import WORLDS, NavigationPlant, NavigationScenario, world_map
 from slamkit.systems.navigation import NavigationCommand, NavigationConfig, NavigationStack, layer_timing_summary
 
@@ -58,11 +58,14 @@ def make_navigation_scenario(seed: int, kind: str, willow_yaml: str | None = Non
                              robot_radius_m: float = 0.2, distance_m: tuple[float, float] = (6.0, 14.0),
                              n_obstacles: int = 2, obstacle_speed_mps: tuple[float, float] = (0.2, 0.6),
                              obstacle_radius_m: tuple[float, float] = (0.25, 0.45),
-                             nominal_speed_mps: float = 0.4, path_margin_m: float = 0.15) -> NavigationScenario:
+                             nominal_speed_mps: float = 0.4, path_margin_m: float = 0.15,
+                             agents: str = "constant_velocity") -> NavigationScenario:
     """A seeded scenario: start and goal poses in free space ``distance_m`` apart with an A*
     path on the costmap (inscribed radius robot + ``path_margin_m``), and ``n_obstacles`` discs
     (people of radius ~0.25 m, a forklift up to ~0.45 m) crossing the path, timed to meet a
-    robot driving it at ``nominal_speed_mps``."""
+    robot driving it at ``nominal_speed_mps``: shuttles at constant speed, or with ``agents:
+    social_force`` people and forklifts drawn from the same crossings
+    (:func:`slamkit.sim.social_force.crossing_traffic`)."""
     rng = np.random.default_rng(seed)
     grid = world_map(kind, rng, willow_yaml)
     field_m = distance_field_m(grid)
@@ -75,9 +78,9 @@ def make_navigation_scenario(seed: int, kind: str, willow_yaml: str | None = Non
         start = poses[0].copy()
         lead = path[min(10, len(path) - 1)] - path[0]
         start[2] = math.atan2(lead[1], lead[0]) + rng.uniform(-0.5, 0.5)
-        obstacles = crossing_obstacles(path, n_obstacles, rng, grid=grid, speed_mps=obstacle_speed_mps,
-                                       radius_m=obstacle_radius_m, nominal_speed_mps=nominal_speed_mps,
-                                       min_side_m=1.0)
+        obstacles = crossing_traffic(agents, path, n_obstacles, rng, grid=grid, speed_mps=obstacle_speed_mps,
+                                     radius_m=obstacle_radius_m, nominal_speed_mps=nominal_speed_mps,
+                                     min_side_m=1.0)
         return NavigationScenario(f"{kind}_{seed}", seed, grid, start, poses[1].copy(), path, obstacles)
     raise ConfigError(f"could not draw a start/goal pair with a path in the {kind} map (seed {seed})")
 
@@ -349,7 +352,9 @@ def scenarios_of(config: Mapping[str, Any]) -> list[NavigationScenario]:
     seeds = seed_list(sc.get("seeds", 3))
     willow = willow_yaml(sc.get("willow_map")) if "willow" in worlds else None
     n_obs = int(sc.get("n_obstacles", 2))
-    return [make_navigation_scenario(seed, w, willow, n_obstacles=n_obs) for w in worlds for seed in seeds]
+    agents = str(sc.get("agents", "constant_velocity"))
+    return [make_navigation_scenario(seed, w, willow, n_obstacles=n_obs, agents=agents)
+            for w in worlds for seed in seeds]
 
 
 #: what the paired table of :func:`paired_variants_markdown` compares
@@ -440,8 +445,8 @@ def plot(plots: Path, episodes: list[Episode], scenarios: Mapping[str, Navigatio
             ax.plot(ep.estimated_xytheta[:, 0], ep.estimated_xytheta[:, 1], "--", lw=1,
                     label=f"{ep.variant} estimate")
             err.plot(ep.t_s, 100.0 * ep.position_error_m(), lw=1, label=ep.variant)
-        for a, b in zip(sc.obstacles.a_xy_m, sc.obstacles.b_xy_m):
-            ax.plot([a[0], b[0]], [a[1], b[1]], color="tab:red", lw=3, alpha=0.4)
+        for route in sc.obstacles.routes_xy_m():
+            ax.plot(route[:, 0], route[:, 1], color="tab:red", lw=3, alpha=0.4)
         ax.plot(*sc.start_xytheta[:2], "bo", ms=7)
         ax.plot(*sc.goal_xytheta[:2], "g*", ms=12)
         ax.set_title(f"{name}: truth and estimate (red: crossing obstacles)", fontsize=9)
