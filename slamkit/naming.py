@@ -161,9 +161,7 @@ class Registry(Mapping[str, T], Generic[T]):
                 entry = self._adapt(ep.name, obj) if self._adapt is not None else obj
             except ConfigError as exc:
                 raise ConfigError(f"{where}: {exc}") from None
-            if ep.name in self._own and self._own[ep.name] == entry:
-                continue  # the same distribution found twice on sys.path
-            self.register(ep.name, entry)
+            self.register(ep.name, entry)  # the same entry twice (found twice on sys.path) is a no-op
 
     # -- lookup --------------------------------------------------------------------------------
 
@@ -214,6 +212,8 @@ class Registry(Mapping[str, T], Generic[T]):
         if not isinstance(name, str) or not NAME_RULE.match(name):
             raise ConfigError(f"{self.what} names must be snake_case ({NAME_RULE.pattern}), got {name!r}")
         if self._resolve(name) is not None:
+            if self._own.get(name) is entry or (name in self._own and self._own[name] == entry):
+                return  # the same entry again (a plug-in both imported and found as an entry point)
             raise ConfigError(f"{self.what} {name!r} is already registered")
         self._own[name] = entry
 

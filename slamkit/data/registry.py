@@ -46,7 +46,7 @@ from typing import TYPE_CHECKING, Any, Mapping
 from slamkit.data import registry_table as table
 from slamkit.data.pose_graph import PoseGraph
 from slamkit.data.trajectory import Trajectory
-from slamkit.errors import ChecksumError, DataError, DatasetNotFoundError
+from slamkit.errors import ChecksumError, ConfigError, DataError, DatasetNotFoundError
 
 if TYPE_CHECKING:
     from slamkit.maps.occupancy_grid import OccupancyGrid
@@ -182,7 +182,72 @@ def _build() -> dict[str, DatasetEntry]:
     return entries
 
 
-REGISTRY: Mapping[str, DatasetEntry] = MappingProxyType(_build())
+_ENTRIES: dict[str, DatasetEntry] = _build()
+#: every dataset by name (a read-only view: plug-ins join with :func:`register_dataset`)
+REGISTRY: Mapping[str, DatasetEntry] = MappingProxyType(_ENTRIES)
+#: the entry-point group whose objects are :class:`DatasetEntry` values (a user's own datasets)
+ENTRY_POINT_GROUP = "slamkit.datasets"
+_discovered = False
+
+
+def name_key(name: str) -> str:
+    """The one naming rule for dataset names: case is ignored and ``_`` and ``-`` are the same
+    letter, so ``intel_log``, ``Intel-Log`` and ``intel-log`` name one dataset (the registry keeps
+    each under the spelling its source uses: ``kitti_00``, ``parking-garage``)."""
+    return str(name).strip().lower().replace("_", "-")
+
+
+def discover(refresh: bool = False) -> None:
+    """Register installed plug-ins' datasets (see :func:`_discover`)."""
+    _discover(refresh)
+
+
+def unregister_dataset(name: str) -> None:
+    """Remove a dataset added with :func:`register_dataset`."""
+    entry = get(name)
+    if entry.name in table.ENTRIES:
+        raise ConfigError(f"dataset {entry.name!r} is built in; only a registered one can be removed")
+    del _ENTRIES[entry.name]
+
+
+def register_dataset(entry: DatasetEntry) -> None:
+    """Add a user's dataset (a file path in ``entry.files`` may be absolute). A name that the
+    naming rule (:func:`name_key`) maps onto a registered one is a ConfigError."""
+    if not isinstance(entry, DatasetEntry):
+        raise ConfigError(f"register_dataset takes a DatasetEntry (slamkit.data.registry), got {type(entry).__name__}")
+    _discover()
+    taken = {name_key(n): n for n in _ENTRIES}
+    if name_key(entry.name) in taken:
+        if _ENTRIES[taken[name_key(entry.name)]] == entry:
+            return  # the same distribution found twice
+        raise ConfigError(f"dataset {entry.name!r} is already registered (as {taken[name_key(entry.name)]!r})")
+    _ENTRIES[entry.name] = entry
+
+
+def _discover(refresh: bool = False) -> None:
+    """Register the entry points of :data:`ENTRY_POINT_GROUP` and ``$SLAMKIT_PLUGINS`` modules
+    (once per process unless ``refresh``)."""
+    global _discovered
+    if _discovered and not refresh:
+        return
+    _discovered = True
+    import importlib.metadata
+    from types import ModuleType
+
+    from slamkit.naming import _import_env_plugins
+
+    _import_env_plugins()
+    for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):
+        where = f"entry point {ep.name!r} = {ep.value!r} (group {ENTRY_POINT_GROUP!r})"
+        try:
+            obj = ep.load()
+        except Exception as exc:  # a broken plug-in names itself
+            raise ConfigError(f"{where}: cannot be loaded ({type(exc).__name__}: {exc})") from None
+        if isinstance(obj, ModuleType):
+            continue
+        if not isinstance(obj, DatasetEntry) or name_key(obj.name) != name_key(ep.name):
+            raise ConfigError(f"{where}: must name a DatasetEntry called {ep.name!r}, got {obj!r}")
+        register_dataset(obj)
 
 
 # --- where files are ---------------------------------------------------------------------------
@@ -251,14 +316,20 @@ def locate(f: DatasetFile) -> tuple[str, Path] | None:
 
 
 def names() -> list[str]:
+    _discover()
     return sorted(REGISTRY)
 
 
 def get(name: str) -> DatasetEntry:
-    """The entry called ``name`` (case-insensitive); DatasetNotFoundError with suggestions."""
+    """The entry called ``name`` under the naming rule of :func:`name_key` (case ignored, ``_``
+    and ``-`` alike); DatasetNotFoundError with suggestions."""
+    _discover()
     key = name.strip().lower()
     if key in REGISTRY:
         return REGISTRY[key]
+    by_key = {name_key(n): e for n, e in REGISTRY.items()}
+    if name_key(key) in by_key:
+        return by_key[name_key(key)]
     by_file = [e for e in REGISTRY.values() if e.primary.name.lower() == key]
     if len(by_file) == 1:
         return by_file[0]
@@ -288,7 +359,11 @@ def resolve(name_or_path: str | Path) -> DatasetEntry | Path:
 
 def resolution_note(name_or_path: str | Path) -> str | None:
     """A one-line note when ``name_or_path`` is both an existing file and a registry name."""
-    if isinstance(name_or_path, Path) or str(name_or_path) not in REGISTRY:
+    if isinstance(name_or_path, Path):
+        return None
+    try:
+        get(str(name_or_path))
+    except DatasetNotFoundError:
         return None
     path = Path(name_or_path).expanduser()
     if not path.is_file():
