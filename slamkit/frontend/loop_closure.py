@@ -22,14 +22,18 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.spatial import cKDTree
+from scipy.stats import chi2
 
 from slamkit.errors import ConfigError
+from slamkit.frontend.branch_and_bound import BranchAndBoundConfig
 from slamkit.frontend.icp import IcpConfig, IcpResult, IcpTarget, icp
 from slamkit.geometry import se2
 
 
 @dataclass(frozen=True)
 class LoopClosureConfig:
+    #: candidates within this distance of the keyframe in the current estimate are always tried
+    #: (ICP from the estimate); with ``region_probability`` 0 this is the whole search region
     search_radius_m: float = 3.0
     min_index_gap: int = 10
     min_path_gap_m: float = 5.0
@@ -38,12 +42,57 @@ class LoopClosureConfig:
     min_fitness: float = 0.6
     max_correction_m: float = 2.0
     icp: IcpConfig = IcpConfig()
+    #: the uncertainty region (``DriftRegion``): a candidate beyond ``search_radius_m`` is tried
+    #: when its position relative to the keyframe lies inside this probability's chi-square
+    #: ellipse of the relative covariance accumulated along the scan-match chain since the last
+    #: accepted closure (0: off, the fixed radius alone)
+    region_probability: float = 0.0
+    #: the region is capped at this distance (and the global match window at this half-width)
+    max_search_radius_m: float = 8.0
+    #: the chain's drift model per edge, added to the scan match's own covariance (which is
+    #: measurement noise only and far smaller than the drift it leaves): translation variance per
+    #: metre travelled (m^2/m, per axis) and heading variance per metre travelled (rad^2/m) and per
+    #: radian turned (rad^2/rad)
+    drift_xy_m2_per_m: float = 1.0e-3
+    drift_heading_rad2_per_m: float = 2.0e-5
+    drift_heading_rad2_per_rad: float = 1.0e-4
+    #: the region's global candidates per keyframe (beyond ``search_radius_m``; each is a branch
+    #: and bound search, so they bound the run time), most likely first
+    max_global_candidates_per_keyframe: int = 1
+    #: the global matcher (``slamkit.frontend.branch_and_bound``): grid resolution, likelihood
+    #: sigma, pyramid depth, minimum score, and the heading window's cap; the translation window is
+    #: the region's extent along its major axis (at least ``search_radius_m``)
+    global_resolution_m: float = 0.05
+    global_sigma_m: float = 0.05
+    global_depth: int = 7
+    global_min_score: float = 0.55
+    global_max_window_theta_rad: float = float(np.deg2rad(20.0))
+    global_min_window_theta_rad: float = float(np.deg2rad(5.0))
 
     def __post_init__(self) -> None:
         if not self.search_radius_m > 0:
             raise ConfigError(f"LoopClosureConfig.search_radius_m must be > 0, got {self.search_radius_m}")
         if not 0 < self.min_fitness <= 1:
             raise ConfigError(f"LoopClosureConfig.min_fitness must lie in (0, 1], got {self.min_fitness}")
+        if not 0 <= self.region_probability < 1:
+            raise ConfigError(f"LoopClosureConfig.region_probability must lie in [0, 1), got {self.region_probability}")
+        if not self.max_search_radius_m >= self.search_radius_m:
+            raise ConfigError("LoopClosureConfig.max_search_radius_m must be >= search_radius_m")
+        if min(self.drift_xy_m2_per_m, self.drift_heading_rad2_per_m, self.drift_heading_rad2_per_rad) < 0:
+            raise ConfigError("LoopClosureConfig: the drift variances must be >= 0")
+        if self.max_global_candidates_per_keyframe < 0:
+            raise ConfigError("LoopClosureConfig.max_global_candidates_per_keyframe must be >= 0")
+        if not 0 <= self.global_min_window_theta_rad <= self.global_max_window_theta_rad <= np.pi:
+            raise ConfigError("LoopClosureConfig: 0 <= global_min_window_theta_rad <= "
+                              "global_max_window_theta_rad <= pi")
+        # the matcher's own checks, at configuration time
+        self.global_match(self.search_radius_m, self.global_min_window_theta_rad)
+
+    def global_match(self, window_xy_m: float, window_theta_rad: float) -> BranchAndBoundConfig:
+        """The branch-and-bound config for one window."""
+        return BranchAndBoundConfig(resolution_m=self.global_resolution_m, sigma_m=self.global_sigma_m,
+                                    window_xy_m=window_xy_m, window_theta_rad=window_theta_rad,
+                                    depth=self.global_depth, min_score=self.global_min_score)
 
 
 def loop_candidates(world_xytheta_keyframes: np.ndarray, config: LoopClosureConfig = LoopClosureConfig()
@@ -111,3 +160,100 @@ def detect_loops(world_xytheta_keyframes: np.ndarray, keyframe_points: list[np.n
         if ok:
             accepted.append(LoopClosure(int(i), int(j), res.target_T_source, res))
     return accepted, tried
+
+
+def chi2_quantile(probability: float, dof: int) -> float:
+    """The chi-square quantile that ``probability`` of a ``dof``-dimensional Gaussian lies within."""
+    return float(chi2.ppf(probability, dof))
+
+
+class DriftRegion:
+    """Where a revisit can be, given the drift accumulated along the scan-match chain: the
+    relative position covariance of keyframe j with respect to keyframe i, summed over the chain
+    edges between max(i, the last accepted closure) and j (keyframes before the last closure are
+    taken as consistent with it: the closure tied the chain to the map there). First-order
+    compounding (Smith, Self & Cheeseman, "Estimating uncertain spatial relationships in
+    robotics", 1990): an edge's translation noise moves every later keyframe by its rotated
+    covariance; its heading noise turns every later keyframe about the edge's end, by the lever
+    arm to j. Both are prefix sums, so every candidate i costs O(1):
+
+        Sigma_ij = sum_e R_e Sigma_t,e R_e^T + J (S0 p_j p_j^T - p_j S1^T - S1 p_j^T + S2) J^T
+
+    with S0, S1, S2 the sums of sigma_theta,e^2 times 1, p_e and p_e p_e^T over the edges (p_e the
+    edge's end) and J the 90 deg rotation. The edge noise is the scan match's covariance plus the
+    drift model of ``LoopClosureConfig`` (per metre travelled and radian turned)."""
+
+    def __init__(self, config: LoopClosureConfig):
+        self.config = config
+        self._C = [np.zeros((2, 2))]
+        self._S0 = [0.0]
+        self._S1 = [np.zeros(2)]
+        self._S2 = [np.zeros((2, 2))]
+        self._p = [np.zeros(2)]
+        self.last_closure = 0
+
+    def start(self, world_xytheta: np.ndarray) -> None:
+        """The first keyframe's (chain) pose."""
+        self._p[0] = np.asarray(world_xytheta, float)[:2].copy()
+
+    def add(self, world_T_previous: np.ndarray, previous_T_new: np.ndarray,
+            covariance: np.ndarray | None = None) -> None:
+        """The next keyframe, ``previous_T_new`` (3,) after the previous one at ``world_T_previous``
+        (chain poses), with the edge's covariance (3, 3; right tangent of the previous frame) or None."""
+        cfg = self.config
+        rel = np.asarray(previous_T_new, float)
+        d = float(np.hypot(rel[0], rel[1]))
+        cov_t = cfg.drift_xy_m2_per_m * d * np.eye(2)
+        var_th = cfg.drift_heading_rad2_per_m * d + cfg.drift_heading_rad2_per_rad * abs(float(rel[2]))
+        if covariance is not None and np.all(np.isfinite(covariance)):
+            cov_t = cov_t + np.asarray(covariance)[:2, :2]
+            var_th += float(covariance[2, 2])
+        c, s = np.cos(world_T_previous[2]), np.sin(world_T_previous[2])
+        R = np.array([[c, -s], [s, c]])
+        p = se2.compose(np.asarray(world_T_previous, float), rel)[:2]
+        self._C.append(self._C[-1] + R @ cov_t @ R.T)
+        self._S0.append(self._S0[-1] + var_th)
+        self._S1.append(self._S1[-1] + var_th * p)
+        self._S2.append(self._S2[-1] + var_th * np.outer(p, p))
+        self._p.append(p)
+
+    def closed(self, j: int) -> None:
+        """An accepted closure at keyframe j: the drift accumulates afresh from there."""
+        self.last_closure = max(self.last_closure, int(j))
+
+    def covariances(self, i: np.ndarray, j: int) -> np.ndarray:
+        """(M, 2, 2) world-frame covariance of keyframe j's position relative to each keyframe of
+        ``i`` (M,), along the chain since the last closure."""
+        s = np.maximum(np.asarray(i, dtype=np.int64), min(self.last_closure, j))
+        C = np.asarray(self._C)
+        S0, S1, S2 = np.asarray(self._S0), np.asarray(self._S1), np.asarray(self._S2)
+        pj = self._p[j]
+        s0 = S0[j] - S0[s]
+        s1 = S1[j] - S1[s]
+        s2 = S2[j] - S2[s]
+        V = (s0[:, None, None] * np.outer(pj, pj) - pj[None, :, None] * s1[:, None, :]
+             - s1[:, :, None] * pj[None, None, :] + s2)
+        J = np.array([[0.0, -1.0], [1.0, 0.0]])
+        return (C[j] - C[s]) + J @ V @ J.T
+
+    def heading_sigmas(self, i: np.ndarray, j: int) -> np.ndarray:
+        """(M,) heading standard deviation of keyframe j relative to each of ``i``."""
+        s = np.maximum(np.asarray(i, dtype=np.int64), min(self.last_closure, j))
+        S0 = np.asarray(self._S0)
+        return np.sqrt(np.maximum(S0[j] - S0[s], 0.0))
+
+    def members(self, i: np.ndarray, j: int, offsets_xy_m: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Which candidates ``i`` (M,) with estimated position offsets (M, 2) from keyframe j
+        lie in the region: (inside (M,) bool, squared Mahalanobis distance (M,), the region's
+        radius along its major axis (M,), m). The ellipse is widened by the floor
+        ``search_radius_m`` (covariance + floor^2 / q I, q the 2-dof chi-square quantile), so the
+        fixed radius is always part of it, and capped at ``max_search_radius_m``."""
+        cfg = self.config
+        q = chi2_quantile(cfg.region_probability, 2)
+        cov = self.covariances(i, j)
+        radius = np.sqrt(q * np.linalg.eigvalsh(cov)[:, -1])
+        wide = cov + (cfg.search_radius_m ** 2 / q) * np.eye(2)
+        d = np.asarray(offsets_xy_m, float)
+        m2 = np.einsum("ni,nij,nj->n", d, np.linalg.inv(wide), d)
+        inside = (m2 <= q) & (np.hypot(d[:, 0], d[:, 1]) <= cfg.max_search_radius_m)
+        return inside, m2, radius

@@ -58,7 +58,9 @@ from slamkit.errors import ConfigError, DataError
 from slamkit.frontend.correlative import CorrelativeConfig, CorrelativeGrid, correlative_search
 from slamkit.frontend.icp import IcpConfig, IcpResult, IcpTarget, icp, rotation_search, scan_to_points
 from slamkit.frontend.keyframes import KeyframeConfig
-from slamkit.frontend.loop_closure import LoopClosure, LoopClosureConfig, loop_candidates, verify_loop
+from slamkit.frontend.branch_and_bound import MaxGridPyramid, branch_and_bound_search
+from slamkit.frontend.loop_closure import (DriftRegion, LoopClosure, LoopClosureConfig, chi2_quantile, loop_candidates,
+                                          verify_loop)
 from slamkit.frontend.preprocess import despeckle, voxel_downsample
 from slamkit.geometry import se2
 from slamkit.maps.log_odds import LogOddsConfig, LogOddsMap
@@ -239,6 +241,8 @@ class LidarSlam:
         self._target: IcpTarget | None = None     # submap in the newest keyframe's frame
         self._likelihood: CorrelativeGrid | None = None  # its correlative grid, built on demand
         self._loops: list[LoopClosure] = []
+        self._region = DriftRegion(config.loops)
+        self._pyramids: dict[int, MaxGridPyramid] = {}   # global-match targets by keyframe, newest last
         self._tried: set[tuple[int, int]] = set()
         self._injected: list[tuple[int, int]] = []
         self._edge_kind: list[str] = []
@@ -250,7 +254,8 @@ class LidarSlam:
         self._max_range = 0.0                     # the sensor's range, known from the first scan
         self.counters = {"scans": 0, "matched_scans": 0, "match_fallbacks": 0, "loop_candidates": 0,
                          "loop_closures_online": 0, "loop_closures_final": 0, "icp_iterations": 0,
-                         "wide_searches": 0, "correlative_searches": 0, "correlative_wins": 0, "loop_closures_rejected": 0}
+                         "wide_searches": 0, "correlative_searches": 0, "correlative_wins": 0, "loop_closures_rejected": 0,
+                         "loop_candidates_global": 0, "loop_closures_global": 0}
 
     # ---- streaming ---------------------------------------------------------------------------
 
@@ -413,9 +418,11 @@ class LidarSlam:
         if rel is not None:
             self._graph.add_edge(k - 1, k, rel, info, robust_edge=False)
             self._edge_kind.append("odometry")
+            self._region.add(kf.frontend[-1], rel, np.linalg.inv(info))
             kf.frontend.append(se2.compose(kf.frontend[-1], rel))
             kf.path_m.append(kf.path_m[-1] + float(np.hypot(rel[0], rel[1])))
         else:
+            self._region.start(world_T_k)
             kf.frontend.append(world_T_k.copy())
             kf.path_m.append(0.0)
         kf.stamps.append(stamp)
@@ -505,8 +512,96 @@ class LidarSlam:
             if closure is not None:
                 self._accept(closure, poses)
                 found += 1
+        if not found:
+            for i, window_xy_m, window_theta_rad, cov in self._global_candidates_for(j, poses):
+                closure = self._verify_global(i, j, poses, window_xy_m, window_theta_rad, cov)
+                if closure is not None:
+                    self._accept(closure, poses)
+                    self.counters["loop_closures_global"] += 1
+                    found += 1
+                    break
+        if found:
+            self._region.closed(j)
         self.counters["loop_closures_online"] += found
         return found
+
+    def _global_candidates_for(self, j: int, poses: np.ndarray):
+        """The uncertainty region's candidates for keyframe j (``DriftRegion``): earlier
+        keyframes (index and path gaps as the local search) whose estimated position offset lies
+        in the chi-square ellipse of the drift accumulated since the last closure, where that
+        ellipse reaches beyond ``search_radius_m`` (inside it the local ICP search has them),
+        most likely (smallest Mahalanobis distance) first, at most
+        ``max_global_candidates_per_keyframe``. Each comes with its match window: the region's
+        radius along its major axis (capped) and the heading's chi-square interval."""
+        cfg = self.config.loops
+        if cfg.region_probability <= 0 or cfg.max_global_candidates_per_keyframe == 0 or j < 1:
+            return []
+        path = np.asarray(self._kf.path_m)
+        # cheap test first: the region of the oldest possible candidate is the widest
+        oldest = np.array([min(self._region.last_closure, j)])
+        if np.sqrt(chi2_quantile(cfg.region_probability, 2)
+                   * np.linalg.eigvalsh(self._region.covariances(oldest, j))[0, -1]) <= cfg.search_radius_m:
+            return []
+        near = self._tree.query_ball_point(poses[j, :2], cfg.max_search_radius_m + self.TREE_MARGIN_M)
+        near = np.unique(np.concatenate([np.asarray(near, dtype=np.int64), np.arange(self._tree_size, j)]))
+        near = near[(j - near >= cfg.min_index_gap) & (path[j] - path[near] >= cfg.min_path_gap_m)]
+        near = np.array([i for i in near if (int(i), j) not in self._tried], dtype=np.int64)
+        if len(near) == 0:
+            return []
+        inside, m2, radius = self._region.members(near, j, poses[near, :2] - poses[j, :2])
+        keep = inside & (radius > cfg.search_radius_m)
+        q1 = chi2_quantile(cfg.region_probability, 1)
+        theta = np.clip(np.sqrt(q1) * self._region.heading_sigmas(near, j),
+                        cfg.global_min_window_theta_rad, cfg.global_max_window_theta_rad)
+        cov = self._region.covariances(near, j)
+        order = [k for k in np.argsort(m2, kind="stable") if keep[k]][:cfg.max_global_candidates_per_keyframe]
+        return [(int(near[k]), float(min(radius[k], cfg.max_search_radius_m)), float(theta[k]), cov[k])
+                for k in order]
+
+    #: global-match targets kept (a revisit tries the same old keyframes for several new ones)
+    PYRAMID_CACHE = 16
+
+    def _verify_global(self, i: int, j: int, poses: np.ndarray, window_xy_m: float, window_theta_rad: float,
+                       cov_xy: np.ndarray) -> LoopClosure | None:
+        """Keyframe j's scan against the submap around i by branch and bound over the window
+        around the estimate, the optimum seeding ICP (``verify_loop``: fitness, and a correction
+        within ``max_correction_m`` of the seed); accepted when the closure's position also lies
+        in the region (its correction from the estimate within the chi-square ellipse)."""
+        cfg = self.config
+        lc = cfg.loops
+        pts_j = self._kf.points[j]
+        if min(len(self._kf.points[i]), len(pts_j)) < lc.icp.min_correspondences:
+            return None
+        self._tried.add((i, j))
+        self.counters["loop_candidates_global"] += 1
+        s = cfg.loop_submap_keyframes
+        K = len(self._kf.points)
+        members = range(max(0, i - s), min(K, i + s + 1))
+        target = self._submap_at(i, members, poses, lc.icp)
+        if target is None:
+            return None
+        pyramid = self._pyramids.pop(i, None)
+        if pyramid is None:
+            pyramid = MaxGridPyramid(target.points, lc.global_match(window_xy_m, window_theta_rad))
+        self._pyramids[i] = pyramid
+        while len(self._pyramids) > self.PYRAMID_CACHE:
+            self._pyramids.pop(next(iter(self._pyramids)))
+        guess = se2.between(poses[i], poses[j])
+        source = voxel_downsample(pts_j, lc.global_resolution_m)
+        found = branch_and_bound_search(source, pyramid, guess, lc.global_match(window_xy_m, window_theta_rad))
+        if found is None:
+            return None
+        ok, res = verify_loop(target, pts_j, found.target_T_source, lc)
+        if not ok:
+            return None
+        # the correction in the world frame, tested against the region (widened by the floor)
+        q = chi2_quantile(lc.region_probability, 2)
+        c, sn = np.cos(poses[i][2]), np.sin(poses[i][2])
+        shift = np.array([[c, -sn], [sn, c]]) @ (res.target_T_source[:2] - guess[:2])
+        wide = cov_xy + (lc.search_radius_m ** 2 / q) * np.eye(2)
+        if float(shift @ np.linalg.solve(wide, shift)) > q:
+            return None
+        return LoopClosure(i, j, res.target_T_source, res)
 
     def add_constraint(self, i: int, j: int, i_xytheta_j: np.ndarray, information: np.ndarray) -> None:
         """An edge between keyframes ``i`` and ``j`` from outside the system (a user's prior
