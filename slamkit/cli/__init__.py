@@ -13,6 +13,7 @@ from slamkit.cli import plan as _plan  # noqa: F401
 from slamkit.cli import run as _run  # noqa: F401
 from slamkit.cli import simulate as _simulate  # noqa: F401
 from slamkit.cli import sweep as _sweep  # noqa: F401
+from slamkit.cli import view as _view  # noqa: F401
 
 
 def main() -> None:
