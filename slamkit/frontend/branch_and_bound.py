@@ -40,6 +40,9 @@ from slamkit.geometry.angles import wrap_angle
 from slamkit.maps.distance_field import distance_field_m
 from slamkit.maps.occupancy_grid import OccupancyGrid
 
+#: blocks of at most 2^h x 2^h candidates are scored whole at full resolution instead of descending
+#: (scan-matching bench, CPU time per search: 18 ms at 0, 22 ms at 1, 20 ms at 2, 29 ms at 3)
+LEAF_BLOCK_HEIGHT = 0
 #: the likelihood 1.0 in the integer grids (Cartographer stores probabilities as 15-bit integers too)
 LEVELS = 32767
 
@@ -114,7 +117,8 @@ class MaxGridPyramid:
     def sums(self, height: int, iy: np.ndarray, ix: np.ndarray) -> np.ndarray:
         """Integer score sums at ``height`` of cell indices (..., N) (summed over the last axis)."""
         H, W = self.shape
-        flat = np.clip(iy, 0, H - 1) * W + np.clip(ix, 0, W - 1)
+        # np.minimum/np.maximum: np.clip's argument handling costs more than the lookup here
+        flat = np.minimum(np.maximum(iy, 0), H - 1) * W + np.minimum(np.maximum(ix, 0), W - 1)
         return self._flat[height][flat].sum(axis=-1, dtype=np.int64)
 
 
@@ -235,10 +239,8 @@ def branch_and_bound_search(source_xy: np.ndarray, pyramid: MaxGridPyramid, gues
                 return      # sorted best bound first: no later node can win
             if not worth(bound, t, oy, ox, h):
                 continue
-            if h == 0:
-                r = _rank(t, oy, ox, k)
-                if bound > state["sum"] or state["rank"] is None or r < state["rank"]:
-                    state.update(best=(t, oy, ox), sum=bound, rank=r)
+            if h <= LEAF_BLOCK_HEIGHT:
+                leaves(t, oy, ox, h)
                 continue
             half = 2 ** (h - 1)
             kids = [(oy + a, ox + b) for a in (0, half) for b in (0, half) if oy + a <= n and ox + b <= n]
@@ -248,6 +250,23 @@ def branch_and_bound_search(source_xy: np.ndarray, pyramid: MaxGridPyramid, gues
             state["scored"] += len(kids)
             order = np.argsort(-sums, kind="stable")
             descend([(int(sums[i]), t, int(ky[i]), int(kx[i])) for i in order], h - 1)
+
+    def leaves(t: int, oy: int, ox: int, h: int) -> None:
+        # every candidate of a small block at full resolution in one step (fewer Python calls than
+        # descending through its heights; the same candidates win)
+        ys = np.arange(oy, min(oy + 2 ** h, n + 1))
+        xs = np.arange(ox, min(ox + 2 ** h, n + 1))
+        gy, gx = np.meshgrid(ys, xs, indexing="ij")
+        gy, gx = gy.ravel(), gx.ravel()
+        sums = pyramid.sums(0, p.iy[t][None, :] + gy[:, None], p.ix[t][None, :] + gx[:, None])
+        state["scored"] += len(sums)
+        top = int(sums.max())
+        if top < state["sum"]:
+            return
+        for a in np.flatnonzero(sums == top):
+            r = _rank(t, int(gy[a]), int(gx[a]), k)
+            if top > state["sum"] or state["rank"] is None or r < state["rank"]:
+                state.update(best=(t, int(gy[a]), int(gx[a])), sum=top, rank=r)
 
     flat = np.argsort(-bounds, axis=None, kind="stable")
     tt, yy, xx = np.unravel_index(flat, bounds.shape)

@@ -23,7 +23,12 @@ def test_naive_reference_equals_vectorised_icp():
 def test_quick_bench_cases():
     cases = benchmark.run(quick=True)
     names = [c.name for c in cases]
-    assert names == ["icp2d_point_to_point_360_beams", "icp2d_point_to_line_360_beams_to_convergence"]
+    assert names == ["icp2d_point_to_point_360_beams", "icp2d_point_to_line_360_beams_to_convergence",
+                     "global_match_bnb_window_2m_20deg"]
     c = cases[0]
     assert c.reference is not None and c.ratio is not None and c.ratio > 0
     assert c.extra["max_abs_difference"] < 1e-9  # both did the same work
+    g = cases[2]
+    # the branch and bound is exact: the exhaustive search's pose and score, from fewer nodes
+    assert g.extra["same_optimum"] and g.ratio is not None and g.ratio > 0
+    assert 0 < g.extra["nodes_scored_mean"] < g.extra["candidates_in_window"]
