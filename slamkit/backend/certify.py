@@ -96,6 +96,12 @@ class CertifyConfig:
                 raise ConfigError(f"certify {name} must be >= 0, got {getattr(self, name)!r}")
 
 
+#: the three outcomes of a certificate (``Certificate.verdict``)
+CERTIFIED = "certified"
+NOT_OPTIMAL = "not optimal"
+NOT_VERIFIED = "not verified"
+
+
 @dataclass(frozen=True)
 class Certificate:
     """The verdict on one solution. Objective values are SE-Sync's F (not GTSAM's error):
@@ -106,7 +112,14 @@ class Certificate:
     ``max_translation_change_m`` say how far refinement moved them. ``eig_method`` is
     ``lobpcg`` or ``dense``; ``eig_residual`` = ||S v - lambda_min v|| for the unit eigenvector;
     a result is only ``certified`` when the eigensolver converged (a negative Ritz value proves
-    non-optimality even unconverged: it is a Rayleigh quotient of S)."""
+    non-optimality even unconverged: it is a Rayleigh quotient of S).
+
+    ``verdict`` says which of the three outcomes it is: :data:`CERTIFIED`, :data:`NOT_OPTIMAL`
+    (lambda_min < -eps: a descent direction exists, whether or not the eigensolver converged), or
+    :data:`NOT_VERIFIED` (the eigensolver did not converge and its estimate is not negative:
+    nothing is proven either way -- not a failed certificate). ``solution`` names the poses the
+    verdict is about: ``"refined"`` (refined on F from the poses given; ``poses``) or ``"as
+    given"`` (``refine=False``: the poses given)."""
 
     certified: bool
     min_eigenvalue: float
@@ -129,9 +142,34 @@ class Certificate:
     poses: np.ndarray = field(repr=False)
     config: CertifyConfig = field(default_factory=CertifyConfig, repr=False)
 
+    @property
+    def verdict(self) -> str:
+        if self.certified:
+            return CERTIFIED
+        return NOT_OPTIMAL if self.min_eigenvalue < -self.eps else NOT_VERIFIED
+
+    @property
+    def solution(self) -> str:
+        return "refined" if self.config.refine else "as given"
+
+    def describe(self) -> str:
+        """One line: the verdict, the solution it is about, and how far refinement moved it."""
+        what = (f"the solution refined on SE-Sync's F (F {self.objective:.6g}, from {self.objective_input:.6g} "
+                f"at the poses given; moved up to {self.max_rotation_change_rad:.3g} rad, "
+                f"{self.max_translation_change_m:.3g} m)" if self.config.refine
+                else f"the poses given (F {self.objective:.6g})")
+        why = {CERTIFIED: f"lambda_min {self.min_eigenvalue:.3g} >= -{self.eps:g}",
+               NOT_OPTIMAL: f"lambda_min {self.min_eigenvalue:.3g} < -{self.eps:g}: a better solution exists",
+               NOT_VERIFIED: f"the {self.eig_method} eigensolver did not converge (residual {self.eig_residual:.3g}, "
+                             f"lambda_min estimate {self.min_eigenvalue:.3g}): optimality neither proven nor refuted"}
+        return f"{self.verdict} ({why[self.verdict]}) for {what}"
+
     def summary(self) -> dict:
-        """JSON-ready numbers (no arrays, no config)."""
-        return {k: getattr(self, k) for k in self.__dataclass_fields__ if k not in ("poses", "config")}
+        """JSON-ready numbers (no arrays, no config), with ``verdict`` and ``solution``."""
+        out = {k: getattr(self, k) for k in self.__dataclass_fields__ if k not in ("poses", "config")}
+        out["verdict"] = self.verdict
+        out["solution"] = self.solution
+        return out
 
 
 # ---- the data matrix ---------------------------------------------------------------------------

@@ -29,7 +29,7 @@ from slamkit.errors import BackendError, ConfigError
 from slamkit.experiments.config_models import PoseGraphPipeline
 from slamkit.experiments.observers import PipelineObserver
 from slamkit.experiments.pipeline import Pipeline, PipelineOutput, StepProgress
-from slamkit.experiments.results import ResultsFolder, RunRecord, markdown_table
+from slamkit.experiments.results import ResultsFolder, RunRecord, check_output_folder, check_replace, markdown_table
 from slamkit.metrics.alignment import associate
 from slamkit.metrics.ate import ate
 from slamkit.metrics.evaluate import trajectory_from_pose_graph
@@ -65,6 +65,9 @@ class OptimizeReport:
     certify_skipped: str | None = None
     #: the re-solve from chordal (3D) / LAGO (2D) initialisation after a failed certificate
     retry: "OptimizeReport | None" = field(default=None, repr=False)
+    #: what ``optimize_source(out=...)`` wrote: which poses -> files relative to the out folder
+    #: (``solution``: the solver's; ``refined``: the poses the certificate is about; ``retry_*``)
+    written: Mapping[str, list[str]] = field(default_factory=dict)
     graph: PoseGraph | None = field(default=None, repr=False)
     result: OptimizeResult | None = field(default=None, repr=False)
     ground_truth: Trajectory | None = field(default=None, repr=False)
@@ -79,7 +82,9 @@ class OptimizeReport:
         d = {k: getattr(self, k) for k in self.__dataclass_fields__
              if k not in ("graph", "result", "ground_truth", "iterates", "certificate", "retry")}
         d["warnings"] = list(self.warnings)
+        d["written"] = {k: list(v) for k, v in self.written.items()}
         d["certified"] = self.certified
+        d["certificate_verdict"] = None if self.certificate is None else self.certificate.verdict
         d["certificate"] = None if self.certificate is None else self.certificate.summary()
         d["retry"] = None if self.retry is None else self.retry.summary()
         return d
@@ -136,7 +141,8 @@ def certify_decision(mode: str, graph: PoseGraph, config: OptimizeConfig) -> str
 
 def optimize_source(source: str | Path, config: OptimizeConfig = OptimizeConfig(),
                     out: str | Path | None = None, keep_iterates: bool = False,
-                    certify_mode: str = "auto", retry_uncertified: bool = True) -> OptimizeReport:
+                    certify_mode: str = "auto", retry_uncertified: bool = True, overwrite: bool = False
+                    ) -> OptimizeReport:
     """Load ``source`` (registry name or path), optimise it, score it, optionally write ``out``
     (optimised g2o + TUM trajectory, config.yaml, metrics.json). ``keep_iterates`` keeps the
     poses after every iteration in ``report.iterates`` (for recordings).
@@ -144,7 +150,10 @@ def optimize_source(source: str | Path, config: OptimizeConfig = OptimizeConfig(
     ``certify_mode`` (auto | on | off; see ``certify_decision``) attaches an SE-Sync certificate
     (``slamkit.backend.certify``). When the solution is not certified and ``retry_uncertified``,
     the graph is solved again from chordal (3D) or LAGO (2D) initialisation, certified too, and
-    reported in ``retry`` (unless that was already the initialisation)."""
+    reported in ``retry`` (unless that was already the initialisation). An earlier optimize
+    result at ``out`` is replaced only with ``overwrite``; that is checked before solving."""
+    if out is not None:
+        check_replace(check_output_folder(out), "optimize", overwrite)
     t0 = time.perf_counter()
     graph, entry = registry.load_pose_graph_source(source)
     note = registry.resolution_note(source)
@@ -159,9 +168,15 @@ def optimize_source(source: str | Path, config: OptimizeConfig = OptimizeConfig(
                                  None, time.perf_counter(), 0.0, "on")
         report = replace(report, retry=retry)
     if out is not None:
-        with ResultsFolder(out) as folder:
+        with ResultsFolder(out, pipeline="optimize", overwrite=overwrite) as folder:
             folder.write_config({"source": str(source), "certify": certify_mode, **asdict(config)})
-            write_outputs(folder.trajectories, report)
+            written = write_outputs(folder.trajectories, report)
+            if report.retry is not None:
+                retry_written = write_outputs(folder.trajectories, report.retry,
+                                              f"{report.dataset}_retry_{report.retry.init}")
+                written.update({f"retry_{k}": v for k, v in retry_written.items()})
+            relative = {k: [f"{folder.trajectories.name}/{name}" for name in v] for k, v in written.items()}
+            report = replace(report, written=relative)
             folder.write_json("metrics.json", report.summary())
             folder.finalize("optimize")
     return report
@@ -200,11 +215,25 @@ def _solve_and_score(graph, entry, ground_truth, config, keep_iterates, note, t0
     return report
 
 
-def write_outputs(trajectories: Path, report: OptimizeReport, stem: str | None = None) -> None:
-    """The optimised graph (g2o) and its trajectory (TUM, stamps = vertex ids)."""
+def write_outputs(trajectories: Path, report: OptimizeReport, stem: str | None = None) -> dict[str, list[str]]:
+    """The optimised graph (g2o) and its trajectory (TUM, stamps = vertex ids) as ``<stem>.*``,
+    and, when a certificate refined the solution, the poses the certificate is about as
+    ``<stem>_refined.*`` (they differ: the solver minimises GTSAM's error, the certificate speaks
+    about SE-Sync's F). Returns which poses went to which file names."""
     stem = stem or report.dataset
-    write_g2o(file_in(trajectories, stem, ".g2o", "dataset name"), _with_poses(report.graph, report.result.poses))
-    write_tum(file_in(trajectories, stem, ".tum", "dataset name"), report.estimate_trajectory())
+    written = {}
+    poses = {"solution": report.result.poses}
+    if report.certificate is not None and report.certificate.solution == "refined":
+        poses["refined"] = report.certificate.poses
+    for label, values in poses.items():
+        name = stem if label == "solution" else f"{stem}_{label}"
+        graph = _with_poses(report.graph, values)
+        g2o = file_in(trajectories, name, ".g2o", "dataset name")
+        tum = file_in(trajectories, name, ".tum", "dataset name")
+        write_g2o(g2o, graph)
+        write_tum(tum, trajectory_from_pose_graph(graph))
+        written[label] = [g2o.name, tum.name]
+    return written
 
 
 # --------------------------------------------------------------------------- pipeline
@@ -280,7 +309,7 @@ def _report_markdown(config: Mapping[str, Any], reports: list[OptimizeReport], s
             fstar = published_fstar(r.dataset)
             rows.append([r.dataset, r.solver, label, r.num_poses, r.initial_error, r.final_error,
                          r.sesync_objective, r.iterations, r.time_total_s, r.ate_rmse_m,
-                         "-" if c is None else ("yes" if c.certified else "NO"),
+                         "-" if c is None else {"certified": "yes", "not optimal": "NO"}.get(c.verdict, c.verdict),
                          None if c is None else c.objective, fstar,
                          None if c is None or fstar is None else c.objective / fstar,
                          None if c is None else c.min_eigenvalue, None if c is None else c.time_total_s])
@@ -289,9 +318,12 @@ def _report_markdown(config: Mapping[str, Any], reports: list[OptimizeReport], s
              "Rosen et al.'s objective evaluated on the solution, comparable with published optima. "
              "Certified: SE-Sync's optimality certificate (slamkit.backend.certify) after refining the "
              "solution on F; certified F is that refined optimum, lambda_min the certificate matrix's "
-             "smallest eigenvalue (certified when >= -1e-3). A solution that is not certified is "
+             "smallest eigenvalue (certified when >= -1e-3; 'not verified' when the eigensolver did not "
+             "converge, which proves nothing either way). A solution that is not certified is "
              "solved again from chordal (3D) / LAGO (2D) initialisation (rows 'retry'). Published f*: SE-Sync's "
-             "certified optimum from the dataset registry (Rosen et al. 2019, 4 significant digits).\n\n")
+             "certified optimum from the dataset registry (Rosen et al. 2019, 4 significant digits). "
+             "`trajectories/` holds each solution (`<dataset>_<solver>_<init>.g2o`, `.tum`) and, where "
+             "a certificate was computed, the refined poses it is about (`..._refined.g2o`, `.tum`).\n\n")
     text += markdown_table(header, rows) + "\n"
     notes = [f"- {r.dataset} ({r.solver}/{r.init}): {w}" for r in reports for w in r.warnings]
     notes += [f"- {r.dataset} ({r.solver}/{r.init}): not certified: {r.certify_skipped}"

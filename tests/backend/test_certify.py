@@ -205,3 +205,30 @@ def test_published_optimum_reproduced_and_certified_slow(name, init):
     cert, f_star = _certify_dataset(name, init)
     assert cert.certified
     assert matches_published(cert.objective, f_star)
+
+
+def test_verdict_says_not_verified_when_the_eigensolver_did_not_converge():
+    # 40 rotations on a cycle, every edge measuring 0.1 rad: the loop closes at 4 rad instead of
+    # 2 pi, so the optimum spreads (2 pi - 4) / 40 over the edges: F* = 40 * 4 kappa (1 - cos that).
+    n, kappa = 40, 5.0
+    g = cycle_2d(n, 0.1, kappa, 1.0, 0.1 * np.arange(n))
+    f_star = n * 4 * kappa * (1 - math.cos((2 * math.pi - 4.0) / n))
+    assert f_star == pytest.approx(1.30288, abs=1e-5)
+    cert = certify(g, g.poses, CertifyConfig(dense_max=0))
+    assert cert.verdict == "certified" and cert.objective == pytest.approx(f_star, rel=1e-9)
+    assert cert.solution == "refined" and cert.describe().startswith("certified (lambda_min")
+    # a residual tolerance of 0 cannot be met: LOBPCG stops unconverged with lambda_min ~ 0, which
+    # proves nothing either way -- 'not verified', not a refuted optimum
+    with pytest.warns(UserWarning, match="not reaching the requested tolerance"):
+        unverified = certify(g, g.poses, CertifyConfig(dense_max=0, eig_tol=0.0, eig_max_iterations=3))
+    assert not unverified.eig_converged and abs(unverified.min_eigenvalue) < 1e-9
+    assert not unverified.certified and unverified.verdict == "not verified"
+    assert "did not converge" in unverified.describe() and "neither proven nor refuted" in unverified.describe()
+    summary = unverified.summary()
+    assert summary["verdict"] == "not verified" and summary["solution"] == "refined"
+    # without refinement the verdict is about the poses as given
+    as_given = certify(g, g.poses, CertifyConfig(refine=False))
+    assert as_given.solution == "as given" and as_given.verdict == "not optimal"
+    # the planted local minimum of the test above: a negative eigenvalue refutes optimality
+    twisted = cycle_2d(8, 0.0, kappa, 1.0, 2 * math.pi * np.arange(8) / 8)
+    assert certify(twisted, twisted.poses).verdict == "not optimal"

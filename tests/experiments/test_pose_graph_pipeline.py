@@ -72,7 +72,10 @@ def test_pose_graph_pipeline_writes_table_plots_and_recording(shared_datasets, t
     out = result.out_dir
     assert (out / "plots" / "final_error_and_time.png").stat().st_size > 10_000
     assert (out / "plots" / "trajectory_ring.png").exists()
-    assert len(list((out / "trajectories").glob("*.tum"))) == 8
+    # every solution, and beside it the refined poses its certificate is about (issue 32)
+    assert len(list((out / "trajectories").glob("*.tum"))) == 16
+    assert len(list((out / "trajectories").glob("*_refined.tum"))) == 8
+    assert (out / "trajectories" / "ring_lm_file_refined.g2o").is_file()
     assert "| ring | lm | file |" in (out / "report.md").read_text()
     entities = verify_rrd(out / "recording.rrd")
     assert {"/ring/world/estimate", "/ring/plots/error", "/tinygrid3d/world/estimate"} <= entities
@@ -116,6 +119,40 @@ def test_an_uncertified_local_minimum_is_retried_from_lago(tmp_path) -> None:
     assert retry.final_error < 1e-9 and retry.certificate.objective < 1e-9
     summary = report.summary()
     assert summary["certified"] is False and summary["retry"]["certified"] is True
+
+
+def test_optimize_says_which_solution_is_certified_and_which_poses_it_wrote(tmp_path) -> None:
+    """The planted local minimum: the LM solution is refuted ('not optimal'), the retry from LAGO
+    is certified; both solutions and the poses each certificate is about are written, named."""
+    import numpy as np
+
+    from slamkit.data.formats import load_pose_graph
+
+    path = tmp_path / "twisted.g2o"
+    twisted_cycle_g2o(path)
+    result = CliRunner().invoke(app, ["optimize", str(path), "--out", str(tmp_path / "out")])
+    assert result.exit_code == 0, result.output
+    lines = result.stdout.splitlines()
+    assert any(line.startswith("certificate: not optimal (lambda_min -2.93 < -0.001: a better solution exists) "
+                               "for the solution refined on SE-Sync's F") for line in lines), result.stdout
+    assert any(line.startswith("retry from lago: certified (lambda_min") for line in lines), result.stdout
+    out = tmp_path / "out"
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["certificate_verdict"] == "not optimal" and metrics["retry"]["certificate_verdict"] == "certified"
+    assert metrics["written"] == {
+        "solution": ["trajectories/twisted.g2o", "trajectories/twisted.tum"],
+        "refined": ["trajectories/twisted_refined.g2o", "trajectories/twisted_refined.tum"],
+        "retry_solution": ["trajectories/twisted_retry_lago.g2o", "trajectories/twisted_retry_lago.tum"],
+        "retry_refined": ["trajectories/twisted_retry_lago_refined.g2o", "trajectories/twisted_retry_lago_refined.tum"]}
+    for key, files in metrics["written"].items():
+        assert f"wrote {out / files[0]}, {out / files[1]}: " in result.stdout
+    # the files hold what they are named after: the twisted headings (k pi / 4, wrapped) for the
+    # LM solution, all headings equal (F = 0) for the certified retry
+    lm = load_pose_graph(out / "trajectories" / "twisted.g2o").poses
+    heading_steps = np.angle(np.exp(1j * np.diff(lm[:, 2])))
+    assert np.allclose(heading_steps, np.pi / 4, atol=1e-6)
+    certified = load_pose_graph(out / "trajectories" / "twisted_retry_lago_refined.g2o").poses
+    assert np.allclose(np.angle(np.exp(1j * (certified[:, 2] - certified[0, 2]))), 0.0, atol=1e-6)
 
 
 def test_the_report_puts_sesyncs_published_optimum_beside_the_certified_one(shared_datasets, tmp_path) -> None:
