@@ -30,7 +30,7 @@ $(STAMP): pyproject.toml constraints.txt setup.py $(KERNEL_SOURCES)
 	touch $(STAMP)
 
 run: $(STAMP)
-	$(BIN)/slamkit run $(PIPELINE) --out $(OUT)
+	$(BIN)/slamkit run $(PIPELINE) --out $(OUT) --overwrite
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q -m "not slow"

@@ -149,13 +149,17 @@ def convert_cmd(
     out: Path = typer.Argument(..., help="the bag to write (a ROS 2 bag folder; a .bag name writes ROS 1)"),
     storage: str = typer.Option("sqlite3", "--storage", help="ROS 2 storage: sqlite3 (OUT/OUT.db3) or mcap "
                                 "(OUT/OUT.mcap)"),
+    overwrite: bool = typer.Option(False, "--overwrite", help="replace an earlier bag at OUT (only a bag of the "
+                                   "same ROS version)"),
 ) -> None:
     """Write a recording as a ROS bag (LaserScan, Odometry, Imu, NavSatFix) through rosbags."""
-    from slamkit.data.formats.rosbag import write_bag
+    from slamkit.data.formats.rosbag import check_bag_path, write_bag
 
+    ros_version = 1 if out.suffix == ".bag" else 2
+    check_bag_path(out, ros_version, overwrite)  # before the recording is loaded
     # a bag holds its messages in time order: the scans sorted by stamp
     summary = write_bag(out, registry.load_recording(source, order="stamp"),
-                        ros_version=1 if out.suffix == ".bag" else 2, storage=storage)
+                        ros_version=ros_version, storage=storage, overwrite=overwrite)
     typer.echo(f"wrote {summary.path}: " + ", ".join(f"{t} {n}" for t, n in summary.messages.items())
                + ("; skipped " + ", ".join(f"{k} {n}" for k, n in summary.skipped_events.items())
                   if summary.skipped_events else ""))

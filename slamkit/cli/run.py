@@ -1,4 +1,4 @@
-"""``slamkit run PIPELINE.yaml [--out DIR]``."""
+"""``slamkit run PIPELINE.yaml [--out DIR] [--overwrite]``."""
 
 from __future__ import annotations
 
@@ -14,6 +14,8 @@ from slamkit.cli.app import app
 def run_command(
     pipeline: Path = typer.Argument(..., help="pipeline config (YAML), e.g. pipelines/pose_graph.yaml"),
     out: Path = typer.Option(None, "--out", help="results folder (default runs/<config name>)"),
+    overwrite: bool = typer.Option(False, "--overwrite", help="replace an earlier result of this pipeline in --out "
+                                   "(a result of another pipeline or a sweep is never replaced)"),
     quiet: bool = typer.Option(False, "--quiet", help="no progress bar or table"),
     spawn: bool = typer.Option(False, "--spawn", help="also stream the recording to a Rerun viewer"),
     perturbations: int = typer.Option(None, "--perturbations", min=0, max=100,
@@ -40,7 +42,7 @@ def run_command(
                               f"on perturbations; these do: {', '.join(takers)}")
         config["perturbations"] = {**(config.get("perturbations") or {}), "count": perturbations}
     result = run_pipeline(config, out, progress=not quiet,
-                          observer_factory=lambda kind, path: observer_for(kind, path, spawn))
+                          observer_factory=lambda kind, path: observer_for(kind, path, spawn), overwrite=overwrite)
     if not quiet:
         # plain Markdown: tables stay readable at any terminal width and in logs
         typer.echo(result.report_md)

@@ -1,4 +1,4 @@
-"""``slamkit sweep SWEEP.yaml --out DIR [--workers N] [--executor local|ray --address A] [--resume]``."""
+"""``slamkit sweep SWEEP.yaml --out DIR [--workers N] [--executor local|ray --address A] [--resume] [--overwrite]``."""
 
 from __future__ import annotations
 
@@ -22,6 +22,8 @@ def sweep_command(
                                      "default a new local Ray instance"),
     resume: bool = typer.Option(False, "--resume", help="continue the sweep in --out: run only unfinished cells"),
     retry_failed: bool = typer.Option(False, "--retry-failed", help="with --resume, run failed cells again"),
+    overwrite: bool = typer.Option(False, "--overwrite", help="start afresh over the sweep in --out (its cells "
+                                   "are removed; --resume keeps and reuses them)"),
     quiet: bool = typer.Option(False, "--quiet", help="no progress bar or report"),
     plugin: list[str] = typer.Option(None, "--plugin", metavar="MODULE",
                                      help="import this module first (repeatable): it registers your own "
@@ -34,7 +36,7 @@ def sweep_command(
     import_plugins(plugin or [], "--plugin")
 
     result = run_sweep(sweep, out, workers=workers, executor=executor, address=address, resume=resume,
-                       retry_failed=retry_failed, progress=not quiet)
+                       retry_failed=retry_failed, progress=not quiet, overwrite=overwrite)
     if not quiet:
         typer.echo(result.report_md)
         Console().print(f"{result.ran} cells run ({result.failed} failed); results written to "

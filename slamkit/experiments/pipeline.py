@@ -201,8 +201,11 @@ ObserverFactory = Callable[[str, Path], PipelineObserver]
 
 def run_pipeline(config: str | Path | Mapping[str, Any], out_dir: str | Path | None = None,
                  progress: bool = True, overrides: Mapping[str, Any] | None = None,
-                 observer_factory: ObserverFactory | None = None) -> PipelineResult:
+                 observer_factory: ObserverFactory | None = None, overwrite: bool = False) -> PipelineResult:
     """Run a pipeline config (path or mapping) and write its results folder atomically.
+
+    An existing result of the same pipeline at ``out_dir`` is replaced only with ``overwrite``
+    (``slamkit run --overwrite``); one of another kind never (:func:`results.check_replace`).
 
     With ``observer_factory`` and ``record: true`` in the config (the default), the observer
     writes ``recording.rrd`` inside the folder before it is committed."""
@@ -215,7 +218,7 @@ def run_pipeline(config: str | Path | Mapping[str, Any], out_dir: str | Path | N
     pipeline = pipeline_of(cfg["pipeline"])
     if out_dir is None:
         out_dir = Path("runs") / path_component(cfg.get("name", cfg["pipeline"]), "the config's name")
-    with ResultsFolder(out_dir, pipeline=str(cfg["pipeline"])) as folder, ProgressReporter(enabled=progress) as reporter:
+    with ResultsFolder(out_dir, pipeline=pipeline.name, overwrite=overwrite) as folder, ProgressReporter(enabled=progress) as reporter:
         folder.write_config(cfg)
         record = observer_factory is not None and bool(cfg.get("record", True))
         observer = observer_factory(cfg["pipeline"], folder.recording_path) if record else NullObserver()

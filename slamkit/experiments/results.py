@@ -320,11 +320,23 @@ def folder_kind(path: Path) -> str | None:
     return kind if isinstance(kind, str) else None
 
 
-def _refuse_a_sweep(final: Path, pipeline: str) -> None:
-    """A run never replaces a sweep folder (hours of cells), as a sweep never replaces a run."""
-    if pipeline != SWEEP_KIND and folder_kind(final) == SWEEP_KIND:
+def check_replace(final: Path, pipeline: str, overwrite: bool) -> None:
+    """May a result of kind ``pipeline`` replace what is at ``final``? A results folder of another
+    kind, never (a sweep is hours of cells; a run of another pipeline is another experiment); one
+    of the same kind only with ``overwrite`` (the CLI's ``--overwrite``), as users of result
+    folders expect. Nothing there, or an empty folder, is always fine."""
+    if not is_results_folder(final):
+        return
+    kind = folder_kind(final)
+    if kind == SWEEP_KIND and pipeline != SWEEP_KIND:
         raise OutputError(f"{final} is a sweep folder (written by slamkit sweep); a run would replace the "
                           "whole sweep: choose another --out")
+    if kind != pipeline:
+        raise OutputError(f"{final} holds a result of {kind!r}; a {pipeline!r} result never replaces one of "
+                          "another kind: choose another --out")
+    if not overwrite:
+        raise OutputError(f"{final} holds a result of {kind!r} already; pass --overwrite to replace it, or "
+                          "choose another --out")
 
 
 def _lock_path(final: Path) -> Path:
@@ -367,8 +379,10 @@ class ResultsFolder:
     The rules (issue 10: never lose a user's files):
 
     * only a folder slamkit can prove it wrote (the :data:`MARKER` file) or an empty folder is
-      replaced; anything else is refused with an :class:`~slamkit.errors.OutputError`; a sweep
-      folder (its marker's ``pipeline`` is ``sweep``) is never replaced by a run;
+      replaced; anything else is refused with an :class:`~slamkit.errors.OutputError`; a results
+      folder is never replaced by a result of another kind (its marker's ``pipeline``: a sweep
+      folder's is ``sweep``), and one of the same kind only with ``overwrite``
+      (:func:`check_replace`);
     * a run holds ``.<name>.lock`` (``flock``) beside the folder for its whole life; a second run
       into the same folder is refused with a clear message while the first is running;
     * the folder is assembled in ``.<name>.partial-<id>`` (marker first) and swapped with the
@@ -383,15 +397,16 @@ class ResultsFolder:
     complete folder at ``out`` is left untouched.
     """
 
-    def __init__(self, out: str | Path, pipeline: str = ""):
+    def __init__(self, out: str | Path, pipeline: str = "", overwrite: bool = False):
         self.final = check_output_folder(out)
-        _refuse_a_sweep(self.final, pipeline)
+        check_replace(self.final, pipeline, overwrite)
         self.final.parent.mkdir(parents=True, exist_ok=True)
         self._lock_fd = self._acquire_lock()
         self.committed = False
         try:
             self.final = check_output_folder(self.final)  # again, now that we hold the lock
-            _refuse_a_sweep(self.final, pipeline)
+            check_replace(self.final, pipeline, overwrite)
+            self.kind = pipeline
             self._clean_leftovers()
             self.path = self.final.parent / f".{self.final.name}.partial-{uuid.uuid4().hex[:8]}"
             self.path.mkdir()
@@ -472,7 +487,8 @@ class ResultsFolder:
 
     def finalize(self, pipeline: str = "") -> Path:
         """Put the assembled folder at its final name, replacing an earlier result atomically."""
-        self._write_marker(pipeline, complete=True)
+        # the kind the folder was opened for (the one check_replace compares) wins over a spelling
+        self._write_marker(self.kind or pipeline, complete=True)
         _fsync_tree(self.path)
         if self.final.exists():
             if _EXCHANGE is not None and _EXCHANGE(self.path, self.final):

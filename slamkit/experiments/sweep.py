@@ -29,7 +29,8 @@ as a folder with ``error.json`` instead of ``results.json`` and counts as finish
 --retry-failed`` runs it again); the other cells go on.
 
 The sweep folder ``<out>`` carries the results-folder marker (so ``--out`` never replaces a
-user's folder) and the lock of :func:`~slamkit.experiments.results.acquire_folder_lock` for the
+user's folder or a run, and a run never replaces it; an earlier sweep there is continued with
+``--resume`` or cleared and started afresh only with ``--overwrite``) and the lock of :func:`~slamkit.experiments.results.acquire_folder_lock` for the
 sweep's life; ``results.json``, ``report.md`` and ``plots/`` are written there (each file
 atomically) after the cells: every run of every finished cell with its axis values, and per
 swept axis and value the mean and 95% confidence interval of each metric (over the runs of the
@@ -275,7 +276,8 @@ def run_cell(task: CellTask) -> CellOutcome:
     t0 = time.perf_counter()
     try:
         _import_plugins(task.plugins)
-        result = run_pipeline(dict(task.config), task.cell_dir, progress=False)
+        # a cell folder is the sweep's own: --resume decides which to run again, so replacing is fine
+        result = run_pipeline(dict(task.config), task.cell_dir, progress=False, overwrite=True)
         status, runs, error = "done", result.results["runs"], None
     except Exception as exc:  # noqa: BLE001 - one bad cell must not stop the sweep
         status, runs = "failed", []
@@ -285,9 +287,25 @@ def run_cell(task: CellTask) -> CellOutcome:
     return CellOutcome(task.key, status, runs, error, time.perf_counter() - t0, rss_mb)
 
 
+def _cell_kind(config: Mapping[str, Any]) -> str:
+    """The canonical pipeline name a cell folder records (what run_pipeline writes), so that a
+    retried cell is a result of the same kind."""
+    import warnings
+
+    from slamkit.experiments.pipeline import PIPELINES
+
+    name = str(config.get("pipeline", ""))
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # an old spelling was reported when the cell ran
+            return PIPELINES.canonical(name)
+    except Exception:  # noqa: BLE001 - an unknown name is the failure being stored
+        return name
+
+
 def _store_failure(task: CellTask, exc: Exception) -> None:
     try:
-        with ResultsFolder(task.cell_dir, pipeline=str(task.config.get("pipeline", ""))) as folder:
+        with ResultsFolder(task.cell_dir, pipeline=_cell_kind(task.config), overwrite=True) as folder:
             folder.write_config(task.config)
             folder.write_json(ERROR_FILE, {"error_type": type(exc).__name__, "message": str(exc),
                                            "traceback": traceback.format_exc()})
@@ -334,21 +352,46 @@ class SweepResult:
     failed: int
 
 
-def _sweep_folder(out: str | Path, resume: bool) -> Path:
-    """The sweep folder ``out`` after the output-safety checks: new, empty, or (with ``resume``)
-    a sweep folder slamkit wrote. A finished run of a pipeline is never taken for a sweep."""
+def _sweep_record(sweep: Sweep) -> dict[str, Any]:
+    """What ``sweep.json`` holds: the sweep's name, its file's model and its base config."""
+    return _jsonable({"name": sweep.name, "sweep": sweep.model.model_dump(mode="json"), "base": dict(sweep.base)})
+
+
+def _sweep_folder(out: str | Path, resume: bool, overwrite: bool) -> tuple[Path, bool]:
+    """The sweep folder ``out`` after the output-safety checks, and whether its earlier sweep is
+    to be cleared first. New or empty: fine. A sweep folder: ``resume`` continues it (not a
+    replacement: every finished cell is kept and reused, also by a grown sweep, since a cell's
+    folder is keyed by its resolved config); a new start over it replaces it and needs
+    ``overwrite`` (the earlier sweep is then cleared). A result of another kind is never
+    replaced."""
     final = check_output_folder(out)
-    if is_results_folder(final):
-        try:
-            kind = json.loads((final / MARKER).read_text()).get("pipeline")
-        except (OSError, ValueError):
-            kind = None
-        if kind != SWEEP_KIND:
-            raise OutputError(f"{final} holds a slamkit run of {kind!r}, not a sweep; choose another --out")
-        if not resume:
-            raise OutputError(f"{final} holds a sweep already; continue it with --resume, or remove it "
-                              "or choose another --out")
-    return final
+    if not is_results_folder(final):
+        return final, False
+    try:
+        kind = json.loads((final / MARKER).read_text()).get("pipeline")
+    except (OSError, ValueError, AttributeError):
+        kind = None
+    if kind != SWEEP_KIND:
+        raise OutputError(f"{final} holds a slamkit run of {kind!r}, not a sweep; a sweep never replaces a result "
+                          "of another kind: choose another --out")
+    if resume:
+        return final, False
+    if overwrite:
+        return final, True
+    raise OutputError(f"{final} holds a sweep already; continue it with --resume, replace it with --overwrite, "
+                      "or choose another --out")
+
+
+def _clear_sweep(final: Path) -> None:
+    """Remove what an earlier sweep wrote in ``final`` (the caller holds its lock and has checked
+    it is a sweep folder): the marker last, so a kill midway leaves a sweep folder to clear again."""
+    import shutil
+
+    for p in sorted(final.iterdir(), key=lambda p: p.name == MARKER):
+        if p.is_dir() and not p.is_symlink():
+            shutil.rmtree(p)
+        else:
+            p.unlink()
 
 
 def _write_marker(out: Path, complete: bool) -> None:
@@ -366,22 +409,22 @@ def _write_atomic(path: Path, data: str | bytes) -> None:
 
 def run_sweep(path: str | Path, out: str | Path, workers: int | None = None, executor: str | Executor = "local",
               address: str | None = None, resume: bool = False, retry_failed: bool = False,
-              progress: bool = True) -> SweepResult:
+              progress: bool = True, overwrite: bool = False) -> SweepResult:
     """Run the sweep file at ``path`` into the folder ``out`` (see the module docstring) and
     write its results.json, report.md and plots. ``executor`` is ``local``, ``ray`` or an
     :class:`Executor` the caller owns (it is not closed here)."""
     sweep = load_sweep(path)
-    final = _sweep_folder(out, resume)
+    final, _ = _sweep_folder(out, resume, overwrite)
     final.mkdir(parents=True, exist_ok=True)
     lock = acquire_folder_lock(final)
     try:
-        final = _sweep_folder(final, resume)  # again, now that we hold the lock
+        final, clear = _sweep_folder(final, resume, overwrite)  # again, now that we hold the lock
+        if clear:
+            _clear_sweep(final)
         _write_marker(final, complete=False)
         cells_dir = final / "cells"
         cells_dir.mkdir(exist_ok=True)
-        _write_atomic(final / "sweep.json", json.dumps(_jsonable({
-            "name": sweep.name, "sweep": sweep.model.model_dump(mode="json"), "base": dict(sweep.base)}),
-            indent=2, allow_nan=False))
+        _write_atomic(final / "sweep.json", json.dumps(_sweep_record(sweep), indent=2, allow_nan=False))
         outcomes: dict[str, CellOutcome] = {}
         todo: list[Cell] = []
         for cell in sweep.cells:

@@ -88,7 +88,11 @@ def test_an_empty_folder_and_an_earlier_result_are_replaced(tmp_path, toy) -> No
     out.mkdir()
     run_pipeline({"pipeline": "toy", "value": 1.0}, out, progress=False)
     assert _value(out) == 1.0
-    run_pipeline({"pipeline": "toy", "value": 2.0}, out, progress=False)
+    # issue 31: replacing an earlier result needs overwrite (slamkit run --overwrite)
+    with pytest.raises(OutputError, match=r"r holds a result of 'toy' already; pass --overwrite to replace it"):
+        run_pipeline({"pipeline": "toy", "value": 2.0}, out, progress=False)
+    assert _value(out) == 1.0
+    run_pipeline({"pipeline": "toy", "value": 2.0}, out, progress=False, overwrite=True)
     assert _value(out) == 2.0
     assert json.loads((out / MARKER).read_text()) == {
         "slamkit_version": __import__("slamkit").__version__, "pipeline": "toy", "complete": True}
@@ -212,7 +216,7 @@ _KILLER = textwrap.dedent("""
         R._EXCHANGE = ex
     elif stage == "before_swap":
         R._fsync_tree = lambda root: die()
-    folder = R.ResultsFolder(out, pipeline="toy")
+    folder = R.ResultsFolder(out, pipeline="toy", overwrite=True)
     (folder.path / "report.md").write_text("# new")
     if stage == "assembling":
         die()
@@ -238,7 +242,7 @@ def test_a_kill_at_any_step_leaves_a_complete_result_and_the_next_run_cleans_up(
     leftovers = sorted(p.name for p in tmp_path.iterdir() if p.name != "r")
     assert leftovers and all(n.startswith(".r.") for n in leftovers)
     # the next run into the folder cleans the leftovers (and first restores a renamed-aside result)
-    folder = ResultsFolder(out, pipeline="toy")
+    folder = ResultsFolder(out, pipeline="toy", overwrite=True)
     if stage == "between_renames":
         assert _value(out) == 1.0
     folder.commit("toy", [RunRecord("d", "e", {"ate_rmse_m": 3.0})], "# next")
@@ -255,7 +259,7 @@ def test_concurrent_runs_into_one_folder_never_crash(tmp_path) -> None:
         outcomes = []
         for k in range(15):
             try:
-                with ResultsFolder(sys.argv[1], pipeline="toy") as f:
+                with ResultsFolder(sys.argv[1], pipeline="toy", overwrite=True) as f:
                     f.commit("toy", [RunRecord("d", "e", {"ate_rmse_m": float(k)})], "# r")
                 outcomes.append("ok")
             except OutputError as exc:

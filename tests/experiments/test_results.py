@@ -123,7 +123,7 @@ def test_failed_run_leaves_no_folder_and_keeps_previous(tmp_path, toy) -> None:
     run_pipeline({"pipeline": "toy"}, out, progress=False)
     before = (out / "results.json").read_text()
     with pytest.raises(RuntimeError):
-        run_pipeline({"pipeline": "toy", "fail_at": 1}, out, progress=False)
+        run_pipeline({"pipeline": "toy", "fail_at": 1}, out, progress=False, overwrite=True)
     assert (out / "results.json").read_text() == before
     assert [p.name for p in tmp_path.iterdir()] == ["out"]  # no partial folder left behind
     with pytest.raises(RuntimeError):

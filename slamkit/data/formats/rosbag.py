@@ -46,6 +46,7 @@ reads back into an identical Sequence (tested on the Intel log). The output path
 from __future__ import annotations
 
 import math
+import os
 import shutil
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -573,15 +574,31 @@ def _quat_yaw(ts, yaw: float):
     return ts.types["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=math.sin(0.5 * yaw), w=math.cos(0.5 * yaw))
 
 
+def check_bag_path(path: str | Path, ros_version: int, overwrite: bool = False) -> None:
+    """An OutputError unless :func:`write_bag` may write a ROS ``ros_version`` bag at ``path``
+    (the CLI asks before it loads the recording): a new path, or with ``overwrite`` a bag of the
+    same ROS version."""
+    path = Path(path)
+    check_no_file_above(path, "choose another output path")
+    if path.exists() or path.is_symlink():
+        if not overwrite:
+            raise OutputError(f"{path} exists; a bag is only written to a new path (pass --overwrite to replace "
+                              "an earlier bag)")
+        if path.is_symlink() or not is_bag(path) or path.is_dir() != (ros_version == 2):
+            raise OutputError(f"{path} exists and is not a ROS {ros_version} bag; --overwrite replaces only a bag "
+                              "of the same kind: choose another output path")
+
+
 def write_bag(path: str | Path, sequence: Sequence, topics: BagTopics = BagTopics(),
               ros_version: Literal[1, 2] = 2, gps_origin_lla: tuple[float, float, float] = (0.0, 0.0, 0.0),
-              storage: Literal["sqlite3", "mcap"] = "sqlite3") -> BagWriteSummary:
+              storage: Literal["sqlite3", "mcap"] = "sqlite3", overwrite: bool = False) -> BagWriteSummary:
     """Write ``sequence`` as a ROS bag (see the module docstring); returns what was written.
-    ``storage`` is the ROS 2 storage plugin (``sqlite3``: NAME/NAME.db3, ``mcap``: NAME/NAME.mcap)."""
+    ``storage`` is the ROS 2 storage plugin (``sqlite3``: NAME/NAME.db3, ``mcap``: NAME/NAME.mcap).
+    An existing path is replaced only with ``overwrite`` and only when it is a bag of the same ROS
+    version (a ``.bag`` file by a ``.bag`` file, a ROS 2 bag folder by a folder); the new bag is
+    complete before it takes the old one's place."""
     path = Path(path)
-    if path.exists() or path.is_symlink():
-        raise OutputError(f"{path} exists; a bag is only written to a new path")
-    check_no_file_above(path, "choose another output path")
+    check_bag_path(path, ros_version, overwrite)
     path.parent.mkdir(parents=True, exist_ok=True)
     if ros_version not in (1, 2):
         raise DataError(f"ros_version must be 1 or 2, got {ros_version!r}")
@@ -663,11 +680,11 @@ def write_bag(path: str | Path, sequence: Sequence, topics: BagTopics = BagTopic
         if ros_version == 2:
             tmp.mkdir()
             counts = _write_messages(tmp / path.name, out, ts, ros_version, storage)
-            (tmp / path.name).rename(path)
+            _put_in_place(tmp / path.name, path)
             tmp.rmdir()
         else:
             counts = _write_messages(tmp, out, ts, ros_version)
-            tmp.rename(path)
+            _put_in_place(tmp, path)
     except BaseException:
         if tmp.is_dir():
             shutil.rmtree(tmp, ignore_errors=True)
@@ -675,6 +692,21 @@ def write_bag(path: str | Path, sequence: Sequence, topics: BagTopics = BagTopic
             tmp.unlink(missing_ok=True)
         raise
     return BagWriteSummary(path, counts, skipped)
+
+
+def _put_in_place(new: Path, path: Path) -> None:
+    """Rename the complete bag ``new`` to ``path``; an earlier bag there (checked by the caller)
+    is moved aside first and removed after, so ``path`` never holds half a bag."""
+    if not path.exists():
+        new.rename(path)
+        return
+    if new.is_file():
+        os.replace(new, path)  # atomic for a file
+        return
+    old = temporary_sibling(path)
+    path.rename(old)
+    new.rename(path)
+    shutil.rmtree(old, ignore_errors=True)
 
 
 def _write_messages(path: Path, rows: list, ts, ros_version: int, storage: str = "sqlite3") -> dict[str, int]:
@@ -702,5 +734,6 @@ def _write_messages(path: Path, rows: list, ts, ros_version: int, storage: str =
     return counts
 
 
-__all__ = ["BagTopicInfo", "BagTopics", "BagWriteSummary", "bag_info", "bag_topics", "is_bag", "read_bag",
+__all__ = ["BagTopicInfo", "BagTopics", "BagWriteSummary", "bag_info", "bag_topics", "check_bag_path", "is_bag",
+           "read_bag",
            "read_laser_bag", "write_bag", "lla_to_local", "local_to_lla"]
