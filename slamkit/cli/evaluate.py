@@ -83,7 +83,7 @@ def _run(metric: str, ref: Path, est: Path, fmt: Format, align: Align, relation:
     table.add_column("value", justify="right")
     for name in ("rmse", "mean", "median", "std", "min", "max", "sse"):
         table.add_row(name, f"{out[name]:.6g}")
-    table.add_row("pairs", str(out["num_pairs"]))
+    table.add_row("num_pairs", str(out["num_pairs"]))  # the JSON's name: one quantity, one name
     if align == Align.sim3:
         table.add_row("scale", f"{out['scale']:.6g}")
     Console().print(table)
@@ -93,13 +93,10 @@ def _run(metric: str, ref: Path, est: Path, fmt: Format, align: Align, relation:
 def ate_command(
     ref: Path = REF, est: Path = EST, fmt: Format = FORMAT, align: Align = ALIGN,
     relation: Relation = RELATION, max_diff: float = MAX_DIFF, n_first: int = N_FIRST,
-    delta: float = typer.Option(None, "--delta", help="(RPE only; accepted and ignored here)"),
-    delta_unit: DeltaUnit = typer.Option(None, "--delta-unit", help="(RPE only; ignored here)"),
     as_json: bool = JSON,
 ) -> None:
-    """Absolute trajectory error: per-pose position (or rotation) error after alignment."""
-    if delta is not None or delta_unit is not None:
-        typer.echo("note: --delta/--delta-unit apply to 'slamkit eval rpe' only; ignored", err=True)
+    """Absolute trajectory error: per-pose position (or rotation) error after alignment (no
+    --delta: pose-pair spacing is RPE's, and an option that changes nothing is not offered)."""
     _run("ate", ref, est, fmt, align, relation, max_diff, n_first, as_json)
 
 

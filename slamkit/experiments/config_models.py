@@ -430,7 +430,13 @@ def _check_scenarios(model: FilterVsSmootherPipeline, doc: YamlDocument | None, 
     from slamkit.sim.landmark_world import LandmarkScenario
 
     pipeline_estimators = dict(_estimator_items(model.estimators))
+    from slamkit.experiments.filter_vs_smoother.config import PRESETS
+
     for k, entry in enumerate(model.scenarios):
+        if isinstance(entry, str) and entry not in PRESETS:
+            # a bare name that is not a preset is a dataset (filter_vs_smoother.config.parse_scenarios):
+            # a misspelt one fails here, naming file and line, not after the presets have run
+            _check_dataset_params(ScenarioEntry(dataset=entry), k, doc, source)
         if isinstance(entry, ScenarioEntry):
             if sum(v is not None for v in (entry.preset, entry.dataset, entry.scenario)) != 1:
                 where = doc.where(("scenarios", k)) if doc is not None else source

@@ -145,9 +145,14 @@ def test_table_output_and_errors(tum_pair, tmp_path: Path):
     assert f"{bad}:2:" in result.stderr
     result = runner.invoke(app, ["eval", "ate", "--ref", ref, "--est", est, "--align", "affine"])
     assert result.exit_code != 0
+    # --delta is RPE's pose-pair spacing: ATE refuses it instead of ignoring it (issue 32)
     result = runner.invoke(app, ["eval", "ate", "--ref", ref, "--est", est, "--delta", "3", "--json"])
-    assert result.exit_code == 0 and "ignored" in result.stderr
-    assert json.loads(result.stdout)["rmse"] == pytest.approx(5.0)
+    assert result.exit_code == 2 and "No such option: --delta" in result.stderr
+    # the table names the pair count as the JSON does
+    table = runner.invoke(app, ["eval", "ate", "--ref", ref, "--est", est])
+    assert table.exit_code == 0 and "num_pairs" in table.stdout and "│ pairs" not in table.stdout
+    assert json.loads(runner.invoke(app, ["eval", "ate", "--ref", ref, "--est", est, "--json"]).stdout)["rmse"] \
+        == pytest.approx(5.0)
 
 
 def test_eval_relations_on_intel_raw_odometry(shared_datasets, tmp_path) -> None:

@@ -59,6 +59,17 @@ def test_names_are_lowercase_and_the_documented_ones_exist():
     assert {"pose_graph_2d", "pose_graph_3d", "landmark_2d", "landmark_3d", "grid_map"} <= kinds
 
 
+def test_one_naming_rule_case_and_dash_or_underscore_alike():
+    # the registry keeps each source's spelling; typed names ignore case and '_' vs '-' (issue 32)
+    assert registry.get("intel_log").name == "intel-log"
+    assert registry.get("Kitti-00").name == "kitti_00"
+    assert registry.get("PARKING_GARAGE").name == "parking-garage"
+    keys = [registry.name_key(n) for n in registry.names()]
+    assert len(set(keys)) == len(keys)  # the rule maps no two datasets onto one name
+    with pytest.raises(DatasetNotFoundError, match=r"did you mean intel-log"):
+        registry.get("intel_lgo")
+
+
 def test_every_local_file_matches_its_sha256(shared_datasets):
     checked = 0
     for name in registry.names():

@@ -38,6 +38,11 @@ def _refused(tmp_path, text: str | bytes, loader=validate_pipeline_config) -> st
     ("pipeline: pose_graph\ndatasets: [ring]\nsolver: [gn]\n", "c.yaml:3: solver: unknown key (did you mean 'solvers'?)"),
     ("pipeline: filter_vs_smoother\nseed: 6\nscenarios: [mild]\nestimators: [ekf]\n",
      "c.yaml:2: seed: unknown key (did you mean 'seeds'?)"),
+    # a bare scenario name that is no preset is a dataset: a misspelt one fails at validation (issue 32)
+    ("pipeline: filter_vs_smoother\nestimators: [ekf]\nscenarios:\n  - mild\n  - citytres10000\n",
+     "c.yaml:5: scenarios.1.dataset: no dataset named 'citytres10000' in the registry; did you mean citytrees10000"),
+    ("pipeline: filter_vs_smoother\nestimators: [ekf]\nplugins: slamkit_example_plugin\nscenarios: [mild]\n",
+     "c.yaml:3: plugins: a list of module names, got 'slamkit_example_plugin'"),
     ("pipeline: filter_vs_smoother\nscenarios: [{preset: mild, params: {duration_s: .nan}}]\nestimators: [ekf]\n",
      "c.yaml:2: scenarios.0.params.duration_s: Input should be a finite number (got nan)"),
     ("pipeline: filter_vs_smoother\nscenarios: [{preset: mild, params: {duration_s: 1.0e+20}}]\nestimators: [ekf]\n",
