@@ -150,14 +150,21 @@ def _dead_reckoning_ate_m(seed: int) -> float:
     return ate_rmse_m(sequence.ground_truth, est, "se2")
 
 
-def test_slamkit_run_reports_the_plugin_estimator_under_pose_only(site, tmp_path):
-    """The user's path: the package installed (here on PYTHONPATH), one line in the config, and
-    ``slamkit run`` -- seed 1 runs in a spawned worker, which finds the plug-in by itself."""
+# the plugins: path costs another ~15 s run (a worker is spawned): under slow
+@pytest.mark.parametrize("how", ["entry_point", pytest.param("plugins_key", marks=pytest.mark.slow)])
+def test_slamkit_run_reports_the_plugin_estimator_under_pose_only(site, tmp_path, how):
+    """The user's paths: the package installed (its folder on PYTHONPATH, found by its entry
+    points), or the bare module on PYTHONPATH (no distribution metadata) named in the config's
+    ``plugins:``; then one line in the config and ``slamkit run``. Seed 1 runs in a spawned worker,
+    which finds the plug-in by itself (entry points, or the module passed down in $SLAMKIT_PLUGINS)."""
     config = {"pipeline": "filter_vs_smoother", "name": "plugin_check",
               "scenarios": [{"preset": "mild", "params": {"duration_s": 20.0, "num_landmarks": 25}}],
               "estimators": ["ekf", "odometry_only", "ekf_slam"], "seeds": 2, "workers": 2, "record": False}
+    path = site if how == "entry_point" else PLUGIN / "src"
+    if how == "plugins_key":
+        config["plugins"] = ["slamkit_example_plugin"]
     (tmp_path / "fvs.yaml").write_text(yaml.safe_dump(config, sort_keys=False))
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(site), os.environ.get("PYTHONPATH", "")]).rstrip(os.pathsep)}
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(path), os.environ.get("PYTHONPATH", "")]).rstrip(os.pathsep)}
     env.pop(PLUGINS_ENV, None)
     done = subprocess.run([str(SLAMKIT), "run", str(tmp_path / "fvs.yaml"), "--out", str(tmp_path / "run"), "--quiet"],
                           capture_output=True, text=True, timeout=600, env=env)
@@ -200,3 +207,28 @@ def test_config_plugins_key_imports_the_module(site, tmp_path, monkeypatch):
                                           "cannot be imported"):
         load_config(path)
     assert os.environ[PLUGINS_ENV] == "slamkit_example_plugin"
+
+
+def test_run_plugin_option_names_a_missing_module(tmp_path):
+    from typer.testing import CliRunner
+
+    from slamkit.cli import app
+
+    (tmp_path / "c.yaml").write_text("pipeline: filter_vs_smoother\nscenarios: [mild]\nestimators: [ekf]\n")
+    result = CliRunner().invoke(app, ["run", str(tmp_path / "c.yaml"), "--plugin", "slamkit_no_such_plugin"])
+    assert result.exit_code == 2
+    assert "--plugin: plug-in module 'slamkit_no_such_plugin' cannot be imported" in result.output
+    os.environ.pop(PLUGINS_ENV, None)
+
+
+def test_record_true_without_an_observer_factory_says_so(tmp_path):
+    """Driven from Python with record: true and no observer factory, no recording can be written:
+    a warning says so and how to get one (it used to be silent; issue 32)."""
+    from slamkit.experiments.pipeline import run_pipeline
+
+    config = {"pipeline": "filter_vs_smoother", "scenarios": [{"preset": "mild", "params": {"duration_s": 3.0}}],
+              "estimators": ["ekf"], "seeds": 1, "workers": 1, "record": True}
+    with pytest.warns(UserWarning, match=r"record: true, but run_pipeline was given no observer_factory.*"
+                                         r"observer_factory=slamkit.viz.pipelines.observer_for"):
+        result = run_pipeline(config, tmp_path / "run", progress=False)
+    assert not (result.out_dir / "recording.rrd").exists()

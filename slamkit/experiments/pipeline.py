@@ -21,6 +21,7 @@ steps and its output.
 from __future__ import annotations
 
 import json
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Generic, Mapping, Protocol, TypeVar
@@ -221,6 +222,12 @@ def run_pipeline(config: str | Path | Mapping[str, Any], out_dir: str | Path | N
     with ResultsFolder(out_dir, pipeline=pipeline.name, overwrite=overwrite) as folder, ProgressReporter(enabled=progress) as reporter:
         folder.write_config(cfg)
         record = observer_factory is not None and bool(cfg.get("record", True))
+        if observer_factory is None and cfg.get("record") is True:
+            # asked for explicitly: say why no recording.rrd appears (experiments never import viz)
+            warnings.warn(f"pipeline {cfg['pipeline']!r}: record: true, but run_pipeline was given no "
+                          "observer_factory, so no recording.rrd is written; pass "
+                          "observer_factory=slamkit.viz.pipelines.observer_for (slamkit run does)",
+                          UserWarning, stacklevel=2)
         observer = observer_factory(cfg["pipeline"], folder.recording_path) if record else NullObserver()
         try:
             output = with_perturbation_report(pipeline.run(cfg, folder, reporter, observer), folder.plots)
