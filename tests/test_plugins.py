@@ -152,14 +152,14 @@ def _dead_reckoning_ate_m(seed: int) -> float:
 
 # the plugins: path costs another ~15 s run (a worker is spawned): under slow
 @pytest.mark.parametrize("how", ["entry_point", pytest.param("plugins_key", marks=pytest.mark.slow)])
-def test_slamkit_run_reports_the_plugin_estimator_under_pose_only(site, tmp_path, how):
+def test_slamkit_run_reports_the_plugin_estimator_under_pose_only(site, tmp_path, how, verify_rrd):
     """The user's paths: the package installed (its folder on PYTHONPATH, found by its entry
     points), or the bare module on PYTHONPATH (no distribution metadata) named in the config's
     ``plugins:``; then one line in the config and ``slamkit run``. Seed 1 runs in a spawned worker,
     which finds the plug-in by itself (entry points, or the module passed down in $SLAMKIT_PLUGINS)."""
     config = {"pipeline": "filter_vs_smoother", "name": "plugin_check",
               "scenarios": [{"preset": "mild", "params": {"duration_s": 20.0, "num_landmarks": 25}}],
-              "estimators": ["ekf", "odometry_only", "ekf_slam"], "seeds": 2, "workers": 2, "record": False}
+              "estimators": ["ekf", "odometry_only", "ekf_slam"], "seeds": 2, "workers": 2, "record": True}
     path = site if how == "entry_point" else PLUGIN / "src"
     if how == "plugins_key":
         config["plugins"] = ["slamkit_example_plugin"]
@@ -189,6 +189,10 @@ def test_slamkit_run_reports_the_plugin_estimator_under_pose_only(site, tmp_path
     assert "| odometry_only |" in pose_only and "odometry_only" not in localisation + slam
     assert "| ekf |" in localisation and "| ekf_slam |" in slam
     assert (tmp_path / "run" / "trajectories" / "mild_odometry_only_seed1.tum").is_file()
+    # and the recording draws it like the built-in estimators
+    entities = verify_rrd(tmp_path / "run" / "recording.rrd")
+    assert {"/mild/world/estimate/odometry_only", "/mild/plots/error/odometry_only",
+            "/mild/world/estimate/ekf_slam"} <= entities
 
 
 def test_config_plugins_key_imports_the_module(site, tmp_path, monkeypatch):
