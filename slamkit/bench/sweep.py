@@ -21,7 +21,6 @@ The machine is shared (other processes load the cores), so the numbers are what 
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 import sys
 import tempfile
@@ -116,19 +115,17 @@ def run(quick: bool = False) -> list[BenchCase]:
         cases.append(BenchCase("sweep_coordinator_rss_mb_per_1000_cells", slope, "MB",
                                extra={f"peak_rss_mb_{n}_cells": p for n, p in zip(sizes, peaks)}))
         try:
-            import ray
+            import ray  # noqa: F401 - only whether it is installed
         except ImportError:
             cases.append(BenchCase("sweep_noop_cell_local_ms", local_ms, "ms"))
             return cases
-        from slamkit.experiments.executors import RAY_TOKEN_ENV, RayExecutor, start_local_ray
+        from slamkit.experiments.executors import RayExecutor, start_local_ray
 
-        token_set = start_local_ray(num_cpus=2, _node_ip_address="127.0.0.1")
+        instance = start_local_ray(num_cpus=2)
         try:
             with RayExecutor() as ex:
                 ray_ms = _per_cell_ms(tmp, "ray", ex, warm, noop_cells)
         finally:
-            ray.shutdown()
-            if token_set:
-                os.environ.pop(RAY_TOKEN_ENV, None)
+            instance.shutdown()
         cases.append(compare("sweep_noop_cell_local_ms", local_ms, "ms", "Ray, local instance, 2 CPUs", ray_ms))
     return cases

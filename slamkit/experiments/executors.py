@@ -10,7 +10,8 @@ Two implementations, one contract (``submit(fn, arg)``, then ``as_completed()`` 
   initializer); a worker whose coordinator dies (``kill -9``) exits within half a second;
 * :class:`RayExecutor` -- Ray tasks (``num_cpus=1`` each) on the Ray instance the process is
   connected to, or the one at ``address`` (``auto``: the cluster this machine belongs to; a
-  ``HOST:PORT``; None: a new local instance, see :func:`start_local_ray`). ``ray`` is imported only when this executor is
+  ``HOST:PORT``, used as given; None: a new local instance bound to 127.0.0.1 that leaves no
+  session folder behind, see :func:`start_local_ray`). ``ray`` is imported only when this executor is
   built (an optional extra, ``pip install slamkit[ray]``; importing it costs about a second).
 
 Both keep only a few tasks per worker in flight and hold the rest in a backlog until a worker is
@@ -167,11 +168,11 @@ class RayExecutor(_Backlogged):
             raise ConfigError("--executor ray needs the 'ray' package: pip install 'slamkit[ray]'") from None
         self._ray = ray
         self._owns_connection = not ray.is_initialized()
-        self._token_set = False
+        self._local: LocalRay | None = None
         if self._owns_connection:
             if address is None:
-                self._token_set = start_local_ray()
-            else:
+                self._local = start_local_ray()
+            else:  # an existing cluster is used as it was set up
                 ray.init(address=address, include_dashboard=False, log_to_driver=False)
         self._remote: dict[Callable, Any] = {}
         # the cluster's CPUs when the sweep starts (an autoscaler adding nodes later is not seen)
@@ -203,10 +204,12 @@ class RayExecutor(_Backlogged):
         for ref in self._pending:
             self._ray.cancel(ref, force=True)
         self._pending.clear()
-        if self._owns_connection:
+        if self._local is not None:
+            self._local.shutdown()
+            self._local = None
+        elif self._owns_connection:
             self._ray.shutdown()
-        if self._token_set:
-            os.environ.pop(RAY_TOKEN_ENV, None)
+        self._owns_connection = False
 
     def __enter__(self) -> "RayExecutor":
         return self
@@ -220,30 +223,85 @@ RAY_TOKEN_ENV = "RAY_AUTH_TOKEN"
 _RAY_AUTH_ENV = (RAY_TOKEN_ENV, "RAY_AUTH_TOKEN_PATH", "RAY_AUTH_MODE")
 
 
-def start_local_ray(**init_kwargs: Any) -> bool:
-    """Start a new local Ray instance (no dashboard, workers' logs not streamed here) with token
-    authentication kept on but its token held in this process's environment.
+#: Ray takes a node address of 127.0.0.1 given to ``ray.init(_node_ip_address=...)`` as "this
+#: machine" and replaces it by the machine's reachable address (``resolve_ip_for_localhost``), so
+#: every gRPC server then listened on all interfaces (measured with Ray 2.60: GCS, raylet, workers
+#: and the driver on ``::``, the runtime-env agent on the LAN address). With this variable at 0 on
+#: Linux Ray takes the loopback address as the node's, as it does on macOS and Windows, and each
+#: server binds 127.0.0.1 (the rule of ray-project/ray#59852: a loopback node address stays local)
+_RAY_LOOPBACK_ENV = "RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER"
+
+
+@dataclass
+class LocalRay:
+    """A local Ray instance this process started (:func:`start_local_ray`): ``shutdown()`` stops
+    it, removes its session folder ``temp_dir`` and the token variable it set."""
+
+    temp_dir: str
+    token_set: bool
+
+    def shutdown(self) -> None:
+        import shutil
+
+        import ray
+
+        try:
+            ray.shutdown()
+        finally:
+            if self.token_set:
+                os.environ.pop(RAY_TOKEN_ENV, None)
+                self.token_set = False
+            shutil.rmtree(self.temp_dir, ignore_errors=True)
+
+
+def start_local_ray(**init_kwargs: Any) -> LocalRay:
+    """Start a new local Ray instance that only this machine can reach and that leaves nothing
+    behind: no dashboard, workers' logs not streamed here, every server bound to 127.0.0.1
+    (see :data:`_RAY_LOOPBACK_ENV`), its session folder in a fresh ``slamkit-ray-*`` folder of the
+    system temp folder (``_temp_dir``; Ray's default ``/tmp/ray/session_*`` folders outlived every
+    run) that :meth:`LocalRay.shutdown` removes, and token authentication kept on with its token
+    in this process's environment.
 
     Ray >= 2.5x turns token authentication on for a new local instance and, when no token is
     configured, writes one to ``~/.ray/auth_token``: a file outside the results folder that
     outlives the run. A fresh random token in ``RAY_AUTH_TOKEN`` (inherited by the instance's
     processes) gives the same protection and writes nothing. A user's own token or mode
-    (``RAY_AUTH_TOKEN``, ``RAY_AUTH_TOKEN_PATH``, ``RAY_AUTH_MODE``) is left to Ray. Returns
-    whether the token variable was set here (the caller removes it after ``ray.shutdown()``)."""
+    (``RAY_AUTH_TOKEN``, ``RAY_AUTH_TOKEN_PATH``, ``RAY_AUTH_MODE``) is left to Ray."""
     import secrets
-
-    import ray
+    import shutil
+    import tempfile
 
     token_set = not any(os.environ.get(k) for k in _RAY_AUTH_ENV)
     if token_set:
         os.environ[RAY_TOKEN_ENV] = secrets.token_hex(32)
+    # Ray's own choice of system temp folder (RAY_TMPDIR, else TMPDIR, else /tmp); a short path:
+    # the session's Unix sockets must fit 107 bytes
+    temp_dir = tempfile.mkdtemp(prefix="slamkit-ray-", dir=os.environ.get("RAY_TMPDIR") or None)
+    previous_env = os.environ.get(_RAY_LOOPBACK_ENV)
+    os.environ[_RAY_LOOPBACK_ENV] = "0"  # inherited by the processes the instance starts
+    constants = None
     try:
-        ray.init(address=None, include_dashboard=False, log_to_driver=False, **init_kwargs)
+        import ray
+        from ray._private import ray_constants as constants
+
+        # ray imported before this call derived the constant from the variable already
+        constants.ENABLE_RAY_CLUSTER = False
+        ray.init(address=None, include_dashboard=False, log_to_driver=False, _temp_dir=temp_dir, **init_kwargs)
     except BaseException:
         if token_set:
             os.environ.pop(RAY_TOKEN_ENV, None)
+        shutil.rmtree(temp_dir, ignore_errors=True)
         raise
-    return token_set
+    finally:
+        # back to what this process had: a later ray.init(address=...) of a real cluster needs
+        # the machine's reachable address again
+        if previous_env is None:
+            os.environ.pop(_RAY_LOOPBACK_ENV, None)
+        else:
+            os.environ[_RAY_LOOPBACK_ENV] = previous_env
+        if constants is not None:
+            constants.ENABLE_RAY_CLUSTER = constants.env_bool(_RAY_LOOPBACK_ENV, not constants.IS_WINDOWS_OR_OSX)
+    return LocalRay(temp_dir, token_set)
 
 
 def make_executor(kind: str, workers: int | None = None, address: str | None = None) -> LocalExecutor | RayExecutor:

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from slamkit.experiments.executors import RAY_TOKEN_ENV, RayExecutor, TaskFailure, start_local_ray
+from slamkit.experiments.executors import RayExecutor, TaskFailure, start_local_ray
 from slamkit.experiments.pipeline import PIPELINES
 from slamkit.experiments.sweep import run_sweep
 
@@ -28,12 +28,9 @@ def ray_instance():
     sweep_probe.ensure_registered()  # the probe pipeline in this process too
 
     # the workers find the probe plugin through the job's runtime environment
-    token_set = start_local_ray(num_cpus=2, _node_ip_address="127.0.0.1",
-                                runtime_env={"env_vars": {"PYTHONPATH": str(HERE)}})
+    instance = start_local_ray(num_cpus=2, runtime_env={"env_vars": {"PYTHONPATH": str(HERE)}})
     yield ray
-    ray.shutdown()
-    if token_set:
-        os.environ.pop(RAY_TOKEN_ENV, None)
+    instance.shutdown()
     if "sweep_probe" in PIPELINES:
         PIPELINES.unregister("sweep_probe")
 
@@ -86,3 +83,64 @@ def test_a_local_instance_started_by_the_executor_writes_nothing_in_the_home_fol
     assert done.returncode == 0, done.stderr[-2000:]
     assert done.stdout.split()[-2:] == ["49", "False"]
     assert list(home.iterdir()) == []
+
+
+# --- issue 31: a local instance listens on loopback only and leaves no session folder ----------
+
+_LISTEN_PROBE = """
+import json, os, sys
+import psutil
+from slamkit.experiments.executors import RayExecutor
+import sweep_probe
+
+def listening(pids):
+    out = []
+    for pid in pids:
+        try:
+            for c in psutil.Process(pid).net_connections(kind="inet"):
+                if c.status == psutil.CONN_LISTEN:
+                    out.append([pid, c.laddr.ip, c.laddr.port])
+        except psutil.NoSuchProcess:
+            pass
+    return out
+
+with RayExecutor() as ex:
+    ex.submit(sweep_probe.square, 7)
+    outcomes = dict(ex.as_completed())
+    me = psutil.Process()
+    # the driver, and every process of the instance (GCS, raylet, agents, workers: its descendants)
+    pids = [me.pid] + [p.pid for p in me.children(recursive=True)]
+    names = sorted({psutil.Process(p).name() for p in pids if psutil.pid_exists(p)})
+    sockets = listening(pids)
+print(json.dumps({"square": outcomes[7], "sockets": sockets, "names": names}))
+"""
+
+
+def test_a_local_instance_listens_on_loopback_only_and_leaves_no_session_folder(tmp_path: Path) -> None:
+    """Before: GCS, raylet, workers and the driver listened on all interfaces (``::``), the
+    runtime-env agent on the machine's LAN address, and every run left a /tmp/ray/session_*
+    folder. Ray's system temp folder is a fresh one here (TMPDIR), so anything left is seen; it is
+    short, as the session's Unix socket paths must fit 107 bytes."""
+    import ipaddress
+    import json
+    import shutil
+    import tempfile
+
+    system_tmp = Path(tempfile.mkdtemp(prefix="skt", dir="/tmp"))
+    try:
+        env = {k: v for k, v in os.environ.items() if not k.startswith(("RAY_AUTH", "RAY_TMPDIR"))}
+        done = subprocess.run([sys.executable, "-c", _LISTEN_PROBE],
+                              env={**env, "TMPDIR": str(system_tmp), "PYTHONPATH": str(HERE)},
+                              capture_output=True, text=True, timeout=300)
+        assert done.returncode == 0, done.stderr[-3000:]
+        report = json.loads(done.stdout.strip().splitlines()[-1])
+        assert report["square"] == 49
+        assert {"gcs_server", "raylet"} <= set(report["names"]), report["names"]
+        assert len(report["sockets"]) >= 4, report  # GCS, raylet, the driver's core worker, an agent
+        for pid, ip, port in report["sockets"]:
+            address = ipaddress.ip_address(ip)
+            address = getattr(address, "ipv4_mapped", None) or address  # ::ffff:127.0.0.1
+            assert address.is_loopback, (pid, ip, port, report["names"])
+        assert list(system_tmp.iterdir()) == []  # no session folder, no slamkit-ray-* folder
+    finally:
+        shutil.rmtree(system_tmp, ignore_errors=True)
