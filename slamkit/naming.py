@@ -212,10 +212,19 @@ class Registry(Mapping[str, T], Generic[T]):
         if not isinstance(name, str) or not NAME_RULE.match(name):
             raise ConfigError(f"{self.what} names must be snake_case ({NAME_RULE.pattern}), got {name!r}")
         if self._resolve(name) is not None:
-            if self._own.get(name) is entry or (name in self._own and self._own[name] == entry):
-                return  # the same entry again (a plug-in both imported and found as an entry point)
+            if self._same(self._own.get(name), entry):
+                return  # the same object again (a plug-in both imported and found as an entry point)
             raise ConfigError(f"{self.what} {name!r} is already registered")
         self._own[name] = entry
+
+    @staticmethod
+    def _same(registered: object, entry: object) -> bool:
+        """The very object registered again (or a wrapper of it: ``same_as``); an equal but
+        separately made entry under a taken name is still a conflict."""
+        if registered is entry:
+            return True
+        same_as = getattr(registered, "same_as", None)
+        return callable(same_as) and bool(same_as(entry))
 
     def unregister(self, name: str) -> None:
         """Remove an entry added with :meth:`register` (unknown names are a ConfigError)."""

@@ -28,7 +28,11 @@ SLAMKIT = Path(sys.executable).with_name("slamkit")
 
 
 def _forget_plugin() -> None:
-    for name, table in (("odometry_only", estimators.REGISTRY), ("straight_line", planners.PLANNERS)):
+    from slamkit.control.registry import CONTROLLERS
+    from slamkit.experiments.pipeline import PIPELINES
+
+    for name, table in (("odometry_only", estimators.REGISTRY), ("straight_line", planners.PLANNERS),
+                        ("pure_pursuit", CONTROLLERS), ("odometry_drift", PIPELINES)):
         if name in table:
             table.unregister(name)
     if "example-square" in datasets.REGISTRY:
@@ -47,8 +51,11 @@ def site(tmp_path_factory):
     sys.path.insert(0, str(target))
     importlib.invalidate_caches()
     try:
-        estimators.REGISTRY.discover(refresh=True)
-        planners.PLANNERS.discover(refresh=True)
+        from slamkit.control.registry import CONTROLLERS
+        from slamkit.experiments.pipeline import PIPELINES
+
+        for table in (estimators.REGISTRY, planners.PLANNERS, CONTROLLERS, PIPELINES):
+            table.discover(refresh=True)
         datasets.discover(refresh=True)
         yield target
     finally:
@@ -61,6 +68,10 @@ def test_entry_points_register_one_entry_per_kind(site):
     assert (spec.kind, spec.estimates, spec.needs_landmark_map) == ("filter", "pose", False)
     assert not estimators.is_builtin_filter("odometry_only")
     assert "straight_line" in planners.planner_names()
+    from slamkit.control.registry import CONTROLLERS
+    from slamkit.experiments.pipeline import PIPELINES
+
+    assert "pure_pursuit" in CONTROLLERS and "odometry_drift" in PIPELINES
     # the dataset naming rule: '_' and '-' alike, case ignored
     assert datasets.get("Example_Square").name == "example-square"
     # a second discovery (the package found twice) registers nothing twice
@@ -70,11 +81,7 @@ def test_entry_points_register_one_entry_per_kind(site):
 
 def test_planner_contract_holds_for_the_plugin_planner(site):
     # the registry contract tests themselves, called with the plug-in's name
-    sys.path.insert(0, str(ROOT / "tests" / "planning"))
-    try:
-        import test_planner_contract as contract
-    finally:
-        sys.path.pop(0)
+    contract = _contract_module("planning", "test_planner_contract")
     contract.test_start_equal_to_goal_is_solved_at_cost_zero("straight_line")
     contract.test_goal_inside_an_obstacle_is_a_status_not_an_exception("straight_line")
     # a worked example: 8 m along the free bottom row of the contract grid
@@ -86,6 +93,53 @@ def test_planner_contract_holds_for_the_plugin_planner(site):
     blocked = planners.make_planner("straight_line").plan(
         PlanningProblem(contract._grid(), np.array([2.0, 5.0]), np.array([8.0, 5.0])))  # wall at x = 5.0-5.2
     assert blocked.status is PlanStatus.TIMEOUT and len(blocked.path) == 0
+
+
+def _contract_module(folder: str, name: str):
+    """A contract test module of the suite, imported to call its tests with a plug-in's name."""
+    sys.path.insert(0, str(ROOT / "tests" / folder))
+    try:
+        return importlib.import_module(name)
+    finally:
+        sys.path.pop(0)
+
+
+def test_controller_contract_holds_for_the_plugin_controller(site):
+    from slamkit.control.protocols import ControlStatus, LocalWorld, Reference, RobotState
+    from slamkit.control.registry import make_controller
+
+    contract = _contract_module("control", "test_controller_contract")
+    for test in (contract.test_is_a_controller_and_explains_its_command, contract.test_goal_reached_stops,
+                 contract.test_deterministic_after_reset, contract.test_never_raises_in_a_crowded_world):
+        test(make_controller("pure_pursuit"))
+    # a worked example: 0.5 m look-ahead to (0.5, 0.5) from the origin heading +x: curvature
+    # 2 y / d^2 = 2 * 0.5 / 0.5 = 2 1/m, so omega = 2 v; at 0.6 m/s that is 1.2 rad/s (inside 1.5)
+    out = make_controller("pure_pursuit", {"lookahead_m": 0.5}).compute(
+        RobotState([0.0, 0.0, 0.0]), Reference([[0.0, 0.0], [0.5, 0.5], [0.5, 3.0]], speed_mps=0.6), LocalWorld())
+    assert out.status is ControlStatus.OK
+    np.testing.assert_allclose(out.command, [0.6, 1.2], atol=1e-12)
+
+
+def test_pipeline_contract_holds_for_the_plugin_pipeline(site, tmp_path):
+    """The pipeline registry's contract (name, config model, payload type) and a run through
+    ``run_pipeline`` whose number is the closed form: a heading bias b over L metres ends
+    (sin(bL)/b, (1 - cos(bL))/b) away from (L, 0)."""
+    from slamkit.experiments.config_models import PipelineConfig, check_pipeline
+    from slamkit.experiments.pipeline import pipeline_of, run_pipeline
+
+    p = pipeline_of("odometry_drift")
+    assert p.name == "odometry_drift" and issubclass(p.config_model, PipelineConfig)
+    assert p.config_model.model_fields["pipeline"].annotation.__args__ == ("odometry_drift",)
+    assert p.payload_type is dict and callable(p.run)
+    with pytest.raises(ConfigError, match=r"distanc_m: unknown key"):
+        check_pipeline({"pipeline": "odometry_drift", "distanc_m": 3.0})
+    result = run_pipeline({"pipeline": "odometry_drift", "distance_m": 20.0, "heading_bias_radpm": 0.02},
+                          tmp_path / "drift", progress=False)
+    b, length = 0.02, 20.0
+    expected = np.hypot(np.sin(b * length) / b - length, (1 - np.cos(b * length)) / b)
+    # by hand: sin(0.4)/0.02 = 19.4709, (1 - cos 0.4)/0.02 = 3.9470 -> hypot(0.5291, 3.9470) = 3.9823
+    assert expected == pytest.approx(3.9823, abs=1e-4)
+    assert result.results["runs"][0]["metrics"]["final_position_error_m"] == pytest.approx(expected, rel=1e-12)
 
 
 def test_estimator_table_contract_over_every_entry(site):

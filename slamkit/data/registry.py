@@ -218,8 +218,8 @@ def register_dataset(entry: DatasetEntry) -> None:
     _discover()
     taken = {name_key(n): n for n in _ENTRIES}
     if name_key(entry.name) in taken:
-        if _ENTRIES[taken[name_key(entry.name)]] == entry:
-            return  # the same distribution found twice
+        if _ENTRIES[taken[name_key(entry.name)]] is entry:
+            return  # the same object again (imported and found as an entry point)
         raise ConfigError(f"dataset {entry.name!r} is already registered (as {taken[name_key(entry.name)]!r})")
     _ENTRIES[entry.name] = entry
 

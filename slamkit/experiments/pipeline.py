@@ -97,6 +97,11 @@ class _Entry:
         self._pipeline = target if isinstance(target, Pipeline) else None
         self.recorder: str | RecorderFactory | None = None
 
+    def same_as(self, other: object) -> bool:
+        """Whether ``other`` wraps the very same target (a plug-in's pipeline both imported and
+        found as an entry point is registered once; see ``Registry.register``)."""
+        return isinstance(other, _Entry) and other.target is self.target
+
     def pipeline(self, name: str) -> Pipeline:
         if self._pipeline is None:
             loaded = load_target(str(self.target))
