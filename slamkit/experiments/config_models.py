@@ -228,16 +228,40 @@ class LocalPlanningPipeline(PipelineConfig):
 
 # --- navigation ---------------------------------------------------------------------------------
 
+class NavigationEvaluation(BaseModel):
+    """``blocks`` disjoint blocks of ``block_size`` consecutive seeds from ``start`` on: the
+    seeds a claimed rate is measured on (slamkit.experiments.navigation_benchmark)."""
+
+    model_config = STRICT
+    start: Seed
+    blocks: Annotated[int, Field(ge=1, le=100)] = 3
+    block_size: Annotated[int, Field(ge=1, le=10_000)] = 30
+
+
 class NavigationScenarios(BaseModel):
     model_config = STRICT
     worlds: Annotated[list[Literal["office", "warehouse", "willow", "passage"]], Field(min_length=1)] = ["office"]
+    #: the development seeds (the ones failures are looked at and fixed on)
     seeds: Seeds = 3
+    #: the evaluation blocks, disjoint from ``seeds`` (None: development seeds only)
+    evaluation: NavigationEvaluation | None = None
     n_obstacles: Annotated[int, Field(ge=0, le=20)] = 2
     #: the crossing traffic: constant-velocity shuttles or social-force people and forklifts
     #: (slamkit.sim.social_force.crossing_traffic)
     agents: Literal["constant_velocity", "social_force"] = "constant_velocity"
     #: world 'willow': the dataset registry's ``willow`` (default) or a map_server YAML path
     willow_map: str | None = None
+
+    @pydantic.model_validator(mode="after")
+    def _evaluation_is_fresh(self) -> "NavigationScenarios":
+        from slamkit.experiments.navigation_benchmark import seed_blocks
+
+        if self.evaluation is not None:
+            try:
+                seed_blocks(seed_list(self.seeds), self.evaluation.model_dump())
+            except ConfigError as exc:
+                raise ValueError(str(exc)) from None
+        return self
 
 
 class NavigationVariant(BaseModel):

@@ -39,6 +39,9 @@ import numpy as np
 from slamkit.errors import ConfigError
 from slamkit.experiments.closed_loop import start_goal_draws
 from slamkit.experiments.config_models import NavigationPipeline, seed_list
+from slamkit.experiments.navigation_benchmark import (DEV_BLOCK, benchmark_markdown, benchmark_rows, difficulty_rows,
+                                                     episode_benchmark_metrics, plot_benchmark, scenario_difficulty,
+                                                     seed_blocks)
 from slamkit.experiments.navigation_map import RobotMap, map_source_config, robot_map
 from slamkit.experiments.observers import PipelineObserver
 from slamkit.experiments.pipeline import Pipeline, PipelineOutput, StepProgress
@@ -189,6 +192,7 @@ def run_episode(scenario: NavigationScenario, nav_config: NavigationConfig = Nav
     ts, xs, es = [0.0], [plant.world_xytheta_body.copy()], [stack.current_pose()[0]]
     c_static, c_moving = plant.clearance_m(0.0, r, field_m)
     min_static, min_moving = c_static, c_moving
+    clear_static, clear_moving = [c_static], [c_moving]  # the benchmark's percentiles
     hit_static = hit_moving = False
     kidnapped = False
     steps = int(round(config.max_time_s / config.dt_s))
@@ -208,6 +212,8 @@ def run_episode(scenario: NavigationScenario, nav_config: NavigationConfig = Nav
         es.append(stack.current_pose()[0])
         c_static, c_moving = plant.clearance_m(t_next, r, field_m)
         min_static, min_moving = min(min_static, c_static), min(min_moving, c_moving)
+        clear_static.append(c_static)
+        clear_moving.append(c_moving)
         if on_step is not None:
             on_step(stack, plant, t_next, decision)
         if c_static < 0.0 or c_moving < 0.0:
@@ -223,6 +229,8 @@ def run_episode(scenario: NavigationScenario, nav_config: NavigationConfig = Nav
     true_in_map = true if robot.anchors_world_xytheta is None else np.array([robot.to_map(x) for x in true])
     loc_err = np.linalg.norm(true_in_map[:, :2] - est[:, :2], axis=1)
     compute_s = sum(sum(v) for v in stack.timings_s.values())
+    path_length_m = float(np.linalg.norm(np.diff(true[:, :2], axis=0), axis=1).sum())
+    time_s = float(ts[-1]) if success else float("nan")
     metrics = {
         "success": float(success),
         "reached_by_belief": float(stack.reached),
@@ -232,8 +240,8 @@ def run_episode(scenario: NavigationScenario, nav_config: NavigationConfig = Nav
         "collision_moving": float(hit_moving),
         "min_clearance_static_m": float(min_static),
         "min_clearance_moving_m": float(min_moving) if math.isfinite(min_moving) else float("nan"),
-        "time_s": float(ts[-1]) if success else float("nan"),
-        "path_length_m": float(np.linalg.norm(np.diff(true[:, :2], axis=0), axis=1).sum()),
+        "time_s": time_s,
+        "path_length_m": path_length_m,
         "localisation_error_mean_m": float(loc_err.mean()),
         "localisation_error_max_m": float(loc_err.max()),
         "kidnapped": float(kidnapped),
@@ -249,6 +257,11 @@ def run_episode(scenario: NavigationScenario, nav_config: NavigationConfig = Nav
         "localisation_injections": float(stack.mcl.injections),
         **layer_timing_summary(stack.timings_s),
         "real_time_factor": float(ts[-1] / max(compute_s, 1e-9)),
+        **episode_benchmark_metrics(
+            success=success, collision_static=hit_static, collision_moving=hit_moving,
+            reached_by_belief=stack.reached, clearance_static_m=clear_static, clearance_moving_m=clear_moving,
+            time_s=time_s, path_length_m=path_length_m, difficulty=scenario_difficulty(scenario, r, field_m),
+            max_speed_mps=nav_config.cruise_speed_mps),
     }
     return Episode(scenario.name, scenario.name.rsplit("_", 1)[0], scenario.seed, variant,
                    np.array(ts), true, est, metrics, loc_err)
@@ -349,12 +362,19 @@ def scenarios_of(config: Mapping[str, Any]) -> list[NavigationScenario]:
     for w in worlds:
         if w not in WORLDS:
             raise ConfigError(f"scenarios.worlds: unknown world {w!r}; choose from {WORLDS}")
-    seeds = seed_list(sc.get("seeds", 3))
+    seeds = [seed for _block, seed in seed_blocks_of(config)]
     willow = willow_yaml(sc.get("willow_map")) if "willow" in worlds else None
     n_obs = int(sc.get("n_obstacles", 2))
     agents = str(sc.get("agents", "constant_velocity"))
     return [make_navigation_scenario(seed, w, willow, n_obstacles=n_obs, agents=agents)
             for w in worlds for seed in seeds]
+
+
+def seed_blocks_of(config: Mapping[str, Any]) -> list[tuple[str, int]]:
+    """(block, seed) of every episode seed: ``scenarios.seeds`` as the development block, then
+    the ``scenarios.evaluation`` blocks (:mod:`slamkit.experiments.navigation_benchmark`)."""
+    sc = dict(config.get("scenarios", {}) or {})
+    return seed_blocks(seed_list(sc.get("seeds", 3)), sc.get("evaluation"))
 
 
 #: what the paired table of :func:`paired_variants_markdown` compares
@@ -384,14 +404,18 @@ def paired_variants_markdown(config: Mapping[str, Any], episodes: list[Episode])
         ["world", "variants", "metric", "pairs", "mean difference", "95% CI", "Wilcoxon p"], rows) + "\n"
 
 
-def runs_of(episodes: list[Episode]) -> list[RunRecord]:
-    return [RunRecord(e.world, e.variant, dict(e.metrics), seed=e.seed, params={"scenario": e.scenario})
+def runs_of(episodes: list[Episode], blocks: Mapping[int, str] | None = None) -> list[RunRecord]:
+    """The episodes as run records; ``params.block`` says which seed block each came from."""
+    blocks = blocks or {}
+    return [RunRecord(e.world, e.variant, dict(e.metrics), seed=e.seed,
+                      params={"scenario": e.scenario, "block": blocks.get(e.seed, DEV_BLOCK)})
             for e in episodes]
 
 
 def report_markdown(config: Mapping[str, Any], episodes: list[Episode], summary: list[dict],
-                    maps: Mapping[str, RobotMap] | None = None) -> str:
-    text = f"# Navigation: {config.get('name', 'navigation')}\n\n"
+                    maps: Mapping[str, RobotMap] | None = None, benchmark: str = "") -> str:
+    text = f"# Navigation: {config.get('name', 'navigation')}\n\n" + benchmark
+    text += "## Every metric\n\n"
     text += ("MCL (likelihood field, 500 particles) on simulated lidar and wheel odometry, each "
              "variant's global planner (A* by default) and local planner on the estimated pose among "
              "lidar-tracked obstacles. "
@@ -493,10 +517,18 @@ def run(config: Mapping[str, Any], folder: ResultsFolder, progress: StepProgress
             episode = run_episode(sc, nav, ep, name, hook, robot)
             episodes.append(dataclasses.replace(episode, metrics={**episode.metrics, **robot.metrics}))
             advance(1)
-    runs = runs_of(episodes)
+    runs = runs_of(episodes, {seed: block for block, seed in seed_blocks_of(config)})
     summary = summarise(runs)
     plot(folder.plots, episodes, {s.name: s for s in scenarios})
-    return PipelineOutput(runs, report_markdown(config, episodes, summary, maps), summary, payload=episodes)
+    rows, by_difficulty = benchmark_rows(runs), difficulty_rows(runs)
+    plot_benchmark(folder.plots / "benchmark.png", rows, by_difficulty)
+    sc = config.get("scenarios", {}) or {}
+    protocol = {"dev_seeds": [s for b, s in seed_blocks_of(config) if b == DEV_BLOCK],
+                "evaluation": sc.get("evaluation")}
+    text = benchmark_markdown(rows, by_difficulty, protocol)
+    return PipelineOutput(runs, report_markdown(config, episodes, summary, maps, text), summary,
+                          extra={"benchmark": {"protocol": protocol, "rows": rows, "by_difficulty": by_difficulty}},
+                          payload=episodes)
 
 
 PIPELINE: Pipeline[list[Episode]] = Pipeline(
