@@ -23,7 +23,13 @@ truth, without a collision), ``final_position_error_m``, ``final_heading_error_r
 ``min_clearance_moving_m``, ``time_s``, ``path_length_m``, ``localisation_error_mean_m`` /
 ``_max_m`` (estimate vs truth over the run), ``replans``, ``no_safe_stop_cycles``, and per layer
 ``<layer>_median_ms`` / ``<layer>_p99_ms`` with ``real_time_factor`` (simulated time over the
-stack's compute time).
+stack's compute time), and the benchmark's (:mod:`slamkit.experiments.navigation_benchmark`):
+``timeout``, ``off_goal``, ``clearance_static_p5_m`` / ``clearance_moving_p5_m``,
+``optimal_path_length_m``, ``optimal_time_s``, ``time_over_optimal``, ``path_over_optimal``,
+``crossing_agents``, ``agent_speed_max_mps``, ``narrowest_passage_m``.
+
+Seeds: ``scenarios.seeds`` are the development seeds, ``scenarios.evaluation`` the blocks a claim
+is measured on; every run records its ``block`` (:mod:`slamkit.experiments.navigation_benchmark`).
 """
 
 from __future__ import annotations
