@@ -58,6 +58,8 @@ from slamkit.maps.log_odds import LogOddsConfig, LogOddsMap, MapQuality, map_qua
 from slamkit.maps.occupancy_grid import OccupancyGrid
 from slamkit.metrics.alignment import align
 from slamkit.metrics.ate import ate
+from slamkit.metrics.loop_closures import loop_closure_counts
+from slamkit.metrics.map_consistency import map_consistency
 from slamkit.metrics.relations import RelationErrors, read_relations, relation_errors
 from slamkit.models import diff_drive
 from slamkit.paths import file_in
@@ -77,6 +79,18 @@ PUBLISHED: dict[str, dict[str, tuple[float, float]]] = {
     "fr-clinic": {"scan matching": (0.434, 1.615), "RBPF (50 particles)": (0.637, 2.638),
                   "graph mapping": (0.143, 0.180)},
 }
+
+#: real-time factor (log duration / wall-clock time) of Cartographer (Hess et al., "Real-Time Loop
+#: Closure in 2D LIDAR SLAM", ICRA 2016, sec. VI, one Xeon E5-1650): Intel 2691 s of data in
+#: 179 s, FR079 1061 s in 62 s, MIT CSAIL 424 s in 35 s
+CARTOGRAPHER_REALTIME_FACTOR: dict[str, float] = {"intel": 15.0, "fr079": 17.0, "mit-csail": 12.0}
+
+#: relations whose translational error exceeds this are drawn on the map plots (m)
+BAD_RELATION_M = 0.2
+
+#: the map consistency figure scores every n-th end point (all of them are the reference):
+#: measured on the first 120 s of Intel, every point 0.0X m in X s, every 4th 0.0X m in X s
+CONSISTENCY_QUERY_EVERY = 4
 
 
 @dataclass(frozen=True)
@@ -114,6 +128,9 @@ class LidarSlamResult:
     relations: RelationErrors | None = None
     label: str = ""
     body_xytheta_lidar: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    #: (R, 5) per scored relation: the estimated positions at its two stamps (x1, y1, x2, y2, m)
+    #: and its translational error (m)
+    relation_segments: np.ndarray | None = None
 
     def sensor_poses(self, world_xytheta_body: np.ndarray) -> np.ndarray:
         return se2.compose(np.asarray(world_xytheta_body, float).reshape(-1, 3), self.body_xytheta_lidar)
@@ -193,6 +210,7 @@ def run_slam(sequence: Sequence, truth: OccupancyGrid | None = None,
             else np.asarray(sequence.initial_world_xytheta_body, float).reshape(3))
     odom_at_scan, scan_step = [], []
     clock = time.perf_counter
+    cpu_start = time.process_time()
     t_start = clock()
     for ev in sequence:
         t0 = clock()
@@ -210,6 +228,7 @@ def run_slam(sequence: Sequence, truth: OccupancyGrid | None = None,
     t_finish = clock()
     est = system.finish()
     t_end = clock()
+    cpu_s = time.process_time() - cpu_start
     points, ranges, angles = system.keyframe_scans()
     stamps = est.keyframe_stamps_s
     poses, fe_poses = est.keyframe_poses, est.frontend_poses
@@ -243,6 +262,8 @@ def run_slam(sequence: Sequence, truth: OccupancyGrid | None = None,
         "wide_searches": float(c["wide_searches"]),
         "correlative_searches": float(c["correlative_searches"]),
         "correlative_wins": float(c["correlative_wins"]),
+        # the global loop search's share (slamkit.systems.lidar_slam), when the system counts it
+        **{k: float(c[k]) for k in ("loop_candidates_global", "loop_closures_global") if k in c},
     }
     duration = float(est.stamps_s[-1] - est.stamps_s[0])
     total = t_end - t_start
@@ -250,6 +271,7 @@ def run_slam(sequence: Sequence, truth: OccupancyGrid | None = None,
     tenth = max(1, len(step) // 10)
     metrics.update(time_total_s=total, time_finish_s=t_end - t_finish, time_map_s=time_map,
                    realtime_factor=duration / total, log_duration_s=duration,
+                   time_cpu_s=cpu_s, realtime_factor_cpu=duration / cpu_s,
                    time_per_scan_median_ms=1e3 * float(np.median(step)),
                    time_per_scan_p99_ms=1e3 * float(np.percentile(step, 99)),
                    time_per_scan_last_over_first=float(np.mean(step[-tenth:]) / np.mean(step[:tenth])),
@@ -259,15 +281,30 @@ def run_slam(sequence: Sequence, truth: OccupancyGrid | None = None,
         after_m = ate_keyframes_m(sequence.ground_truth, stamps, poses)
         metrics.update(ate_odometry_m=ate_keyframes_m(sequence.ground_truth, stamps, odo_kf),
                        ate_frontend_m=before_m, ate_rmse_m=after_m, ate_reduction=before_m / max(after_m, 1e-12))
+    if sequence.name in CARTOGRAPHER_REALTIME_FACTOR:
+        # how many times faster than real time, against Cartographer's published factor
+        metrics["realtime_factor_vs_cartographer"] = metrics["realtime_factor"] / CARTOGRAPHER_REALTIME_FACTOR[sequence.name]
+    # the map consistency figure (no ground truth) of the scans in the map's frame
+    t_consistency = clock()
+    consistency = map_consistency(se2.compose(map_poses, np.asarray(config.body_xytheta_lidar, float)), angles,
+                                  ranges, config.max_range_m, query_every=CONSISTENCY_QUERY_EVERY)
+    metrics.update(consistency.as_metrics(), time_consistency_s=clock() - t_consistency)
     quality = None
     if truth is not None:
         quality = map_quality(slam_map, truth)
         metrics.update(quality.as_metrics("map_"))
         metrics["map_frontend_iou"] = map_quality(fe_map, truth).iou
-    rel = None
+    rel = segments = None
     if relations is not None:
         rel = relation_errors(est.stamps_s, est.world_xytheta_body, relations)
         metrics.update({k: float(v) for k, v in rel.to_dict().items()})
+        metrics["relations_over_0_2_m"] = float(np.sum(rel.errors_m > BAD_RELATION_M))
+        segments = _relation_segments(est.stamps_s, est.world_xytheta_body, relations, rel)
+        # the loop closures' precision and recall against the relations between revisits
+        ij = np.array([[lc.i, lc.j] for lc in est.loops], dtype=int).reshape(-1, 2)
+        counts = loop_closure_counts(stamps[ij], np.array([lc.i_T_j for lc in est.loops], float).reshape(-1, 3),
+                                     est.stamps_s, est.world_xytheta_body, relations)
+        metrics.update({k: float(v) for k, v in counts.to_dict().items()})
         odo_rel = relation_errors(est.stamps_s, odom_at_scan, relations)
         metrics.update(relation_trans_mean_m_odometry=odo_rel.translation_m.mean,
                        relation_trans_std_m_odometry=odo_rel.translation_m.std,
@@ -277,7 +314,21 @@ def run_slam(sequence: Sequence, truth: OccupancyGrid | None = None,
                            system.graph(), est.loops, tuple(false_pairs), slam_map, fe_map, metrics,
                            quality, angles, ranges, system.max_range_m, config, truth, est.stamps_s,
                            est.world_xytheta_body, step, rel, label or sequence.name,
-                           np.asarray(config.body_xytheta_lidar, float))
+                           np.asarray(config.body_xytheta_lidar, float), segments)
+
+
+def _relation_segments(stamps_s: np.ndarray, poses: np.ndarray, relations, errors: RelationErrors) -> np.ndarray:
+    """(R, 5): x1, y1, x2, y2 of the estimated poses nearest each scored relation's two stamps
+    (the scans' ipc stamps, as the relation error matched them) and its error (m)."""
+    order = np.argsort(stamps_s, kind="stable")
+    t, xy = np.asarray(stamps_s)[order], np.asarray(poses)[order, :2]
+    k = errors.index
+
+    def at(query):
+        i = np.clip(np.searchsorted(t, query), 1, len(t) - 1)
+        return xy[np.where(np.abs(query - t[i - 1]) <= np.abs(t[i] - query), i - 1, i)]
+
+    return np.column_stack([at(relations.t1_s[k]), at(relations.t2_s[k]), errors.errors_m])
 
 
 def _peak_rss_mb() -> float:
@@ -641,12 +692,21 @@ def _pm(mean: float | None, std: float | None, digits: int = 3) -> str:
 def _log_report(runs: list[RunRecord]) -> str:
     text = ("## Laser logs\n\nRelation error (Kuemmerle et al., Autonomous Robots 27(4), 2009): for every "
             "manually verified relation, the error of the estimated displacement between the two scans "
-            "(poses stamped with the scans' ipc timestamps); mean +- std over all relations. Raw "
-            "odometry is scored on the same relations. Real-time factor: log duration / processing "
-            "time (every scan matched, loop search, iSAM2, the final batch solve; map building "
-            "excluded) on this machine.\n\n")
-    header = ["log", "estimator", "translation (m)", "rotation (deg)", "relations", "raw odometry (m)",
-              "keyframes", "loops (online + final)", "real-time factor", "time (s)",
+            "(poses stamped with the scans' ipc timestamps); mean +- std over all relations, and how many "
+            f"are off by more than {BAD_RELATION_M:g} m (drawn on the maps in plots/). Raw "
+            "odometry is scored on the same relations. Map consistency (every log, no ground truth; "
+            "slamkit.metrics.map_consistency): the distance of keyframe scans' end points to the walls "
+            "that other visits of the same place drew, mean and 95th percentile (it grows where walls are "
+            "doubled), and the share of end points seen on more than one visit. Real-time factor: log "
+            "duration / wall-clock processing time (every scan matched, loop search, iSAM2, the final "
+            "batch solve; map building excluded) on this machine, and against the process's CPU time "
+            "(what the other processes on the machine cannot take from it). Loop precision / recall "
+            "(slamkit.metrics.loop_closures): the share of verifiable closures (count) that agree with "
+            "a relation to 0.2 m / the share of relations between revisits (count, >= 60 s apart) that a "
+            "closure covers.\n\n")
+    header = ["log", "estimator", "translation (m)", "rotation (deg)", "relations", f"> {BAD_RELATION_M:g} m",
+              "raw odometry (m)", "map consistency mean / p95 (m)", "seen twice", "keyframes",
+              "loops (online + final)", "loop precision / recall", "real-time factor (wall / CPU)", "time (s)",
               "time per scan median / p99 (ms)", "peak RSS (MB)"]
     rows = []
     for r in runs:
@@ -654,13 +714,30 @@ def _log_report(runs: list[RunRecord]) -> str:
         rows.append([r.dataset, r.estimator, _pm(m.get("relation_trans_mean_m"), m.get("relation_trans_std_m")),
                      _pm(m.get("relation_rot_mean_deg"), m.get("relation_rot_std_deg"), 2),
                      int(m["relation_count"]) if "relation_count" in m else "",
+                     int(m["relations_over_0_2_m"]) if "relations_over_0_2_m" in m else "",
                      _pm(m.get("relation_trans_mean_m_odometry"), m.get("relation_trans_std_m_odometry"), 2),
+                     (f"{m['map_consistency_mean_m']:.3f} / {m['map_consistency_p95_m']:.3f}"
+                      if "map_consistency_mean_m" in m else ""),
+                     f"{100 * m['map_consistency_overlap']:.0f}%" if "map_consistency_overlap" in m else "",
                      int(m["num_keyframes"]),
                      f"{int(m['loop_closures_online'])} + {int(m['loop_closures_final'])}",
-                     f"{m['realtime_factor']:.1f}", f"{m['time_total_s']:.1f}",
+                     (f"{m['loop_precision']:.2f} ({int(m['loop_closures_verifiable'])}) / {m['loop_recall']:.2f} "
+                      f"({int(m['revisit_relations'])})" if "loop_precision" in m else ""),
+                     f"{m['realtime_factor']:.1f} / {m.get('realtime_factor_cpu', float('nan')):.1f}",
+                     f"{m['time_total_s']:.1f}",
                      f"{m['time_per_scan_median_ms']:.1f} / {m['time_per_scan_p99_ms']:.1f}",
                      f"{m['peak_rss_mb']:.0f}"])
     text += markdown_table(header, rows) + "\n"
+    timed = [r for r in runs if r.dataset in CARTOGRAPHER_REALTIME_FACTOR]
+    if timed:
+        text += ("\nReal-time factor beside Cartographer's (Hess et al., ICRA 2016: one Xeon E5-1650; "
+                 "issue 29's goal is twice it):\n\n")
+        rows = [[r.dataset, r.estimator, f"{r.metrics['realtime_factor']:.1f}",
+                 f"{r.metrics.get('realtime_factor_cpu', float('nan')):.1f}",
+                 f"{CARTOGRAPHER_REALTIME_FACTOR[r.dataset]:g}", f"{2 * CARTOGRAPHER_REALTIME_FACTOR[r.dataset]:g}",
+                 f"{r.metrics['realtime_factor'] / CARTOGRAPHER_REALTIME_FACTOR[r.dataset]:.2f}"] for r in timed]
+        text += markdown_table(["log", "estimator", "slamkit (wall)", "slamkit (CPU)", "Cartographer", "goal",
+                                "slamkit / Cartographer"], rows) + "\n"
     names = sorted({r.dataset for r in runs if r.dataset in PUBLISHED})
     if names:
         text += ("\nPublished translational relation errors (m, mean +- std; Kuemmerle et al. 2009, "
@@ -717,17 +794,83 @@ def _extent(m: LogOddsMap) -> list[float]:
             m.origin_xy_m[1], m.origin_xy_m[1] + h * m.resolution_m]
 
 
-def _plot_log(plt, plots, res: LidarSlamResult) -> None:
-    """The map at its own resolution (one pixel per cell) with the trajectory over it, and the
-    time per scan along the log."""
+def _scale_bar_m(width_m: float) -> float:
+    """A round length (1, 2 or 5 x 10^k m) of about a fifth of ``width_m``."""
+    target = max(width_m / 5.0, 1e-3)
+    k = 10.0 ** np.floor(np.log10(target))
+    return float(max(m * k for m in (1.0, 2.0, 5.0) if m * k <= target))
+
+
+def log_map_title(res: LidarSlamResult) -> str:
+    """Log, motion prior, relation error when the log has relations, map consistency, real-time factor."""
+    m = res.metrics
+    head = f"{res.name}, motion prior {res.config.motion_prior}"
+    if "relation_trans_mean_m" in m:
+        bad = int(m.get("relations_over_0_2_m", 0))
+        worst = float(np.max(res.relations.errors_m)) if res.relations is not None else float("nan")
+        rel = (f"relation error {m['relation_trans_mean_m']:.3f} +- {m['relation_trans_std_m']:.3f} m over "
+               f"{int(m['relation_count'])} relations; {bad} above {BAD_RELATION_M:g} m (max {worst:.2f} m)")
+    else:
+        rel = "no relations shipped for this log"
+    cons = (f"map consistency {m.get('map_consistency_mean_m', float('nan')):.3f} m "
+            f"(95%: {m.get('map_consistency_p95_m', float('nan')):.3f} m, "
+            f"{100 * m.get('map_consistency_overlap', 0.0):.0f}% of end points seen twice); "
+            f"real-time factor {m.get('realtime_factor', float('nan')):.1f}")
+    return f"{head}\n{rel}\n{cons}"
+
+
+def log_map_figure(plt, res: LidarSlamResult):
+    """The map in metres (one pixel per cell up to 25 inches), the trajectory of every scan, a
+    scale bar, and the relations whose error exceeds :data:`BAD_RELATION_M` as segments between
+    the estimated poses at their two stamps, coloured by their error (a dot at each, so that a
+    relation between close poses shows too): where the map is wrong."""
+    from matplotlib.collections import LineCollection
+    from matplotlib.colors import Normalize
+    from mpl_toolkits.axes_grid1.anchored_artists import AnchoredSizeBar
+
     m = res.map
     h, w = m.shape
-    fig = plt.figure(figsize=(w / 100.0, h / 100.0), dpi=100)
-    ax = fig.add_axes((0.0, 0.0, 1.0, 1.0))
-    ax.imshow(1.0 - m.probability(), cmap="gray", origin="lower", extent=_extent(m), vmin=0, vmax=1,
+    # the map's inches at 100 dpi, and the figure's: margins for the axes' labels, the colour bar
+    # and three lines of title
+    map_w, map_h = np.array([w, h]) * min(1.0, 2500.0 / max(w, h)) / 100.0
+    fig_w, fig_h = max(map_w, 6.0) + 2.4, map_h + 1.5
+    fig = plt.figure(figsize=(fig_w, fig_h), dpi=100)
+    ax = fig.add_axes((0.9 / fig_w, 0.6 / fig_h, map_w / fig_w, map_h / fig_h))
+    extent = _extent(m)
+    ax.imshow(1.0 - m.probability(), cmap="gray", origin="lower", extent=extent, vmin=0, vmax=1,
               interpolation="nearest")
-    ax.plot(res.scan_poses[:, 0], res.scan_poses[:, 1], color="tab:blue", lw=0.6, alpha=0.8)
-    ax.set_axis_off()
+    ax.plot(res.scan_poses[:, 0], res.scan_poses[:, 1], color="tab:blue", lw=0.6, alpha=0.7, label="trajectory")
+    seg = res.relation_segments
+    if seg is not None and len(seg):
+        bad = seg[seg[:, 4] > BAD_RELATION_M]
+        if len(bad):
+            norm = Normalize(BAD_RELATION_M, max(float(bad[:, 4].max()), 2 * BAD_RELATION_M))
+            cmap = plt.get_cmap("autumn_r")
+            lines = LineCollection(bad[:, :4].reshape(-1, 2, 2), cmap=cmap, norm=norm, linewidths=2.0, zorder=3)
+            lines.set_array(bad[:, 4])
+            ax.add_collection(lines)
+            ax.scatter(np.r_[bad[:, 0], bad[:, 2]], np.r_[bad[:, 1], bad[:, 3]], c=np.r_[bad[:, 4], bad[:, 4]],
+                       cmap=cmap, norm=norm, s=14, edgecolors="k", linewidths=0.3, zorder=4,
+                       label=f"{len(bad)} relations off by > {BAD_RELATION_M:g} m")
+            cax = fig.add_axes(((1.0 + map_w) / fig_w, 0.6 / fig_h, 0.15 / fig_w, 0.6 * map_h / fig_h))
+            fig.colorbar(lines, cax=cax, label="relation error (m)")
+    bar_m = _scale_bar_m(extent[1] - extent[0])
+    ax.add_artist(AnchoredSizeBar(ax.transData, bar_m, f"{bar_m:g} m", "lower right", pad=0.6, color="k",
+                                  frameon=True, size_vertical=(extent[3] - extent[2]) / 300.0))
+    ax.set_xlim(extent[0], extent[1])
+    ax.set_ylim(extent[2], extent[3])
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.legend(loc="upper left", fontsize=8)
+    fig.suptitle(log_map_title(res), fontsize=10, x=(0.9 + 0.5 * map_w) / fig_w, y=1.0 - 0.05 / fig_h, va="top")
+    return fig
+
+
+def _plot_log(plt, plots, res: LidarSlamResult) -> None:
+    """The map with the trajectory and the wrong relations over it (:func:`log_map_figure`), and
+    the time per scan along the log."""
+    fig = log_map_figure(plt, res)
     fig.savefig(file_in(plots, f"map_{res.label}", ".png", "log name"), dpi=100)
     plt.close(fig)
     step_ms = 1e3 * np.asarray(res.scan_step_s)

@@ -141,20 +141,21 @@ def map_consistency(world_xytheta_sensor: np.ndarray, angles_rad, ranges_m, max_
         cand = np.flatnonzero(query & (np.abs(piece - q) > reach) & np.all((xy >= lo) & (xy <= hi), axis=1))
         if len(cand) == 0:
             continue
+        # the nearest end point of the visit first (cheap): only points near it can pair with it
+        d, j = cKDTree(xy[ref]).query(xy[cand], distance_upper_bound=max_distance_m)
+        near = np.isfinite(d)
+        cand, d, j = cand[near], d[near], ref[j[near]]
         seen = np.zeros(len(cand), dtype=bool)
         for k in np.flatnonzero(piece_of_kf == q):
-            seen |= _seen_from(poses[k], np.asarray(angles_rad[k], float), np.asarray(ranges_m[k], float),
-                               xy[cand], direction[cand], max_distance_m, cos_side)
-        asked = cand[seen]
-        if len(asked) == 0:
-            continue
-        d, j = cKDTree(xy[ref]).query(xy[asked], distance_upper_bound=max_distance_m)
-        hit = np.isfinite(d)
+            if not seen.all():
+                todo = ~seen
+                seen[todo] = _seen_from(poses[k], np.asarray(angles_rad[k], float), np.asarray(ranges_m[k], float),
+                                        xy[cand[todo]], direction[cand[todo]], max_distance_m, cos_side)
+        asked, d, j = cand[seen], d[seen], j[seen]
         # to the other visit's surface: along the normal at its nearest end point where it has one
-        n = normal[ref[j[hit]]]
-        across = np.abs(np.sum(n * (xy[asked[hit]] - xy[ref[j[hit]]]), axis=1))
-        per_pair.append(np.where(np.isfinite(across), across, d[hit]))
-        matched[asked[hit]] = True
+        across = np.abs(np.sum(normal[j] * (xy[asked] - xy[j]), axis=1))
+        per_pair.append(np.where(np.isfinite(across), across, d))
+        matched[asked] = True
     if not per_pair or not matched.any():
         return MapConsistency(float("nan"), float("nan"), 0.0, 0)
     d = np.concatenate(per_pair)
