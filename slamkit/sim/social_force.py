@@ -70,6 +70,10 @@ class SocialForceConfig:
     group_slow: float = 0.7
     group_hurry: float = 1.2
     forklift_omega_max_radps: float = 0.8
+    #: a person slower than ``stall_speed_mps`` for ``stall_s`` while it wants to walk gives up
+    #: on its waypoint and heads for the next
+    stall_speed_mps: float = 0.05
+    stall_s: float = 2.0
 
 
 @dataclass(frozen=True)
@@ -184,6 +188,7 @@ class SocialForceAgents:
         self._target = np.array([a.start_target for a in self.agents], int)
         self._dir = np.array([a.start_direction for a in self.agents], int)
         self._dwell_until = np.full(k, -math.inf)
+        self._slow_since = np.full(k, math.inf)
         heading = np.zeros(k)
         for i, a in enumerate(self.agents):
             d = a.route_xy_m[self._target[i]] - x[i]
@@ -217,7 +222,11 @@ class SocialForceAgents:
         w = a.route_xy_m
         d = w[self._target[i]] - x
         dist = float(np.linalg.norm(d))
-        if dist <= c.arrive_m:
+        # held off its waypoint (a wall's or someone's repulsion balancing its drive) it gives
+        # up on it after ``stall_s`` at a standstill, as a person would
+        stalled = t_s - self._slow_since[i] >= c.stall_s
+        if dist <= c.arrive_m or stalled:
+            self._slow_since[i] = math.inf
             j = self._target[i]
             if a.dwell_s[j] > 0 and self._dwell_until[i] < t_s - a.dwell_s[j]:
                 self._dwell_until[i] = t_s + a.dwell_s[j]
@@ -281,6 +290,10 @@ class SocialForceAgents:
                 vi *= cap / s
             new_v[i] = vi
             new_x[i] = x[i] + vi * dt
+            if speed > 0 and float(np.linalg.norm(vi)) < c.stall_speed_mps:
+                self._slow_since[i] = min(self._slow_since[i], t)
+            else:
+                self._slow_since[i] = math.inf
             if s > 0.05:
                 new_h[i] = math.atan2(vi[1], vi[0])
         self._xy.append(new_x)
