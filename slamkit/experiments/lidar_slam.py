@@ -89,7 +89,8 @@ CARTOGRAPHER_REALTIME_FACTOR: dict[str, float] = {"intel": 15.0, "fr079": 17.0, 
 BAD_RELATION_M = 0.2
 
 #: the map consistency figure scores every n-th end point (all of them are the reference):
-#: measured on the first 120 s of Intel, every point 0.0X m in X s, every 4th 0.0X m in X s
+#: measured on the hospital's first 2280 keyframes (front end), every end point 0.2196 m in 7.5 s
+#: of CPU, every 4th 0.2190 m in 4.8 s
 CONSISTENCY_QUERY_EVERY = 4
 
 
