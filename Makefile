@@ -18,6 +18,9 @@ KERNEL_SOURCES := $(wildcard slamkit/*/*.c slamkit/*/*/*.c)
 $(STAMP): pyproject.toml constraints.txt setup.py $(KERNEL_SOURCES)
 	@# open3d links against libusb-1.0, which minimal Debian images lack.
 	@ldconfig -p | grep -q 'libusb-1.0.so.0' || { $(SUDO) apt-get update -qq && $(SUDO) apt-get install -y -qq libusb-1.0-0; }
+	@# the recording tests open each pipeline's recording in Rerun's web viewer inside headless
+	@# Chromium (Playwright drives Debian's browser: no browser download)
+	@command -v chromium >/dev/null && [ -e /usr/share/fonts/truetype/dejavu/DejaVuSans.ttf ] || { $(SUDO) apt-get update -qq && $(SUDO) apt-get install -y -qq chromium fonts-dejavu-core; }
 	@# the kernels need Python's C headers (Debian's python3 ships them in python3-dev)
 	@$(PYTHON) -c 'import os, sysconfig, sys; sys.exit(not os.path.exists(os.path.join(sysconfig.get_paths()["include"], "Python.h")))' || { $(SUDO) apt-get update -qq && $(SUDO) apt-get install -y -qq python3-dev; }
 	$(PYTHON) -m venv $(VENV)

@@ -33,6 +33,7 @@ landmark (the true map comes with the output) unless the estimator holds that la
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Iterable, Mapping
 
@@ -46,12 +47,15 @@ from slamkit.experiments.observers import BeliefSnapshot, StepSnapshot
 from slamkit.experiments.pipeline import PipelineOutput
 from slamkit.viz.inertial import log_inertial
 from slamkit.viz.recording import open_recording
+from slamkit.viz.views import labels_fit, log_metre_axes, scene_bounds, series_view, top_down_view
 
 APPLICATION_ID = "slamkit_filter_vs_smoother"
 TIMELINE = "time"
 COLOR_GROUND_TRUTH = (40, 200, 80)
 COLOR_LANDMARK = (230, 60, 60)
-COLOR_ASSOCIATION = (255, 140, 0)
+# grey: the estimators take the palette's colours (orange among them)
+COLOR_ASSOCIATION = (120, 120, 120)
+COLOR_BAND = (150, 150, 150)
 PALETTE = [(30, 120, 255), (255, 127, 14), (148, 103, 189), (214, 39, 40), (23, 190, 207),
            (188, 189, 34), (227, 119, 194), (140, 86, 75), (127, 127, 127)]
 #: a covariance ellipse every this many poses along a final trajectory
@@ -88,19 +92,32 @@ def _positions(trajectory) -> np.ndarray:
     return _xyz(trajectory.xytheta()[:, :2]) if trajectory.planar else np.asarray(trajectory.world_t_body)
 
 
-def blueprint(prefixes: Iterable[str] = ("",), inertial: Iterable[str] = ()) -> rrb.Blueprint:
+def blueprint(prefixes: Iterable[str] = ("",), inertial: Iterable[str] = (),
+              fits: Mapping[str, "SceneFit"] | None = None) -> rrb.Blueprint:
     """One spatial view per scenario over an error and a NEES plot; inertial scenarios add a
-    bias plot and the GPS outage windows (``slamkit.viz.inertial``)."""
+    bias plot and the GPS outage windows (``slamkit.viz.inertial``). A planar scenario whose
+    extent is known (``fits``, from the finished run) is seen from straight above with a metre
+    grid, and its plots' legends sit above the curves (``slamkit.viz.views``)."""
     prefixes = list(prefixes)
     inertial = [x for x in prefixes if x in set(inertial)]
+    fits = fits or {}
 
     def p(path: str, prefix: str) -> str:
         return f"{prefix}/{path}" if prefix else path
 
-    views = [rrb.Spatial3DView(origin=p("world", x), name=x or "world") for x in prefixes]
-    errors = [rrb.TimeSeriesView(origin=p("plots/error", x), name=f"{x} position error (m)".strip())
+    def world_view(x: str):
+        fit = fits.get(x)
+        if fit is None or x in inertial:
+            return rrb.Spatial3DView(origin=p("world", x), name=x or "world")
+        return top_down_view(p("world", x), x or "world", fit.min_xy, fit.max_xy)
+
+    def fit_of(x: str, what: str) -> float | None:
+        return getattr(fits[x], what) if x in fits else None
+
+    views = [world_view(x) for x in prefixes]
+    errors = [series_view(p("plots/error", x), f"{x} position error (m)".strip(), fit_of(x, "error_max_m"))
               for x in prefixes]
-    nees = [rrb.TimeSeriesView(origin=p("plots/nees", x), name=f"{x} NEES".strip()) for x in prefixes]
+    nees = [series_view(p("plots/nees", x), f"{x} NEES".strip(), fit_of(x, "nees_max")) for x in prefixes]
     plots = [rrb.Grid(*errors), rrb.Grid(*nees)]
     if inertial:
         plots.append(rrb.Grid(*[rrb.TimeSeriesView(origin=p("plots/bias", x), name=f"{x} IMU biases".strip())
@@ -111,6 +128,37 @@ def blueprint(prefixes: Iterable[str] = ("",), inertial: Iterable[str] = ()) -> 
         rrb.Horizontal(rrb.Grid(*views), rrb.Vertical(*plots), column_shares=[3, 2]),
         collapse_panels=True,
     )
+
+
+@dataclass(frozen=True)
+class SceneFit:
+    """What a scenario's views are fitted to: its planar extent (m) and its plots' highest values."""
+
+    min_xy: np.ndarray
+    max_xy: np.ndarray
+    error_max_m: float | None
+    nees_max: float | None
+
+
+def _finite_max(values: Iterable[np.ndarray]) -> float | None:
+    finite = [np.asarray(v, float)[np.isfinite(v)] for v in values if v is not None]
+    finite = [v for v in finite if v.size]
+    return float(max(v.max() for v in finite)) if finite else None
+
+
+def scene_fit(sequence, runs: Mapping[str, Any], series: Mapping[str, Any] | None = None,
+              anees: Mapping[str, Any] | None = None) -> SceneFit:
+    """The extent of the ground truth, the true landmarks and every estimate, and the highest
+    position error and NEES plotted (the chi-square band included)."""
+    series, anees = series or {}, anees or {}
+    parts = [np.asarray(list(sequence.world_p_landmarks.values()), float)[:, :2]] if sequence.world_p_landmarks else []
+    if sequence.ground_truth is not None and len(sequence.ground_truth):
+        parts.append(sequence.ground_truth.xytheta()[:, :2])
+    parts += [r.estimate.trajectory.xytheta()[:, :2] for r in runs.values() if r.estimate is not None]
+    lo, hi = scene_bounds(*parts)
+    nees = [s.nees for s in series.values() if s.nees is not None] + [c.anees for c in anees.values()]
+    nees += [np.asarray(c.band, float) for c in anees.values()]
+    return SceneFit(lo, hi, _finite_max(s.position_error_m for s in series.values()), _finite_max(nees))
 
 
 class _Prefixed:
@@ -145,8 +193,9 @@ def log_comparison(stream, sequence, runs: Mapping[str, Any], series: Mapping[st
     if lms:
         ids = sorted(lms)
         true_lm = {int(i): np.asarray(lms[i], float)[:2] for i in ids}
-        stream.log("world/landmarks", rr.Points3D(_xyz(np.array(list(true_lm.values()))), radii=[0.12],
-                                                  colors=[COLOR_LANDMARK], labels=[str(i) for i in ids]),
+        xy = np.array(list(true_lm.values()))
+        stream.log("world/landmarks", rr.Points3D(_xyz(xy), radii=[0.12], colors=[COLOR_LANDMARK],
+                                                  labels=[str(i) for i in ids], show_labels=labels_fit(xy)),
                    static=True)
     if sequence.ground_truth is not None and len(sequence.ground_truth):
         stream.log("world/ground_truth", rr.LineStrips3D([sequence.ground_truth.world_t_body],
@@ -154,6 +203,8 @@ def log_comparison(stream, sequence, runs: Mapping[str, Any], series: Mapping[st
                    static=True)
     if is_inertial(sequence):
         log_inertial(stream, sequence, runs)
+    else:
+        log_metre_axes(stream, "world/axes")
     for name, run in runs.items():
         est = run.estimate  # an EstimatorRun (None when it failed)
         if est is None:
@@ -171,9 +222,14 @@ def log_comparison(stream, sequence, runs: Mapping[str, Any], series: Mapping[st
                        static=True)
         if est.world_p_landmarks:
             lid = sorted(est.world_p_landmarks)
-            stream.log(f"{base}/map", rr.Points3D(
-                _xyz(np.array([np.asarray(est.world_p_landmarks[i], float)[:2] for i in lid])),
-                radii=[0.08], colors=[colors[name]], labels=[str(i) for i in lid]), static=True)
+            held_xy = np.array([np.asarray(est.world_p_landmarks[i], float)[:2] for i in lid])
+            stream.log(f"{base}/map", rr.Points3D(_xyz(held_xy), radii=[0.08], colors=[colors[name]],
+                                                  labels=[str(i) for i in lid], show_labels=labels_fit(held_xy)),
+                       static=True)
+    for name in runs:
+        # the plots use the estimator's colour of the world view
+        for plot in ("error", "nees"):
+            stream.log(f"plots/{plot}/{name}", rr.SeriesLines(colors=[colors[name]], names=[name]), static=True)
     for name, s in series.items():
         index = [rr.TimeColumn(TIMELINE, duration=np.asarray(s.stamps_s))]
         stream.send_columns(f"plots/error/{name}", indexes=index,
@@ -200,6 +256,9 @@ def log_comparison(stream, sequence, runs: Mapping[str, Any], series: Mapping[st
     if band is not None:
         stamps, (lo, hi) = band
         index = [rr.TimeColumn(TIMELINE, duration=stamps)]
+        for bound in ("lower", "upper"):
+            stream.log(f"plots/nees/band_{bound}", rr.SeriesLines(colors=[COLOR_BAND], names=[f"95% band {bound}"]),
+                       static=True)
         stream.send_columns("plots/nees/band_lower", indexes=index,
                             columns=rr.Scalars.columns(scalars=np.full(len(stamps), lo)))
         stream.send_columns("plots/nees/band_upper", indexes=index,
@@ -250,7 +309,9 @@ def record_comparison(path: str | Path | None, sequence, runs: Mapping[str, Any]
                       series: Mapping[str, Any] | None = None, snapshots: Iterable[Any] = (),
                       spawn: bool = False) -> Path | None:
     """Record one sequence and its runs (a notebook's ``slamkit.experiments.runner`` output)."""
-    with open_recording("slamkit_filter_vs_smoother", path, spawn, blueprint()) as rec:
+    fit = None if is_inertial(sequence) else scene_fit(sequence, runs, series)
+    with open_recording("slamkit_filter_vs_smoother", path, spawn,
+                        blueprint(fits={"": fit} if fit is not None else None)) as rec:
         log_comparison(rec.stream, sequence, runs, series, None, snapshots)
     return None if path is None else Path(path)
 
@@ -295,10 +356,13 @@ class FilterVsSmootherObserver:
             return
         for name in payload.estimators:
             self._color(name)
+        fits = {}
         for o in payload.scenarios:
             self._show(o.name, is_inertial(o.sequence))
             log_comparison(_Prefixed(self.recording.stream, o.name), o.sequence, o.runs, o.series, o.anees,
                            colors=self._colors)
+            fits[o.name] = scene_fit(o.sequence, o.runs, o.series, o.anees)
+        self.recording.stream.send_blueprint(blueprint(self._prefixes, self._inertial, fits))
         self.recording.close()
         self._done = True
 
