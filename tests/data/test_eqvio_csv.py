@@ -113,3 +113,11 @@ def test_non_utf8_bytes_name_the_line(tmp_path):
     p.write_bytes((HEAD + META).encode() + b"meta,,,,,,,,,,,,,,,,,,,,note,caf\xe9\n" + _imu(1, 1.0).encode())
     with pytest.raises(DataError, match=r"latin\.csv:13: not a text file"):
         read_eqvio_csv(p)
+
+
+def test_an_id_beyond_an_integer_names_the_line(tmp_path):
+    """A landmark id of 1e20: before, an OverflowError building the id array (found by the fuzzer)."""
+    p = tmp_path / "ok.csv"
+    p.write_text(HEAD + META + _imu(1, 1.0) + _feature(0, 1.0).replace(",7,", ",1e20,"))
+    with pytest.raises(DataError, match=r"ok\.csv:14: column 'landmark_id' is not an integer in \[0, 2\^53\)"):
+        read_eqvio_csv(p)

@@ -135,3 +135,13 @@ def test_non_utf8_bytes_name_the_line(tmp_path):
     paths[1].write_bytes(paths[1].read_bytes().replace(b"12,", b"1\xff2,"))
     with pytest.raises(DataError, match=r"gps\.txt:4: not a text file"):
         read_kitti_imu_gps(*paths)
+
+
+def test_a_bias_random_walk_that_overflows_names_the_metadata_line(tmp_path):
+    """GyroscopeBiasSigma 1e308 over AverageDeltaT 1e-10 s: before, an infinite random walk density
+    reached the setup (found by the fuzzer)."""
+    from slamkit.data.formats.kitti_imu_gps import read_kitti_imu_gps
+
+    meta = _META.replace("2.91e-006", "1e308").replace(" 0.01\n", " 1e-10\n")
+    with pytest.raises(DataError, match=r"meta\.txt:2: bias random walks \(inf, .*\) .* are not finite"):
+        read_kitti_imu_gps(*_files(tmp_path, meta=meta))

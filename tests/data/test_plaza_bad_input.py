@@ -93,3 +93,12 @@ def test_the_bytes_that_crashed_scipy_are_refused_in_a_child_process(tmp_path: P
     assert done.returncode == 0, done.stderr[-500:]
     assert done.stdout.strip() == (f"{mat}: corrupt compressed MAT element at byte 128: Error -3 while "
                                    "decompressing data: incorrect data check")
+
+
+def test_a_dead_reckoning_step_that_is_no_finite_speed_names_its_line(tmp_path: Path) -> None:
+    """1e308 m over 0.5 s: before, v = inf reached the Sequence (found by the fuzzer)."""
+    paths = files(tmp_path)
+    paths[1].write_text("10.5 1e308 0.0\n12.0 1.0 0.0\n")
+    with pytest.raises(DataError, match=r"Plaza9_DR\.txt:1: dead-reckoning step \(1e\+308 m, 0\.0 rad\) over 0\.5 s "
+                                        r"is not a finite speed"):
+        read_plaza_sequence(*paths)

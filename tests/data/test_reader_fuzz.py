@@ -185,6 +185,180 @@ TARGETS = {
 }
 
 
+# --- issue 31: the readers added since issue 10 ------------------------------------------------
+
+
+def _bag_sequence() -> Sequence:
+    """Five odometry steps, scans of 19 beams (one no-return), three IMU and three GPS events."""
+    from slamkit.data.sequence import beam_angles_rad
+
+    events = []
+    for k in range(1, 6):
+        t = 100.0 + 0.1 * k
+        events.append(Odometry(t, 0.1, 0.5, 0.05 * k))
+        r = np.linspace(0.5, 9.0, 19).astype(np.float32)
+        r[3] = np.nan
+        events.append(Scan(round(t + 0.01, 3), beam_angles_rad(-np.pi / 2, np.pi / 18, 19), r, 10.0))
+        if k <= 3:
+            events.append(Imu(round(t + 0.02, 3), np.array([0.0, 0.0, 0.1]), np.array([0.1, 0.0, 9.81])))
+            events.append(Gps(round(t + 0.05, 3), np.array([1.0 * k, -2.0, 0.5]), 0.5))
+    return Sequence.from_events("bag", events)
+
+
+def _fresh(tmp: Path) -> Path:
+    import tempfile
+
+    return Path(tempfile.mkdtemp(dir=tmp))
+
+
+def _ros1_seed(tmp: Path) -> bytes:
+    from slamkit.data.formats.rosbag import write_bag
+
+    return write_bag(_fresh(tmp) / "seed.bag", _bag_sequence(), ros_version=1).path.read_bytes()
+
+
+def _ros2_files(tmp: Path) -> dict[str, bytes]:
+    """metadata.yaml and the database of a ROS 2 bag folder named ``seed2``."""
+    from slamkit.data.formats.rosbag import write_bag
+
+    folder = write_bag(_fresh(tmp) / "seed2", _bag_sequence()).path
+    (db,) = folder.glob("*.db3")  # named as metadata.yaml lists it
+    return {"metadata.yaml": (folder / "metadata.yaml").read_bytes(), "db": db.read_bytes(), "db_name": db.name}
+
+
+def _ros2_prepare(mutated: str):
+    """A ROS 2 bag folder whose ``mutated`` part ('db' or 'metadata.yaml') is the case."""
+    def prepare(workdir: Path, case: bytes) -> Path:
+        files = _ROS2_FILES.setdefault(str(workdir), _ros2_files(workdir) if str(workdir) not in _ROS2_FILES else {})
+        folder = workdir / "seed2"
+        folder.mkdir(exist_ok=True)
+        (folder / "metadata.yaml").write_bytes(case if mutated == "metadata.yaml" else files["metadata.yaml"])
+        (folder / files["db_name"]).write_bytes(case if mutated == "db" else files["db"])
+        return folder
+    return prepare
+
+
+_ROS2_FILES: dict[str, dict[str, bytes]] = {}
+
+
+def _check_bag(seq) -> str | None:
+    # a fix without a covariance has sigma NaN: the documented "unknown", not an impossible number
+    for e in seq.events:
+        for field in e.__dataclass_fields__:
+            if field == "ranges_m" or (isinstance(e, Gps) and field == "sigma_m"):
+                continue
+            if has_nonfinite(getattr(e, field)):
+                return f"non-finite {type(e).__name__}.{field} at stamp {e.stamp_s}"
+    return "non-finite initial pose" if has_nonfinite(seq.initial_world_xytheta_body) else None
+
+
+def _read_bag(p: Path):
+    from slamkit.data.formats.rosbag import read_bag
+
+    return read_bag(p)
+
+
+_CARMEN_HEAD = b"\n".join(__import__("bz2").decompress((DATA / "lidar_2d/intel.clf.bz2").read_bytes())
+                          .split(b"\n")[:40]) + b"\n"
+
+
+def _carmen(p: Path):
+    from slamkit.data.formats.carmen import load_carmen_sequence
+
+    return load_carmen_sequence(p)
+
+
+def _compressed(suffix: str):
+    """Mutate the log's text, then compress it: the parser behind the decompressor is reached."""
+    import bz2
+    import gzip
+
+    compress = gzip.compress if suffix == ".gz" else bz2.compress
+
+    def prepare(workdir: Path, case: bytes) -> Path:
+        path = workdir / f"case.clf{suffix}"
+        path.write_bytes(compress(case))
+        return path
+    return prepare
+
+
+_EQVIO = _head(Path(__import__("gtsam").__file__).parent / "Data" / "eqvio_processed_30s.csv", 130)
+
+
+def _eqvio(p: Path):
+    from slamkit.data.formats.eqvio_csv import read_eqvio_csv
+
+    return read_eqvio_csv(p)
+
+
+_KITTI_FILES = {"imu.txt": _head(GTSAM_DATA / "KittiEquivBiasedImu.txt", 500),
+                "gps.txt": _head(GTSAM_DATA / "KittiGps_converted.txt", 7),
+                "meta.txt": (GTSAM_DATA / "KittiEquivBiasedImu_metadata.txt").read_bytes()}
+
+
+def _kitti_imu_gps(workdir: Path):
+    from slamkit.data.formats.kitti_imu_gps import read_kitti_imu_gps
+
+    return read_kitti_imu_gps(workdir / "imu.txt", workdir / "gps.txt", workdir / "meta.txt")
+
+
+def _check_inertial(seq) -> str | None:
+    from slamkit.data.inertial import setup_of
+
+    return _check_sequence(seq) or ("non-finite inertial setup (noise, start)" if has_nonfinite(setup_of(seq)) else None)
+
+
+def _kitti_target(name: str):
+    return (lambda p: _kitti_imu_gps(p.parent), _KITTI_FILES[name], ".txt", False, _check_inertial,
+            _with_companions({k: v for k, v in _KITTI_FILES.items() if k != name}, name))
+
+
+def _plaza_files() -> dict[str, bytes]:
+    """A slice of Plaza 1: its first 40 s of ground truth, dead reckoning and ranges, every beacon."""
+    from scipy.io import loadmat, savemat
+
+    mat = loadmat(GTSAM_DATA / "Plaza1_.mat")
+    t0 = float(mat["GT"][0, 0])
+    buf = io.BytesIO()
+    savemat(buf, {"GT": mat["GT"][mat["GT"][:, 0] <= t0 + 40], "TL": mat["TL"]}, do_compression=True)
+    lines = {}
+    for name, src in (("dr.txt", "Plaza1_DR.txt"), ("td.txt", "Plaza1_TD.txt")):
+        rows = (GTSAM_DATA / src).read_bytes().split(b"\n")
+        lines[name] = b"\n".join(r for r in rows if r.split() and float(r.split()[0]) <= t0 + 40) + b"\n"
+    return {"plaza.mat": buf.getvalue(), **lines}
+
+
+_PLAZA_FILES = _plaza_files()
+
+
+def _plaza_target(name: str):
+    from slamkit.data.formats.plaza import read_plaza_sequence
+
+    return (lambda p: read_plaza_sequence(p.parent / "plaza.mat", p.parent / "dr.txt", p.parent / "td.txt"),
+            _PLAZA_FILES[name], Path(name).suffix, name.endswith(".mat"), _check_sequence,
+            _with_companions({k: v for k, v in _PLAZA_FILES.items() if k != name}, name))
+
+
+TARGETS.update({
+    "rosbag_ros1": (_read_bag, _ros1_seed, ".bag", True, _check_bag, None),
+    "rosbag_ros2_db": (_read_bag, lambda tmp: _ros2_files(tmp)["db"], ".db3", True, _check_bag, _ros2_prepare("db")),
+    "rosbag_ros2_metadata": (_read_bag, lambda tmp: _ros2_files(tmp)["metadata.yaml"], ".yaml", False, _check_bag,
+                             _ros2_prepare("metadata.yaml")),
+    "carmen_clf": (_carmen, _CARMEN_HEAD, ".clf", False, _check_sequence, None),
+    "carmen_gz": (_carmen, __import__("gzip").compress(_CARMEN_HEAD), ".clf.gz", True, _check_sequence, None),
+    "carmen_gz_content": (_carmen, _CARMEN_HEAD, ".clf.gz", False, _check_sequence, _compressed(".gz")),
+    "carmen_bz2": (_carmen, __import__("bz2").compress(_CARMEN_HEAD), ".clf.bz2", True, _check_sequence, None),
+    "carmen_bz2_content": (_carmen, _CARMEN_HEAD, ".clf.bz2", False, _check_sequence, _compressed(".bz2")),
+    "eqvio_csv": (_eqvio, _EQVIO, ".csv", False, None, None),
+    "kitti_imu_gps_imu": _kitti_target("imu.txt"),
+    "kitti_imu_gps_gps": _kitti_target("gps.txt"),
+    "kitti_imu_gps_meta": _kitti_target("meta.txt"),
+    "plaza_mat": _plaza_target("plaza.mat"),
+    "plaza_dr": _plaza_target("dr.txt"),
+    "plaza_td": _plaza_target("td.txt"),
+})
+
+
 def _run(name: str, cases: int, tmp_path: Path):
     target, seed, suffix, binary, check, prepare = TARGETS[name]
     if callable(seed):

@@ -69,8 +69,9 @@ def _float(row: dict, key: str, path: Path, line: int) -> float:
 
 def _int(row: dict, key: str, path: Path, line: int) -> int:
     value = _float(row, key, path, line)
-    if value != int(value):
-        raise DataError(f"column {key!r} is not an integer: {row.get(key)!r}", path, line)
+    # seq, frame and track ids count from 0; 2^53 is where a float stops holding every integer
+    if value != int(value) or not 0 <= value < 2.0**53:
+        raise DataError(f"column {key!r} is not an integer in [0, 2^53): {row.get(key)!r}", path, line)
     return int(value)
 
 

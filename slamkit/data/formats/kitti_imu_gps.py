@@ -90,9 +90,13 @@ def read_kitti_imu_gps(imu_path: str | Path, gps_path: str | Path, metadata_path
                         gps_path, int(gps_lines[start_fix]))
     yaw = np.arctan2(v0[1], v0[0])
     pitch = -np.arcsin(np.clip(v0[2] / max(np.linalg.norm(v0), 1e-9), -1.0, 1.0))
-    noise = ImuNoise(gyro_noise_density=float(gyro_sigma), gyro_bias_random_walk=float(gyro_bias_sigma / np.sqrt(mean_dt)),
-                     accel_noise_density=float(accel_sigma),
-                     accel_bias_random_walk=float(accel_bias_sigma / np.sqrt(mean_dt)))
+    with np.errstate(over="ignore"):
+        walks = (float(gyro_bias_sigma / np.sqrt(mean_dt)), float(accel_bias_sigma / np.sqrt(mean_dt)))
+    if not np.isfinite(walks).all():  # a bias sigma of 1e308 over a 1e-320 s sample
+        raise DataError(f"bias random walks {walks} (bias sigmas over sqrt(AverageDeltaT)) are not finite",
+                        metadata_path, int(meta_lines[0]))
+    noise = ImuNoise(gyro_noise_density=float(gyro_sigma), gyro_bias_random_walk=walks[0],
+                     accel_noise_density=float(accel_sigma), accel_bias_random_walk=walks[1])
     gps_sigma = float(np.sqrt(GPS_VARIANCE_M2))
     s = START_SIGMA
     sigma = np.concatenate([np.full(3, gps_sigma), np.full(3, s["velocity"]), s["attitude"],

@@ -184,18 +184,18 @@ def read_plaza_sequence(mat_path: str | Path, dr_path: str | Path, td_path: str 
     if estimate_scale and not (np.isfinite(range_scale_sigma) and range_scale_sigma > 0):
         raise DataError(f"range_scale_sigma must be positive, got {range_scale_sigma}", td_path)
     gt, tl = _mat_tables(mat_path)
-    dr = number_rows(dr_path, 3, "no dead-reckoning rows")[1]
+    dr_lines, dr = number_rows(dr_path, 3, "no dead-reckoning rows")
     td = number_rows(td_path, 4, "no range rows")[1]
     t0 = float(gt[0, 0])
     dr_t, td_t, gt_t = dr[:, 0] - t0, td[:, 0] - t0, gt[:, 0] - t0
     if max_duration_s is not None:
-        dr, dr_t = dr[dr_t <= max_duration_s], dr_t[dr_t <= max_duration_s]
+        dr_lines, dr, dr_t = dr_lines[dr_t <= max_duration_s], dr[dr_t <= max_duration_s], dr_t[dr_t <= max_duration_s]
         td, td_t = td[td_t <= max_duration_s], td_t[td_t <= max_duration_s]
         gt, gt_t = gt[gt_t <= max_duration_s], gt_t[gt_t <= max_duration_s]
     dt = np.diff(np.concatenate([[0.0], dr_t]))
     if np.any(dt <= 0):
         k = int(np.flatnonzero(dt <= 0)[0])
-        raise DataError(f"dead-reckoning time does not increase at data row {k + 1}", dr_path)
+        raise DataError(f"dead-reckoning time does not increase at data row {k + 1}", dr_path, int(dr_lines[k]))
     offset = heading_offset_rad(gt[:, 1:3], gt[:, 3])
     flip = np.pi if abs(offset) > np.pi / 2 else 0.0
     heading = wrap_angle(gt[:, 3] + flip)
@@ -207,8 +207,15 @@ def read_plaza_sequence(mat_path: str | Path, dr_path: str | Path, td_path: str 
     keep = td_t >= 0.0
     td, td_t = td[keep], td_t[keep]
     a, b = range_scale_fit(td_t, td[:, 2], td[:, 3], ground_truth, beacons)
-    events: list[Event] = [Odometry(float(t), float(h), float(d / h), float(w / h))
-                           for t, h, d, w in zip(dr_t, dt, dr[:, 1], dr[:, 2])]
+    with np.errstate(over="ignore"):
+        v, omega = dr[:, 1] / dt, dr[:, 2] / dt
+    bad = ~(np.isfinite(v) & np.isfinite(omega))
+    if bad.any():  # a finite step of 1e308 m over 0.2 s
+        k = int(np.flatnonzero(bad)[0])
+        raise DataError(f"dead-reckoning step ({float(dr[k, 1])!r} m, {float(dr[k, 2])!r} rad) over {float(dt[k])!r} s is not a finite "
+                        "speed", dr_path, int(dr_lines[k]))
+    events: list[Event] = [Odometry(float(t), float(h), float(vk), float(wk))
+                           for t, h, vk, wk in zip(dr_t, dt, v, omega)]
     events += [Range(float(t), np.array([int(i)], dtype=np.int64), np.array([r / divisor]))
                for t, i, r in zip(td_t, td[:, 2], td[:, 3])]
     return Sequence.from_events(
