@@ -19,8 +19,8 @@ Plug-ins (issue 32): users extend a registry without editing slamkit. A registry
 object is the registry's entry, adapted by the registry's ``adapt``, or a module whose import
 registers its entries itself), read with :mod:`importlib.metadata` on first use. A module named
 in a config's ``plugins:`` list or a ``--plugin`` option is imported by :func:`import_plugins`,
-which also records it in ``$SLAMKIT_PLUGINS`` so that worker processes (the local executor's,
-Ray's on this machine) import it too before their first lookup.
+which also remembers it: the executors pass the list to their workers in ``$SLAMKIT_PLUGINS``
+(:func:`plugin_env`), and a worker imports those modules before its first lookup.
 """
 
 from __future__ import annotations
@@ -30,6 +30,7 @@ import importlib
 import importlib.metadata
 import os
 import re
+import sys
 import warnings
 from types import ModuleType
 from typing import Any, Callable, Generic, Iterable, Iterator, Mapping, TypeVar
@@ -47,10 +48,20 @@ PLUGINS_ENV = "SLAMKIT_PLUGINS"
 ENTRY_POINT_PREFIX = "slamkit."
 
 
-def import_plugins(modules: Iterable[str], where: str = "plugins") -> list[ModuleType]:
-    """Import each plug-in module (its import registers its entries) and record it in
-    ``$SLAMKIT_PLUGINS`` for child processes. A module that cannot be imported is a ConfigError
-    naming it and ``where`` (the config field or option that listed it)."""
+#: the plug-in modules this process imported through :func:`import_plugins`, in order
+_PLUGIN_MODULES: list[str] = []
+
+
+def import_plugins(modules: Iterable[str], where: str = "plugins",
+                   search_path: Iterable[str] = ()) -> list[ModuleType]:
+    """Import each plug-in module (its import registers its entries) and remember it for the
+    worker processes this process starts (:func:`plugin_env`). ``search_path``: folders also
+    searched (appended to ``sys.path``, so spawned workers search them too), e.g. the config
+    file's folder for a plug-in module beside it. A module that cannot be imported is a
+    ConfigError naming it and ``where`` (the config field or option that listed it)."""
+    for folder in search_path:
+        if folder not in sys.path:
+            sys.path.append(folder)
     loaded = []
     for name in modules:
         if not isinstance(name, str) or not name.strip():
@@ -61,10 +72,15 @@ def import_plugins(modules: Iterable[str], where: str = "plugins") -> list[Modul
         except ImportError as exc:
             raise ConfigError(f"{where}: plug-in module {name!r} cannot be imported ({exc}); is its package "
                               "installed in this environment, or its folder on PYTHONPATH?") from None
-        listed = [m for m in os.environ.get(PLUGINS_ENV, "").split(os.pathsep) if m]
-        if name not in listed:
-            os.environ[PLUGINS_ENV] = os.pathsep.join([*listed, name])
+        if name not in _PLUGIN_MODULES:
+            _PLUGIN_MODULES.append(name)
     return loaded
+
+
+def plugin_env() -> dict[str, str]:
+    """``{$SLAMKIT_PLUGINS: modules}`` for the environment of worker processes (the executors set
+    it for their workers only, so an unrelated child process never inherits a plug-in list)."""
+    return {PLUGINS_ENV: os.pathsep.join(_PLUGIN_MODULES)} if _PLUGIN_MODULES else {}
 
 
 def _import_env_plugins() -> None:

@@ -254,7 +254,10 @@ def test_config_plugins_key_imports_the_module(site, tmp_path, monkeypatch):
     registers its entries on import; the config check sees them, a missing one names file and line."""
     from slamkit.experiments.pipeline import load_config
 
-    monkeypatch.setenv(PLUGINS_ENV, "")  # import_plugins records the module there for workers
+    from slamkit import naming
+
+    # what this process imported is passed to the workers it starts: a fresh list for this test
+    monkeypatch.setattr(naming, "_PLUGIN_MODULES", [])
     path = tmp_path / "fvs.yaml"
     path.write_text("pipeline: filter_vs_smoother\nplugins: [slamkit_example_plugin]\nscenarios: [mild]\n"
                     "estimators: [odometry_only]\n")
@@ -264,7 +267,14 @@ def test_config_plugins_key_imports_the_module(site, tmp_path, monkeypatch):
     with pytest.raises(ConfigError, match=rf"{path}:4: plugins: plug-in module 'slamkit_no_such_plugin' "
                                           "cannot be imported"):
         load_config(path)
-    assert os.environ[PLUGINS_ENV] == "slamkit_example_plugin"
+    assert naming.plugin_env() == {PLUGINS_ENV: "slamkit_example_plugin"}
+    assert PLUGINS_ENV not in os.environ  # set for an executor's workers only, never process-wide
+    from slamkit.experiments.executors import LocalExecutor
+
+    with LocalExecutor(1) as ex:  # the workers import the plug-in before their first lookup
+        ex.submit(os.getenv, PLUGINS_ENV)
+        assert [value for _, value in ex.as_completed()] == ["slamkit_example_plugin"]
+    assert PLUGINS_ENV not in os.environ
 
 
 def test_run_plugin_option_names_a_missing_module(tmp_path):
@@ -276,7 +286,6 @@ def test_run_plugin_option_names_a_missing_module(tmp_path):
     result = CliRunner().invoke(app, ["run", str(tmp_path / "c.yaml"), "--plugin", "slamkit_no_such_plugin"])
     assert result.exit_code == 2
     assert "--plugin: plug-in module 'slamkit_no_such_plugin' cannot be imported" in result.output
-    os.environ.pop(PLUGINS_ENV, None)
 
 
 def test_record_true_without_an_observer_factory_says_so(tmp_path):

@@ -118,8 +118,12 @@ class LocalExecutor(_Backlogged):
 
         # the workers inherit the environment when they start (lazily, on submit): keep the
         # variables set for the executor's life and restore the caller's values on close
-        self._saved_env = {k: os.environ.get(k) for k in ONE_THREAD_ENV}
-        os.environ.update(ONE_THREAD_ENV)
+        from slamkit.naming import PLUGINS_ENV, plugin_env
+
+        # and the plug-in modules this process imported (config plugins:, --plugin): the workers
+        # import them before their first registry lookup
+        self._saved_env = {k: os.environ.get(k) for k in (*ONE_THREAD_ENV, PLUGINS_ENV)}
+        os.environ.update({**ONE_THREAD_ENV, **plugin_env()})
         self._pool = ProcessPoolExecutor(self.workers, mp_context=multiprocessing.get_context("spawn"),
                                          initializer=exit_with_parent, initargs=(os.getpid(),))
         self._init_backlog(IN_FLIGHT_PER_WORKER * self.workers)
@@ -181,8 +185,10 @@ class RayExecutor(_Backlogged):
     def _start(self, fn: Callable[[Any], Any], arg: Any) -> Any:
         if fn not in self._remote:
             # env_vars merge into the job's runtime environment (a user's PYTHONPATH stays)
+            from slamkit.naming import plugin_env
+
             self._remote[fn] = self._ray.remote(num_cpus=1, max_retries=0,
-                                                runtime_env={"env_vars": dict(ONE_THREAD_ENV)})(fn)
+                                                runtime_env={"env_vars": {**ONE_THREAD_ENV, **plugin_env()}})(fn)
         return self._remote[fn].remote(arg)
 
     def as_completed(self) -> Iterator[tuple[Any, Any]]:

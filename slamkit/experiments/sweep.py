@@ -45,7 +45,6 @@ from __future__ import annotations
 
 import datetime as _dt
 import hashlib
-import importlib
 import itertools
 import json
 import time
@@ -65,6 +64,7 @@ from slamkit.experiments.results import (MARKER, SWEEP_KIND, ResultsFolder, RunR
                                          acquire_folder_lock, check_output_folder, is_results_folder, markdown_table,
                                          paired_comparisons, paired_markdown, release_folder_lock, summarise,
                                          summary_markdown)
+from slamkit.naming import import_plugins
 from slamkit.paths import atomic_file, file_in
 
 #: the name of the seed axis in cells, results and reports
@@ -232,11 +232,9 @@ def _base_config(model: SweepModel, doc: YamlDocument, path: Path) -> dict[str, 
 
 
 def _import_plugins(modules: Iterable[str]) -> None:
-    for name in modules:
-        try:
-            importlib.import_module(name)
-        except ImportError as exc:
-            raise ConfigError(f"plugins: cannot import {name!r}: {exc}") from None
+    # the one plug-in mechanism of every registry (slamkit.naming); a cell carries the list so a
+    # worker on another machine imports them too
+    import_plugins(modules, "plugins")
 
 
 # --- one cell, in a worker ------------------------------------------------------------------------

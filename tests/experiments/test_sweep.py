@@ -90,7 +90,7 @@ def test_the_key_is_the_resolved_config_so_axis_order_and_spelling_do_not_matter
     ({"mode": "zip", "axes": {"x": [1, 2], "dataset": ["a"]}}, r"mode zip needs lists of one length, got x: 2, dataset: 1"),
     ({"axes": {"x": [1.0, 1.0]}}, r"cells x=1.0 and x=1.0 resolve to the same config"),
     ({"seeds": 0}, r"seeds: Input should be greater than or equal to 1"),
-    ({"plugins": ["no_such_module_here"]}, r"plugins: cannot import 'no_such_module_here'"),
+    ({"plugins": ["no_such_module_here"]}, r"plugins: plug-in module 'no_such_module_here' cannot be imported"),
 ])
 def test_a_bad_sweep_is_refused_naming_the_field(tmp_path: Path, fields, message) -> None:
     with pytest.raises(ConfigError, match=message):
