@@ -169,6 +169,28 @@ def test_plugin_dataset_loads_and_solves_to_the_square(site):
     assert np.abs(error).max() < 1e-6 and result.chi2 < 1e-9
 
 
+def test_a_spec_takes_the_classes_themselves(site):
+    """A one-file plug-in may write ``target=MyFilter, config=MyFilterConfig``: stored as names."""
+    import slamkit_example_plugin as plugin
+
+    spec = estimators.EstimatorSpec("odometry_only_2", "filter", plugin.OdometryOnly, False, plugin.OdometryOnlyConfig,
+                                    False, "the example again", estimates="pose")
+    assert (spec.target, spec.config) == ("slamkit_example_plugin:OdometryOnly", "OdometryOnlyConfig")
+    estimators.register_estimator(spec)
+    try:
+        from slamkit.sim.landmark_world import mildly_nonlinear, simulate_landmark_sequence
+
+        sequence = simulate_landmark_sequence(mildly_nonlinear(duration_s=2.0), np.random.default_rng(0))
+        built = estimators.factory("odometry_only_2", {"covariance_scale": 2.0})(sequence)
+        assert isinstance(built, plugin.OdometryOnly) and built.config.covariance_scale == 2.0
+    finally:
+        estimators.REGISTRY.unregister("odometry_only_2")
+    with pytest.raises(ConfigError, match=r"config class NoiseParams must be defined in the estimator's module"):
+        from slamkit.data.noise import NoiseParams
+
+        estimators.EstimatorSpec("x", "filter", plugin.OdometryOnly, False, NoiseParams, False, "")
+
+
 def test_bad_plugins_are_config_errors_naming_the_module(tmp_path):
     from slamkit.naming import import_plugins
 

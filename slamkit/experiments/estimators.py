@@ -64,7 +64,8 @@ SEQUENCE_KINDS = ("planar", "inertial")
 
 @dataclass(frozen=True)
 class EstimatorSpec:
-    """One registry row: ``target`` is ``module:attribute`` of the estimator class.
+    """One registry row: ``target`` is ``module:attribute`` of the estimator class (or the class
+    itself, stored as that string; ``config`` likewise the config class or its name).
 
     ``kind`` 'filter' and 'smoother' estimators are driven with ``reset(prior)``, ``step(event)``,
     ``estimate()``; a 'batch' one with ``solve(sequence)``."""
@@ -87,6 +88,16 @@ class EstimatorSpec:
 
     def __post_init__(self) -> None:
         where = f"estimator spec {self.name!r}"
+        # a user's one-file plug-in may give its classes themselves: stored as names, so the spec
+        # stays a small picklable value and the class is imported where it is built
+        if isinstance(self.target, type):
+            object.__setattr__(self, "target", f"{self.target.__module__}:{self.target.__qualname__}")
+        if isinstance(self.config, type):
+            module = self.target.split(":")[0] if isinstance(self.target, str) else None
+            if self.config.__module__ != module:
+                raise ConfigError(f"{where}: the config class {self.config.__qualname__} must be defined in the "
+                                  f"estimator's module {module!r}, not {self.config.__module__!r}")
+            object.__setattr__(self, "config", self.config.__qualname__)
         for field_name, allowed in (("kind", KINDS), ("estimates", ESTIMATES), ("sequence_kind", SEQUENCE_KINDS)):
             if getattr(self, field_name) not in allowed:
                 raise ConfigError(f"{where}: {field_name} must be one of {', '.join(allowed)}, "
