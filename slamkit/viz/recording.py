@@ -46,7 +46,8 @@ def viewer_url(bind: str = VIEWER_BIND, port: int = VIEWER_PORT) -> str:
     come up is an OutputError with the reason, never a hang or a traceback."""
     if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
         raise OutputError("--spawn needs a display (neither DISPLAY nor WAYLAND_DISPLAY is set); "
-                          "write the recording to a file instead and open it later with `rerun FILE`")
+                          "leave --spawn out (the run folder keeps its recording.rrd) and look at it with "
+                          "`slamkit view RUN_FOLDER`, Rerun's web viewer served on 127.0.0.1 (over SSH too)")
     exe = _viewer_executable()
     if exe is None:
         raise OutputError("--spawn needs the rerun viewer, which is not installed (pip install rerun-sdk)")
