@@ -89,9 +89,12 @@ def rerun_binary() -> str:
 
 
 def _host_for_url(bind: str) -> str:
-    """The host a browser on this machine uses for a server bound to ``bind``."""
+    """The host a browser uses for a server bound to ``bind``: the address itself, or for a
+    wildcard bind (which is asked for to be reached from elsewhere) this machine's name -- the
+    browser fetches the recording from that URL too, so ``localhost`` would point at its own
+    machine."""
     if bind in ("0.0.0.0", "::", ""):
-        return "localhost"
+        return socket.gethostname()
     return f"[{bind}]" if ":" in bind else bind
 
 
@@ -248,6 +251,9 @@ def view_command(
     if bind in ("127.0.0.1", "::1", "localhost"):
         typer.echo(f"From another machine: ssh -L {port}:localhost:{port} -L {port + 1}:localhost:{port + 1} "
                    "<this host>, then open the URL there.")
+    else:
+        typer.echo(f"warning: listening on {bind}: whoever can reach this machine on ports {port} and "
+                   f"{port + 1} can load the recording", err=True)
     typer.echo("Ctrl-C stops.")
     sys.stdout.flush()
 

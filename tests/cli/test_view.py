@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from slamkit.cli.view import open_native, recording_of, serve_recording
+from slamkit.cli.view import _host_for_url, open_native, recording_of, serve_recording
 from slamkit.errors import ConfigError
 
 SLAMKIT = Path(sys.executable).with_name("slamkit")
@@ -154,3 +154,10 @@ def test_native_needs_a_display(run_folder, monkeypatch):
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
     with pytest.raises(ConfigError, match=r"--native needs a display.*ssh -L 9090:localhost:9090"):
         open_native(run_folder)
+
+
+def test_the_url_names_a_host_the_browser_can_reach():
+    # loopback and explicit addresses as given; a wildcard bind (asked for so that other machines
+    # connect) is named by this machine's name, since the browser fetches the recording from it
+    assert _host_for_url("127.0.0.1") == "127.0.0.1" and _host_for_url("::1") == "[::1]"
+    assert _host_for_url("0.0.0.0") == socket.gethostname()
