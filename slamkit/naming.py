@@ -44,8 +44,6 @@ T = TypeVar("T")
 
 #: the environment variable listing plug-in modules (``os.pathsep``-separated) for child processes
 PLUGINS_ENV = "SLAMKIT_PLUGINS"
-#: entry-point groups are ``slamkit.<kind>s``: estimators, planners, controllers, datasets, pipelines
-ENTRY_POINT_PREFIX = "slamkit."
 
 
 #: the plug-in modules this process imported through :func:`import_plugins`, in order
