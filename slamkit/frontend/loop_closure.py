@@ -56,6 +56,10 @@ class LoopClosureConfig:
     drift_xy_m2_per_m: float = 1.0e-3
     drift_heading_rad2_per_m: float = 2.0e-5
     drift_heading_rad2_per_rad: float = 1.0e-4
+    #: the drift variances of an edge that kept the motion prior (no trusted scan match) are this
+    #: many times larger (wheel odometry drifts ~10x faster than the scan-matched chain: Intel's raw
+    #: odometry scores 7.4 m relation error, its scan-match chain drifts 0.6 m rms over 20-50 m)
+    drift_unmatched_scale: float = 100.0
     #: the region's global candidates per keyframe (beyond ``search_radius_m``; each is a branch
     #: and bound search, so they bound the run time), most likely first
     max_global_candidates_per_keyframe: int = 1
@@ -78,7 +82,8 @@ class LoopClosureConfig:
             raise ConfigError(f"LoopClosureConfig.region_probability must lie in [0, 1), got {self.region_probability}")
         if not self.max_search_radius_m >= self.search_radius_m:
             raise ConfigError("LoopClosureConfig.max_search_radius_m must be >= search_radius_m")
-        if min(self.drift_xy_m2_per_m, self.drift_heading_rad2_per_m, self.drift_heading_rad2_per_rad) < 0:
+        if min(self.drift_xy_m2_per_m, self.drift_heading_rad2_per_m, self.drift_heading_rad2_per_rad,
+               self.drift_unmatched_scale) < 0:
             raise ConfigError("LoopClosureConfig: the drift variances must be >= 0")
         if self.max_global_candidates_per_keyframe < 0:
             raise ConfigError("LoopClosureConfig.max_global_candidates_per_keyframe must be >= 0")
@@ -168,65 +173,98 @@ def chi2_quantile(probability: float, dof: int) -> float:
 
 
 class DriftRegion:
-    """Where a revisit can be, given the drift accumulated along the scan-match chain: the
-    relative position covariance of keyframe j with respect to keyframe i, summed over the chain
-    edges between max(i, the last accepted closure) and j (keyframes before the last closure are
-    taken as consistent with it: the closure tied the chain to the map there). First-order
-    compounding (Smith, Self & Cheeseman, "Estimating uncertain spatial relationships in
-    robotics", 1990): an edge's translation noise moves every later keyframe by its rotated
-    covariance; its heading noise turns every later keyframe about the edge's end, by the lever
-    arm to j. Both are prefix sums, so every candidate i costs O(1):
+    """Where a revisit can be, given the drift of the scan-match chain: for keyframe j and each
+    earlier keyframe i, an upper bound of the covariance of j's position relative to i, the
+    smaller (by trace) of two bounds:
 
-        Sigma_ij = sum_e R_e Sigma_t,e R_e^T + J (S0 p_j p_j^T - p_j S1^T - S1 p_j^T + S2) J^T
+    * along the chain: the edges between i and j compounded to first order (Smith, Self &
+      Cheeseman, "Estimating uncertain spatial relationships in robotics", 1990) -- exact for a
+      chain, an upper bound once loop closures add information. An edge's translation noise moves
+      every later keyframe by its rotated covariance; its heading noise turns every later
+      keyframe about the edge's end, by the lever arm to j. Both are prefix sums, so each i costs
+      O(1):
 
-    with S0, S1, S2 the sums of sigma_theta,e^2 times 1, p_e and p_e p_e^T over the edges (p_e the
-    edge's end) and J the 90 deg rotation. The edge noise is the scan match's covariance plus the
-    drift model of ``LoopClosureConfig`` (per metre travelled and radian turned)."""
+          Sigma_ij = sum_e R_e Sigma_t,e R_e^T + J (S0 p_j p_j^T - p_j S1^T - S1 p_j^T + S2) J^T
+
+      with S0, S1, S2 the sums of sigma_theta,e^2 times 1, p_e and p_e p_e^T over the edges (p_e
+      the edge's end) and J the 90 deg rotation;
+    * through the closures: every keyframe's covariance relative to the first, propagated along
+      the chain (the same first-order compounding) and, at an accepted closure (i, j), replaced
+      by keyframe i's when that is smaller -- the closure ties j to the older, better known
+      place, as the graph's marginal would -- and Sigma_i + Sigma_j (their correlation ignored,
+      which only overstates).
+
+    So the region of a keyframe that has just closed a loop is small, while one that drifted
+    after a gap (a stretch without matches, a corridor) stays large until the drifted part is
+    tied back to the map. The edge noise is the scan match's covariance plus the drift model of
+    ``LoopClosureConfig`` (per metre travelled and radian turned; times
+    ``drift_unmatched_scale`` for an edge that kept the motion prior)."""
 
     def __init__(self, config: LoopClosureConfig):
         self.config = config
-        self._C = [np.zeros((2, 2))]
-        self._S0 = [0.0]
-        self._S1 = [np.zeros(2)]
-        self._S2 = [np.zeros((2, 2))]
-        self._p = [np.zeros(2)]
-        self.last_closure = 0
+        self._n = 1
+        # prefix sums and poses per keyframe, in arrays grown by doubling (read every keyframe)
+        self._C = np.zeros((64, 2, 2))
+        self._S0 = np.zeros(64)
+        self._S1 = np.zeros((64, 2))
+        self._S2 = np.zeros((64, 2, 2))
+        self._p = np.zeros((64, 2))
+        self._abs = np.zeros((64, 3, 3))
 
     def start(self, world_xytheta: np.ndarray) -> None:
         """The first keyframe's (chain) pose."""
-        self._p[0] = np.asarray(world_xytheta, float)[:2].copy()
+        self._p[0] = np.asarray(world_xytheta, float)[:2]
+
+    def _grow(self) -> None:
+        for name in ("_C", "_S0", "_S1", "_S2", "_p", "_abs"):
+            a = getattr(self, name)
+            setattr(self, name, np.concatenate([a, np.zeros_like(a)]))
 
     def add(self, world_T_previous: np.ndarray, previous_T_new: np.ndarray,
-            covariance: np.ndarray | None = None) -> None:
+            covariance: np.ndarray | None = None, matched: bool = True) -> None:
         """The next keyframe, ``previous_T_new`` (3,) after the previous one at ``world_T_previous``
-        (chain poses), with the edge's covariance (3, 3; right tangent of the previous frame) or None."""
+        (chain poses), with the edge's covariance (3, 3; right tangent of the previous frame) or
+        None; ``matched`` False: the edge is the motion prior (the scan match was not trusted)."""
         cfg = self.config
         rel = np.asarray(previous_T_new, float)
+        prev = np.asarray(world_T_previous, float)
         d = float(np.hypot(rel[0], rel[1]))
-        cov_t = cfg.drift_xy_m2_per_m * d * np.eye(2)
-        var_th = cfg.drift_heading_rad2_per_m * d + cfg.drift_heading_rad2_per_rad * abs(float(rel[2]))
+        scale = 1.0 if matched else cfg.drift_unmatched_scale
+        cov_t = scale * cfg.drift_xy_m2_per_m * d * np.eye(2)
+        var_th = scale * (cfg.drift_heading_rad2_per_m * d + cfg.drift_heading_rad2_per_rad * abs(float(rel[2])))
         if covariance is not None and np.all(np.isfinite(covariance)):
             cov_t = cov_t + np.asarray(covariance)[:2, :2]
             var_th += float(covariance[2, 2])
-        c, s = np.cos(world_T_previous[2]), np.sin(world_T_previous[2])
+        c, s = np.cos(prev[2]), np.sin(prev[2])
         R = np.array([[c, -s], [s, c]])
-        p = se2.compose(np.asarray(world_T_previous, float), rel)[:2]
-        self._C.append(self._C[-1] + R @ cov_t @ R.T)
-        self._S0.append(self._S0[-1] + var_th)
-        self._S1.append(self._S1[-1] + var_th * p)
-        self._S2.append(self._S2[-1] + var_th * np.outer(p, p))
-        self._p.append(p)
+        p = se2.compose(prev, rel)[:2]
+        if self._n == len(self._S0):
+            self._grow()
+        k = self._n
+        self._C[k] = self._C[k - 1] + R @ cov_t @ R.T
+        self._S0[k] = self._S0[k - 1] + var_th
+        self._S1[k] = self._S1[k - 1] + var_th * p
+        self._S2[k] = self._S2[k - 1] + var_th * np.outer(p, p)
+        # the same compounding from the first keyframe: x_new = x_prev (+) rel
+        dx, dy = p - prev[:2]
+        F = np.array([[1.0, 0.0, -dy], [0.0, 1.0, dx], [0.0, 0.0, 1.0]])
+        G = np.zeros((3, 3))
+        G[:2, :2], G[2, 2] = R, 1.0
+        Q = np.zeros((3, 3))
+        Q[:2, :2], Q[2, 2] = cov_t, var_th
+        self._abs[k] = F @ self._abs[k - 1] @ F.T + G @ Q @ G.T
+        self._p[k] = p
+        self._n = k + 1
 
-    def closed(self, j: int) -> None:
-        """An accepted closure at keyframe j: the drift accumulates afresh from there."""
-        self.last_closure = max(self.last_closure, int(j))
+    def closed(self, i: int, j: int) -> None:
+        """An accepted closure between keyframes i < j: j is as well known as i, if i is better
+        known (the keyframes after j compound from there)."""
+        if np.trace(self._abs[i][:2, :2]) < np.trace(self._abs[j][:2, :2]):
+            self._abs[j] = self._abs[i].copy()
 
-    def covariances(self, i: np.ndarray, j: int) -> np.ndarray:
-        """(M, 2, 2) world-frame covariance of keyframe j's position relative to each keyframe of
-        ``i`` (M,), along the chain since the last closure."""
-        s = np.maximum(np.asarray(i, dtype=np.int64), min(self.last_closure, j))
-        C = np.asarray(self._C)
-        S0, S1, S2 = np.asarray(self._S0), np.asarray(self._S1), np.asarray(self._S2)
+    def _chain(self, i: np.ndarray, j: int) -> tuple[np.ndarray, np.ndarray]:
+        s = np.minimum(np.asarray(i, dtype=np.int64), j)
+        C, S0, S1, S2 = self._C, self._S0, self._S1, self._S2
         pj = self._p[j]
         s0 = S0[j] - S0[s]
         s1 = S1[j] - S1[s]
@@ -234,13 +272,28 @@ class DriftRegion:
         V = (s0[:, None, None] * np.outer(pj, pj) - pj[None, :, None] * s1[:, None, :]
              - s1[:, :, None] * pj[None, None, :] + s2)
         J = np.array([[0.0, -1.0], [1.0, 0.0]])
-        return (C[j] - C[s]) + J @ V @ J.T
+        return (C[j] - C[s]) + J @ V @ J.T, s0
+
+    def _bounds(self, i: np.ndarray, j: int) -> tuple[np.ndarray, np.ndarray]:
+        chain, chain_th = self._chain(i, j)
+        A = self._abs
+        idx = np.asarray(i, dtype=np.int64)
+        closures = A[idx, :2, :2] + A[j, :2, :2]
+        closures_th = A[idx, 2, 2] + A[j, 2, 2]
+        use_chain = np.trace(chain, axis1=1, axis2=2) <= np.trace(closures, axis1=1, axis2=2)
+        cov = np.where(use_chain[:, None, None], chain, closures)
+        th = np.where(use_chain, chain_th, closures_th)
+        return cov, th
+
+    def covariances(self, i: np.ndarray, j: int) -> np.ndarray:
+        """(M, 2, 2) world-frame covariance bound of keyframe j's position relative to each
+        keyframe of ``i`` (M,) (class docstring)."""
+        return self._bounds(i, j)[0]
 
     def heading_sigmas(self, i: np.ndarray, j: int) -> np.ndarray:
-        """(M,) heading standard deviation of keyframe j relative to each of ``i``."""
-        s = np.maximum(np.asarray(i, dtype=np.int64), min(self.last_closure, j))
-        S0 = np.asarray(self._S0)
-        return np.sqrt(np.maximum(S0[j] - S0[s], 0.0))
+        """(M,) heading standard deviation of keyframe j relative to each of ``i`` (from the same
+        bound as the position's)."""
+        return np.sqrt(np.maximum(self._bounds(i, j)[1], 0.0))
 
     def members(self, i: np.ndarray, j: int, offsets_xy_m: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Which candidates ``i`` (M,) with estimated position offsets (M, 2) from keyframe j

@@ -27,9 +27,15 @@ graph-based SLAM", IEEE ITS Magazine 2010; the local/global split of Cartographe
    of j in the current estimate (a KD-tree over keyframe positions, rebuilt only when the
    estimate moved), at least ``loops.min_path_gap_m`` of path back, the closest
    ``loops.max_candidates_per_keyframe``, each verified by ICP of j's scan against a submap
-   around i (fitness, plausibility: ``slamkit.frontend.loop_closure.verify_loop``). Accepted
-   closures enter the graph with the ``robust`` kernel (Cauchy by default), so a wrong one that
-   slipped through is bounded.
+   around i (fitness, plausibility: ``slamkit.frontend.loop_closure.verify_loop``). When none is
+   accepted and the drift accumulated along the scan-match chain since the last accepted closure
+   (``slamkit.frontend.loop_closure.DriftRegion``) makes the ``loops.region_probability``
+   chi-square region reach beyond that radius, the region's most likely candidates
+   (``loops.max_global_candidates_per_keyframe``, within ``loops.max_search_radius_m``) are
+   matched globally: branch and bound over the region's window (metres, tens of degrees;
+   ``slamkit.frontend.branch_and_bound``), its optimum seeding the same ICP verification, and the
+   closure kept only if it lies inside the region. Accepted closures enter the graph with the
+   ``robust`` kernel (Cauchy by default), so a wrong one that slipped through is bounded.
 4. The graph is solved incrementally with iSAM2 (``slamkit.backend.Isam2PoseGraph``) at every
    keyframe. ``finish()`` runs ``loop_rounds`` more rounds of loop search over all keyframe pairs
    in the final estimate and one batch Levenberg-Marquardt solve with the robust kernel on the
@@ -255,7 +261,8 @@ class LidarSlam:
         self.counters = {"scans": 0, "matched_scans": 0, "match_fallbacks": 0, "loop_candidates": 0,
                          "loop_closures_online": 0, "loop_closures_final": 0, "icp_iterations": 0,
                          "wide_searches": 0, "correlative_searches": 0, "correlative_wins": 0, "loop_closures_rejected": 0,
-                         "loop_candidates_global": 0, "loop_closures_global": 0}
+                         "loop_candidates_global": 0, "loop_closures_global": 0,
+                         "loop_global_correction_max_m": 0.0}
 
     # ---- streaming ---------------------------------------------------------------------------
 
@@ -330,9 +337,11 @@ class LidarSlam:
         self._last_stamp = stamp
         if self._is_keyframe(rel, stamp) and not (lidar_only and failed):
             world_T_k = self._graph.poses()[k]
+            matched = info is not None
             if info is None:
                 info = self._fallback_information()
-            self._add_keyframe(n, stamp, pts, ranges, scan.angles_rad, se2.compose(world_T_k, rel), rel, info)
+            self._add_keyframe(n, stamp, pts, ranges, scan.angles_rad, se2.compose(world_T_k, rel), rel, info,
+                               matched)
             self._record_scan(stamp, k + 1, np.zeros(3))
         else:
             self._record_scan(stamp, k, rel)
@@ -411,14 +420,14 @@ class LidarSlam:
 
     def _add_keyframe(self, scan_index: int, stamp: float, pts: np.ndarray, ranges: np.ndarray,
                       angles: np.ndarray, world_T_k: np.ndarray, rel: np.ndarray | None,
-                      info: np.ndarray | None) -> None:
+                      info: np.ndarray | None, matched: bool = True) -> None:
         kf = self._kf
         k = len(kf.stamps)
         self._graph.add_pose(k, world_T_k)
         if rel is not None:
             self._graph.add_edge(k - 1, k, rel, info, robust_edge=False)
             self._edge_kind.append("odometry")
-            self._region.add(kf.frontend[-1], rel, np.linalg.inv(info))
+            self._region.add(kf.frontend[-1], rel, np.linalg.inv(info), matched)
             kf.frontend.append(se2.compose(kf.frontend[-1], rel))
             kf.path_m.append(kf.path_m[-1] + float(np.hypot(rel[0], rel[1])))
         else:
@@ -501,6 +510,7 @@ class LidarSlam:
         self._moved_m += float(np.hypot(correction[0], correction[1]))
         self._graph.add_edge(closure.i, closure.j, closure.i_T_j, closure.result.information, robust_edge=True)
         self._edge_kind.append("loop")
+        self._region.closed(closure.i, closure.j)
         self._loops.append(closure)
         self.observer.on_loop_closure(closure)
 
@@ -512,16 +522,15 @@ class LidarSlam:
             if closure is not None:
                 self._accept(closure, poses)
                 found += 1
-        if not found:
-            for i, window_xy_m, window_theta_rad, cov in self._global_candidates_for(j, poses):
-                closure = self._verify_global(i, j, poses, window_xy_m, window_theta_rad, cov)
-                if closure is not None:
-                    self._accept(closure, poses)
-                    self.counters["loop_closures_global"] += 1
-                    found += 1
-                    break
-        if found:
-            self._region.closed(j)
+        # also after a local closure: the keyframes near j in the estimate may all be from the
+        # drifted stretch, the place it revisits beyond them
+        for i, window_xy_m, window_theta_rad, cov in self._global_candidates_for(j, poses):
+            closure = self._verify_global(i, j, poses, window_xy_m, window_theta_rad, cov)
+            if closure is not None:
+                self._accept(closure, poses)
+                self.counters["loop_closures_global"] += 1
+                found += 1
+                break
         self.counters["loop_closures_online"] += found
         return found
 
@@ -537,11 +546,6 @@ class LidarSlam:
         if cfg.region_probability <= 0 or cfg.max_global_candidates_per_keyframe == 0 or j < 1:
             return []
         path = np.asarray(self._kf.path_m)
-        # cheap test first: the region of the oldest possible candidate is the widest
-        oldest = np.array([min(self._region.last_closure, j)])
-        if np.sqrt(chi2_quantile(cfg.region_probability, 2)
-                   * np.linalg.eigvalsh(self._region.covariances(oldest, j))[0, -1]) <= cfg.search_radius_m:
-            return []
         near = self._tree.query_ball_point(poses[j, :2], cfg.max_search_radius_m + self.TREE_MARGIN_M)
         near = np.unique(np.concatenate([np.asarray(near, dtype=np.int64), np.arange(self._tree_size, j)]))
         near = near[(j - near >= cfg.min_index_gap) & (path[j] - path[near] >= cfg.min_path_gap_m)]
@@ -601,6 +605,9 @@ class LidarSlam:
         wide = cov_xy + (lc.search_radius_m ** 2 / q) * np.eye(2)
         if float(shift @ np.linalg.solve(wide, shift)) > q:
             return None
+        # how far the estimate had drifted from the revisit it found
+        self.counters["loop_global_correction_max_m"] = max(self.counters["loop_global_correction_max_m"],
+                                                            float(np.hypot(shift[0], shift[1])))
         return LoopClosure(i, j, res.target_T_source, res)
 
     def add_constraint(self, i: int, j: int, i_xytheta_j: np.ndarray, information: np.ndarray) -> None:

@@ -59,17 +59,39 @@ def test_matches_a_monte_carlo_of_the_compounded_chain():
     np.testing.assert_allclose(model, sample, rtol=0.05, atol=0.05 * np.abs(sample).max())
 
 
-def test_drift_restarts_at_a_closure():
-    """After a closure at keyframe 6 every older keyframe is as uncertain relative to 9 as
-    keyframe 6 itself; keyframes after 6 keep their own chain."""
-    region = DriftRegion(LoopClosureConfig())
-    _chain(region, np.array([[0.5, 0.0, 0.1]] * 9))
-    before = region.covariances(np.array([0, 6, 8]), 9)
-    region.closed(6)
-    after = region.covariances(np.array([0, 6, 8]), 9)
-    np.testing.assert_allclose(after[0], before[1], rtol=1e-12)
-    np.testing.assert_allclose(after[1:], before[1:], rtol=1e-12)
-    assert np.trace(before[0]) > 3 * np.trace(before[1])
+def test_a_closure_ties_the_drift_to_the_older_place():
+    """Keyframes 0-6 on a curved chain, a closure (0, 6), three more keyframes: keyframe 9 is as
+    uncertain relative to 0 as the chain 6 -> 9 alone (the bound through the closure equals the
+    chain's compounding from 6: the two forms of the same first-order propagation), far less than
+    along the whole chain without the closure; relative to 8 the short chain stays the bound."""
+    rels = np.array([[0.5, 0.0, 0.1]] * 9)
+    plain, closed = DriftRegion(LoopClosureConfig()), DriftRegion(LoopClosureConfig())
+    _chain(plain, rels)
+    poses = _chain(closed, rels[:6])
+    closed.closed(0, 6)
+    for rel in rels[6:]:
+        closed.add(poses[-1], rel)
+        poses = np.vstack([poses, se2.compose(poses[-1], rel)])
+    after = closed.covariances(np.array([0, 6, 8]), 9)
+    np.testing.assert_allclose(after[0], plain.covariances(np.array([6]), 9)[0], rtol=1e-9, atol=1e-15)
+    np.testing.assert_allclose(after[1:], plain.covariances(np.array([6, 8]), 9), rtol=1e-9, atol=1e-15)
+    assert np.trace(plain.covariances(np.array([0]), 9)[0]) > 3 * np.trace(after[0])
+    # a second closure to a place no better known changes nothing
+    again = DriftRegion(LoopClosureConfig())
+    _chain(again, rels)
+    again.closed(5, 9)
+    before = again.covariances(np.array([0, 5, 7]), 9)
+    again.closed(7, 9)
+    np.testing.assert_array_equal(again.covariances(np.array([0, 5, 7]), 9), before)
+
+
+def test_unmatched_edges_drift_faster():
+    """An edge that kept the motion prior carries drift_unmatched_scale times the drift variance."""
+    cfg = LoopClosureConfig(drift_unmatched_scale=100.0)
+    a, b = DriftRegion(cfg), DriftRegion(cfg)
+    a.add(np.zeros(3), np.array([1.0, 0.0, 0.0]), matched=True)
+    b.add(np.zeros(3), np.array([1.0, 0.0, 0.0]), matched=False)
+    np.testing.assert_allclose(b.covariances(np.array([0]), 1), 100 * a.covariances(np.array([0]), 1), rtol=1e-12)
 
 
 def test_membership_floor_and_cap():
