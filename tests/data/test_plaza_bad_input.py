@@ -102,3 +102,16 @@ def test_a_dead_reckoning_step_that_is_no_finite_speed_names_its_line(tmp_path: 
     with pytest.raises(DataError, match=r"Plaza9_DR\.txt:1: dead-reckoning step \(1e\+308 m, 0\.0 rad\) over 0\.5 s "
                                         r"is not a finite speed"):
         read_plaza_sequence(*paths)
+
+
+def test_an_unknown_array_class_is_a_data_error(tmp_path: Path) -> None:
+    """GT's array class byte (offset 144 of an uncompressed file: 128-byte header, miMATRIX tag,
+    array-flags tag) set to 117, no MATLAB class: scipy's compiled reader raised UnboundLocalError
+    (found by the fuzzer)."""
+    paths = files(tmp_path, compress=False)
+    data = bytearray(paths[0].read_bytes())
+    assert data[144] == 6  # mxDOUBLE_CLASS
+    data[144] = 117
+    paths[0].write_bytes(bytes(data))
+    with pytest.raises(DataError, match=r"Plaza9_\.mat: not a readable MAT v5 file: UnboundLocalError"):
+        read_plaza_sequence(*paths)

@@ -314,18 +314,23 @@ def _kitti_target(name: str):
 
 
 def _plaza_files() -> dict[str, bytes]:
-    """A slice of Plaza 1: its first 40 s of ground truth, dead reckoning and ranges, every beacon."""
+    """A slice of Plaza 1: its first 40 s of ground truth, dead reckoning and ranges, every beacon;
+    the .mat compressed as the real one is, and uncompressed (whose mutations reach the tables
+    rather than zlib's checksum)."""
     from scipy.io import loadmat, savemat
 
     mat = loadmat(GTSAM_DATA / "Plaza1_.mat")
     t0 = float(mat["GT"][0, 0])
-    buf = io.BytesIO()
-    savemat(buf, {"GT": mat["GT"][mat["GT"][:, 0] <= t0 + 40], "TL": mat["TL"]}, do_compression=True)
+    mats = {}
+    for name, compress in (("plaza.mat", True), ("raw.mat", False)):
+        buf = io.BytesIO()
+        savemat(buf, {"GT": mat["GT"][mat["GT"][:, 0] <= t0 + 40], "TL": mat["TL"]}, do_compression=compress)
+        mats[name] = buf.getvalue()
     lines = {}
     for name, src in (("dr.txt", "Plaza1_DR.txt"), ("td.txt", "Plaza1_TD.txt")):
         rows = (GTSAM_DATA / src).read_bytes().split(b"\n")
         lines[name] = b"\n".join(r for r in rows if r.split() and float(r.split()[0]) <= t0 + 40) + b"\n"
-    return {"plaza.mat": buf.getvalue(), **lines}
+    return {**mats, **lines}
 
 
 _PLAZA_FILES = _plaza_files()
@@ -334,7 +339,8 @@ _PLAZA_FILES = _plaza_files()
 def _plaza_target(name: str):
     from slamkit.data.formats.plaza import read_plaza_sequence
 
-    return (lambda p: read_plaza_sequence(p.parent / "plaza.mat", p.parent / "dr.txt", p.parent / "td.txt"),
+    mat = "raw.mat" if name == "raw.mat" else "plaza.mat"
+    return (lambda p: read_plaza_sequence(p.parent / mat, p.parent / "dr.txt", p.parent / "td.txt"),
             _PLAZA_FILES[name], Path(name).suffix, name.endswith(".mat"), _check_sequence,
             _with_companions({k: v for k, v in _PLAZA_FILES.items() if k != name}, name))
 
@@ -354,6 +360,7 @@ TARGETS.update({
     "kitti_imu_gps_gps": _kitti_target("gps.txt"),
     "kitti_imu_gps_meta": _kitti_target("meta.txt"),
     "plaza_mat": _plaza_target("plaza.mat"),
+    "plaza_mat_uncompressed": _plaza_target("raw.mat"),
     "plaza_dr": _plaza_target("dr.txt"),
     "plaza_td": _plaza_target("td.txt"),
 })

@@ -78,9 +78,10 @@ def _mat_tables(path: Path) -> tuple[np.ndarray, np.ndarray]:
     try:
         mat = loadmat(io.BytesIO(data))
     except (ValueError, OSError, TypeError, KeyError, IndexError, EOFError, OverflowError, struct.error,
-            zlib.error, MatReadError) as exc:
+            zlib.error, MatReadError, UnboundLocalError) as exc:
         # scipy's MAT parser meets corrupt bytes with any of these (a bad zlib stream, an element
-        # tag that is not miMATRIX: TypeError)
+        # tag that is not miMATRIX: TypeError; an array class byte it does not know, 117:
+        # UnboundLocalError from its compiled reader)
         raise DataError(f"not a readable MAT v5 file: {type(exc).__name__}: {exc}", path) from None
     tables = []
     for key, width, least in (("GT", 4, 2), ("TL", 3, 1)):
