@@ -102,7 +102,21 @@ class PoseGraphPipeline(PipelineConfig):
     options: dict[str, Any] = {}
 
     def check_options(self, config: dict[str, Any], doc: YamlDocument | None, source: str) -> None:
+        _check_pose_graph_sources(self.datasets, doc, source)
         _nested(_optimize_options(), self.options, doc, source, ("options",))
+
+
+def _check_pose_graph_sources(datasets: list[str], doc: YamlDocument | None, source: str) -> None:
+    """Every ``datasets`` entry is a registry name (under its naming rule) or an existing file:
+    a misspelt one fails here, naming file and line, not after the others have been solved."""
+    from slamkit.data import registry
+
+    for k, name in enumerate(datasets):
+        try:
+            registry.resolve(name)
+        except SlamkitError as exc:
+            where = doc.where(("datasets", k)) if doc is not None else source
+            raise ConfigError(f"{where}: datasets.{k}: {exc}") from None
 
 
 class PoseGraphOutliersPipeline(PipelineConfig):
@@ -122,6 +136,7 @@ class PoseGraphOutliersPipeline(PipelineConfig):
         from slamkit.backend.robust import RobustSolveConfig
         from slamkit.sim.outliers import OutlierConfig
 
+        _check_pose_graph_sources(self.datasets, doc, source)
         _nested(model_of(OutlierConfig), self.outliers, doc, source, ("outliers",))
         _nested(model_of(RobustSolveConfig), self.solver, doc, source, ("solver",))
 

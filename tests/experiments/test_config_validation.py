@@ -33,6 +33,11 @@ def _refused(tmp_path, text: str | bytes, loader=validate_pipeline_config) -> st
     ("pipeline: pose_graph\ndatasets: [ring]\noptions:\n  max_iterations: abc\n",
      "c.yaml:4: options.max_iterations: Input should be a valid integer, unable to parse string as an integer (got 'abc')"),
     ("pipeline: pose_graph\ndatasets: [ring, 5]\n", "c.yaml:2: datasets.1: Input should be a valid string (got 5)"),
+    # a misspelt dataset fails at validation, not after the others were solved (issue 32)
+    ("pipeline: pose_graph\ndatasets:\n  - ring\n  - intl_g2o\n",
+     "c.yaml:4: datasets.1: 'intl_g2o' is neither an existing file nor a registry name (no dataset named "
+     "'intl_g2o' in the registry; did you mean intel-g2o"),
+    ("pipeline: pose_graph_outliers\ndatasets: [intel_g2o, ringg]\n", "c.yaml:2: datasets.1: 'ringg' is neither"),
     ("pipeline: pose_graph\ndatasets: [ring]\ninits: []\n",
      "c.yaml:3: inits: List should have at least 1 item after validation, not 0 (got [])"),
     ("pipeline: pose_graph\ndatasets: [ring]\nsolver: [gn]\n", "c.yaml:3: solver: unknown key (did you mean 'solvers'?)"),
