@@ -321,3 +321,30 @@ def test_record_true_without_an_observer_factory_says_so(tmp_path):
                                          r"observer_factory=slamkit.viz.pipelines.observer_for"):
         result = run_pipeline(config, tmp_path / "run", progress=False)
     assert not (result.out_dir / "recording.rrd").exists()
+
+
+def test_a_broken_plugin_names_its_entry_point_and_package(tmp_path):
+    """An installed distribution whose entry point cannot be loaded, or names the wrong kind of
+    object, is a ConfigError naming the entry point, its group and its package."""
+    from slamkit.control.registry import CONTROLLERS
+
+    info = tmp_path / "broken_plugin-0.1.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: broken-plugin\nVersion: 0.1\n")
+    (info / "entry_points.txt").write_text("[slamkit.planners]\nbroken = slamkit_no_such_module:SPEC\n\n"
+                                           "[slamkit.controllers]\nwrong = json:dumps\n")
+    sys.path.insert(0, str(tmp_path))
+    importlib.invalidate_caches()
+    try:
+        with pytest.raises(ConfigError, match=r"entry point 'broken' = 'slamkit_no_such_module:SPEC' \(group "
+                                              r"'slamkit.planners', package 'broken-plugin'\): cannot be loaded "
+                                              r"\(ModuleNotFoundError"):
+            planners.PLANNERS.discover(refresh=True)
+        with pytest.raises(ConfigError, match=r"entry point 'wrong' .*a controller entry point names a "
+                                              r"ControllerSpec \(slamkit.control.registry\), got function"):
+            CONTROLLERS.discover(refresh=True)
+    finally:
+        sys.path.remove(str(tmp_path))
+        importlib.invalidate_caches()
+    planners.PLANNERS.discover(refresh=True)  # without the broken package: fine again
+    CONTROLLERS.discover(refresh=True)
