@@ -10,6 +10,8 @@ algorithms' own config dataclasses, so a field exists, has a type and a bound in
 
 from __future__ import annotations
 
+import os
+
 from typing import Annotated, Any, Literal, Union
 
 import pydantic
@@ -410,7 +412,9 @@ def check_pipeline(config: dict[str, Any], doc: YamlDocument | None = None, sour
         where = doc.where(("plugins",)) if doc is not None else source
         if not isinstance(plugins, list):
             raise ConfigError(f"{where}: plugins: a list of module names, got {plugins!r}")
-        import_plugins(plugins, f"{where}: plugins")
+        # a plug-in module may sit beside the config file
+        config_dir = [os.path.dirname(os.path.abspath(source))] if os.path.isfile(source) else []
+        import_plugins(plugins, f"{where}: plugins", config_dir)
     try:
         config["pipeline"] = PIPELINES.canonical(config.get("pipeline"))
     except ConfigError as exc:

@@ -19,6 +19,7 @@ from slamkit.experiments.pipeline import PipelineOutput
 from slamkit.experiments.pose_graph import OptimizeReport
 from slamkit.data.trajectory import Trajectory
 from slamkit.viz.recording import OutputRecorder
+from slamkit.viz.views import log_metre_axes, scene_bounds, series_view, top_down_view
 
 COLOR_INITIAL = (150, 150, 150)
 COLOR_ESTIMATE = (30, 120, 255)
@@ -26,11 +27,32 @@ COLOR_GROUND_TRUTH = (40, 200, 80)
 COLOR_LOOP = (255, 140, 0)
 
 
-def blueprint() -> rrb.Blueprint:
+def world_view(origin: str, name: str, report=None):
+    """A 2D graph is seen from straight above with a metre grid (slamkit.viz.views); a 3D one in
+    a free 3D view."""
+    if report is not None and report.graph.dim == 2:
+        lo, hi = scene_bounds(report.result.poses[:, :2], report.result.initial_poses[:, :2])
+        return top_down_view(origin, name, lo, hi, grid_spacing_m=grid_spacing_m(hi - lo))
+    return rrb.Spatial3DView(origin=origin, name=name)
+
+
+def grid_spacing_m(extent_xy_m) -> float:
+    """1, 10, 100 ... m: about 5-50 grid lines across the larger extent."""
+    extent = max(float(np.max(extent_xy_m)), 1.0)
+    return float(10.0 ** max(0, np.floor(np.log10(extent / 5.0))))
+
+
+def _error_max(report) -> float | None:
+    errors = np.asarray(report.result.errors if report is not None else (), float)
+    errors = errors[np.isfinite(errors)]
+    return float(errors.max()) if errors.size else None
+
+
+def blueprint(report=None) -> rrb.Blueprint:
     return rrb.Blueprint(
         rrb.Horizontal(
-            rrb.Spatial3DView(origin="world", name="trajectories"),
-            rrb.TimeSeriesView(origin="plots", name="error per iteration"),
+            world_view("world", "trajectories", report),
+            series_view("plots", "error per iteration", _error_max(report)),
             column_shares=[3, 2],
         ),
         collapse_panels=True,
@@ -51,6 +73,8 @@ def log_pose_graph(stream: rr.RecordingStream, graph: PoseGraph, initial_poses: 
                    ground_truth: Trajectory | None = None) -> None:
     p_init = positions(graph.dim, initial_poses)
     p_opt = positions(graph.dim, optimised_poses)
+    if graph.dim == 2:
+        log_metre_axes(stream, "world/axes", grid_spacing_m(np.ptp(p_opt[:, :2], axis=0)))
     stream.log("world/initial", rr.LineStrips3D([p_init], colors=[COLOR_INITIAL], radii=[0.02]),
                static=True)
     stream.log("world/estimate", rr.LineStrips3D([p_opt], colors=[COLOR_ESTIMATE], radii=[0.03]),
@@ -100,7 +124,7 @@ def record_optimization(report, path=None, spawn: bool = False) -> None:
     """Record one ``slamkit.experiments.pose_graph.OptimizeReport`` (``slamkit optimize --rrd``)."""
     from slamkit.viz.recording import open_recording
 
-    with open_recording(f"slamkit_optimize_{report.dataset}", path, spawn, blueprint()) as rec:
+    with open_recording(f"slamkit_optimize_{report.dataset}", path, spawn, blueprint(report)) as rec:
         log_pose_graph(rec.stream, report.graph, report.result.initial_poses, report.result.poses,
                        report.result.errors, report.iterates, report.ground_truth)
 
@@ -121,9 +145,8 @@ class PoseGraphPipelineObserver(OutputRecorder):
                 reports.append(r)
         if not reports:
             return
-        views = [rrb.Spatial3DView(origin=f"{r.dataset}/world", name=r.dataset) for r in reports]
-        series = [rrb.TimeSeriesView(origin=f"{r.dataset}/plots", name=f"{r.dataset} error")
-                  for r in reports]
+        views = [world_view(f"{r.dataset}/world", r.dataset, r) for r in reports]
+        series = [series_view(f"{r.dataset}/plots", f"{r.dataset} error", _error_max(r)) for r in reports]
         bp = rrb.Blueprint(rrb.Vertical(rrb.Grid(*views), rrb.Grid(*series), row_shares=[3, 1]),
                            collapse_panels=True)
         with open_recording("slamkit_pose_graph", self.path, self.spawn, bp) as rec:

@@ -28,7 +28,9 @@ import rerun.blueprint as rrb
 from slamkit.data.sequence import Gps, Odometry, RangeBearing, Scan
 from slamkit.maps.occupancy_grid import OccupancyGrid
 from slamkit.sim.moving_obstacles import MovingObstacles
+from slamkit.data.inertial import is_inertial
 from slamkit.viz.recording import open_recording
+from slamkit.viz.views import labels_fit, scene_bounds, top_down_view
 
 TIMELINE = "sim_time"
 COLOR_MAP = (90, 90, 90)
@@ -40,10 +42,20 @@ COLOR_GPS = (200, 60, 200)
 COLOR_OBSTACLE = (250, 200, 0)
 
 
-def blueprint() -> rrb.Blueprint:
+def blueprint(sequence=None, grid: OccupancyGrid | None = None) -> rrb.Blueprint:
+    """The world seen from straight above on a metre grid when the scene is known (a planar
+    sequence, its map), beside the odometry plot."""
+    world = rrb.Spatial3DView(origin="world", name="world")
+    if sequence is not None and not is_inertial(sequence):
+        parts = [np.asarray(list(sequence.world_p_landmarks.values()), float)[:, :2]] if sequence.world_p_landmarks else []
+        if sequence.ground_truth is not None and len(sequence.ground_truth):
+            parts.append(sequence.ground_truth.xytheta()[:, :2])
+        if grid is not None:
+            parts.append(np.array([grid.origin_xy_m, grid.origin_xy_m + grid.resolution_m * np.array([grid.width, grid.height])]))
+        world = top_down_view("world", "world", *scene_bounds(*parts))
     return rrb.Blueprint(
         rrb.Horizontal(
-            rrb.Spatial3DView(origin="world", name="world"),
+            world,
             rrb.TimeSeriesView(origin="plots", name="odometry"),
             column_shares=[3, 1],
         ),
@@ -75,7 +87,8 @@ def log_sequence(stream: rr.RecordingStream, sequence, grid: OccupancyGrid | Non
         ids = sorted(lms)
         pts = np.array([np.asarray(lms[i], float)[:2] for i in ids])
         stream.log("world/landmarks", rr.Points3D(_xyz(pts), radii=[0.12], colors=[COLOR_LANDMARK],
-                                                  labels=[str(i) for i in ids]), static=True)
+                                                  labels=[str(i) for i in ids], show_labels=labels_fit(pts)),
+                   static=True)
     gt = sequence.ground_truth
     if gt is not None and len(gt):
         stream.log("world/ground_truth", rr.LineStrips3D([gt.world_t_body], radii=[0.03],
@@ -138,6 +151,6 @@ def log_sequence(stream: rr.RecordingStream, sequence, grid: OccupancyGrid | Non
 def record_simulation(path: str | Path, sequence, grid: OccupancyGrid | None = None,
                       application_id: str = "slamkit_simulate") -> Path:
     """Write ``sequence`` (and its map) to an ``.rrd`` file atomically; returns the path."""
-    with open_recording(application_id, path=path, blueprint=blueprint()) as rec:
+    with open_recording(application_id, path=path, blueprint=blueprint(sequence, grid)) as rec:
         log_sequence(rec.stream, sequence, grid)
     return Path(path)

@@ -4,8 +4,9 @@ public package, and every tutorial's code runs as written.
 
 A tutorial is executed as a reader would: its ```python and ```bash blocks in order, in one
 fresh folder, the Python blocks in one namespace (a later block sees an earlier block's names),
-the shell blocks with the venv's ``bin`` first on ``PATH``. ```text blocks are not run (set-up
-commands, illustrations). The numbers a tutorial claims are asserted in its own code, so a
+the shell blocks with the venv's ``bin`` first on ``PATH``; a block titled with a file name
+(```python title="my_estimator.py"```) is written to that file, as the reader would save it.
+```text blocks are not run (set-up commands, illustrations). The numbers a tutorial claims are asserted in its own code, so a
 reader sees the check too.
 """
 
@@ -25,20 +26,30 @@ import slamkit
 
 ROOT = Path(__file__).resolve().parents[2]
 DOCS = ROOT / "docs"
-FENCE = re.compile(r"^```(\w+)[^\n]*\n(.*?)^```\s*$", re.M | re.S)
+FENCE = re.compile(r"^```(\w+)([^\n]*)\n(.*?)^```\s*$", re.M | re.S)
+TITLE = re.compile(r'title="([^"]+)"')
 RUNNABLE = ("python", "bash")
 
 
 def code_blocks(page: Path) -> list[tuple[str, str]]:
-    """(language, code) of every runnable fenced block of a Markdown page, in order."""
-    return [(lang, code) for lang, code in FENCE.findall(page.read_text()) if lang in RUNNABLE]
+    """(language, code) of every runnable fenced block of a Markdown page, in order; a block
+    with a ``title="FILE"`` (how the page shows a file's content) becomes ("file:FILE", content)."""
+    blocks = []
+    for lang, info, code in FENCE.findall(page.read_text()):
+        title = TITLE.search(info)
+        if title:
+            blocks.append((f"file:{title.group(1)}", code))
+        elif lang in RUNNABLE:
+            blocks.append((lang, code))
+    return blocks
 
 
 def test_code_blocks_are_found_in_order_and_text_blocks_are_skipped(tmp_path: Path) -> None:
     page = tmp_path / "p.md"
     page.write_text("intro\n```bash\nslamkit --help\n```\n```text\nmake run\n```\n"
-                    "```python\nx = 1\n\ny = 2\n```\n")
-    assert code_blocks(page) == [("bash", "slamkit --help\n"), ("python", "x = 1\n\ny = 2\n")]
+                    "```python\nx = 1\n\ny = 2\n```\n```yaml title=\"a.yaml\"\nk: 1\n```\n")
+    assert code_blocks(page) == [("bash", "slamkit --help\n"), ("python", "x = 1\n\ny = 2\n"),
+                                 ("file:a.yaml", "k: 1\n")]
 
 
 def top_level_modules() -> list[str]:
@@ -84,7 +95,9 @@ import subprocess, sys
 namespace = {"__name__": "__tutorial__"}
 for index, (lang, code) in enumerate(BLOCKS):
     print(f"--- block {index} ({lang})", flush=True)
-    if lang == "python":
+    if lang.startswith("file:"):
+        open(lang[len("file:"):], "w").write(code)
+    elif lang == "python":
         exec(compile(code, f"<block {index}>", "exec"), namespace)
     else:
         subprocess.run(["bash", "-euo", "pipefail", "-c", code], check=True)
