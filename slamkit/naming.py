@@ -46,8 +46,10 @@ T = TypeVar("T")
 PLUGINS_ENV = "SLAMKIT_PLUGINS"
 
 
-#: the plug-in modules this process imported through :func:`import_plugins`, in order
+#: the plug-in modules this process imported through :func:`import_plugins`, in order, and the
+#: folders it was told to search for them (passed to workers on their PYTHONPATH)
 _PLUGIN_MODULES: list[str] = []
+_PLUGIN_DIRS: list[str] = []
 
 
 def import_plugins(modules: Iterable[str], where: str = "plugins",
@@ -57,9 +59,12 @@ def import_plugins(modules: Iterable[str], where: str = "plugins",
     searched (appended to ``sys.path``, so spawned workers search them too), e.g. the config
     file's folder for a plug-in module beside it. A module that cannot be imported is a
     ConfigError naming it and ``where`` (the config field or option that listed it)."""
-    for folder in search_path:
+    folders = [str(folder) for folder in search_path]
+    for folder in folders:
         if folder not in sys.path:
             sys.path.append(folder)
+        if folder not in _PLUGIN_DIRS:
+            _PLUGIN_DIRS.append(folder)
     loaded = []
     for name in modules:
         if not isinstance(name, str) or not name.strip():
@@ -68,17 +73,23 @@ def import_plugins(modules: Iterable[str], where: str = "plugins",
         try:
             loaded.append(importlib.import_module(name))
         except ImportError as exc:
-            raise ConfigError(f"{where}: plug-in module {name!r} cannot be imported ({exc}); is its package "
-                              "installed in this environment, or its folder on PYTHONPATH?") from None
+            looked = (f"looked beside the config too ({', '.join(folders)}); " if folders else "")
+            raise ConfigError(f"{where}: plug-in module {name!r} cannot be imported ({exc}); {looked}is its "
+                              "package installed in this environment, or its folder on PYTHONPATH?") from None
         if name not in _PLUGIN_MODULES:
             _PLUGIN_MODULES.append(name)
     return loaded
 
 
 def plugin_env() -> dict[str, str]:
-    """``{$SLAMKIT_PLUGINS: modules}`` for the environment of worker processes (the executors set
-    it for their workers only, so an unrelated child process never inherits a plug-in list)."""
-    return {PLUGINS_ENV: os.pathsep.join(_PLUGIN_MODULES)} if _PLUGIN_MODULES else {}
+    """``{$SLAMKIT_PLUGINS: modules, PYTHONPATH: search folders + the current one}`` for the
+    environment of worker processes (the executors set it for their workers only, so an
+    unrelated child process never inherits a plug-in list)."""
+    env = {PLUGINS_ENV: os.pathsep.join(_PLUGIN_MODULES)} if _PLUGIN_MODULES else {}
+    if _PLUGIN_DIRS:
+        current = [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p]
+        env["PYTHONPATH"] = os.pathsep.join([*current, *(d for d in _PLUGIN_DIRS if d not in current)])
+    return env
 
 
 def _import_env_plugins() -> None:

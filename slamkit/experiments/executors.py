@@ -122,7 +122,7 @@ class LocalExecutor(_Backlogged):
 
         # and the plug-in modules this process imported (config plugins:, --plugin): the workers
         # import them before their first registry lookup
-        self._saved_env = {k: os.environ.get(k) for k in (*ONE_THREAD_ENV, PLUGINS_ENV)}
+        self._saved_env = {k: os.environ.get(k) for k in (*ONE_THREAD_ENV, PLUGINS_ENV, "PYTHONPATH")}
         os.environ.update({**ONE_THREAD_ENV, **plugin_env()})
         self._pool = ProcessPoolExecutor(self.workers, mp_context=multiprocessing.get_context("spawn"),
                                          initializer=exit_with_parent, initargs=(os.getpid(),))
