@@ -280,6 +280,7 @@ def test_config_plugins_key_imports_the_module(site, tmp_path, monkeypatch):
 
     # what this process imported is passed to the workers it starts: a fresh list for this test
     monkeypatch.setattr(naming, "_PLUGIN_MODULES", [])
+    monkeypatch.setattr(naming, "_PLUGIN_DIRS", [])
     path = tmp_path / "fvs.yaml"
     path.write_text("pipeline: filter_vs_smoother\nplugins: [slamkit_example_plugin]\nscenarios: [mild]\n"
                     "estimators: [odometry_only]\n")
@@ -289,7 +290,7 @@ def test_config_plugins_key_imports_the_module(site, tmp_path, monkeypatch):
     with pytest.raises(ConfigError, match=rf"{path}:4: plugins: plug-in module 'slamkit_no_such_plugin' "
                                           "cannot be imported"):
         load_config(path)
-    assert naming.plugin_env() == {PLUGINS_ENV: "slamkit_example_plugin"}
+    assert naming.plugin_env()[PLUGINS_ENV] == "slamkit_example_plugin"
     assert PLUGINS_ENV not in os.environ  # set for an executor's workers only, never process-wide
     from slamkit.experiments.executors import LocalExecutor
 
