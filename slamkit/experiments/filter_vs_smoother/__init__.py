@@ -76,7 +76,8 @@ def run(config: Mapping[str, Any], folder: ResultsFolder, progress: StepProgress
     """Pipeline ``filter_vs_smoother`` (see the module docstring)."""
     results, scenarios, choices = run_monte_carlo(config, folder.trajectories, progress, observer)
     output = assemble(config, results, scenarios, choices)
-    plot_all(folder.plots, output.payload, output.summary)
+    setting = {(rec.dataset, rec.estimator): rec.params.get("setting") for rec in output.runs}
+    plot_all(folder.plots, output.payload, output.summary, setting)
     return output
 
 

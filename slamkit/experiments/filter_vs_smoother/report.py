@@ -37,6 +37,7 @@ def report_markdown(config: Mapping[str, Any], summary: list[dict[str, Any]], co
                      f"reference: {references.get(s.name, 'none')}")
         if "range_scale" in s.params:
             lines[-1] += "; " + range_scale_mode(s.params["range_scale"])
+    text += headline_markdown(summary, consistency, setting)
     text += "## Scenarios\n\n" + "\n".join(lines) + "\n\n"
     text += "## Metrics\n\n" + by_setting(summary, setting, summary_markdown)
     paired = [r for r in paired or () if r["metric"] in PAIRED_REPORT_METRICS]
@@ -66,6 +67,40 @@ def report_markdown(config: Mapping[str, Any], summary: list[dict[str, Any]], co
     if notes:
         text += "## Notes\n\n" + "\n".join(f"- {n}" for n in notes[:50]) + "\n"
     return text
+
+
+#: the columns a reader compares first: (summary metric, column title, digits)
+HEADLINE_METRICS = (("ate_rmse_m", "ATE RMSE (m)", 3), ("rpe_rmse_m", "RPE RMSE (m)", 3),
+                    ("step_latency_median_ms", "latency median (ms)", 3))
+SETTING_SHORT = {"localisation": "map known", "pose_only": "pose only", "slam": "map estimated"}
+
+
+def headline_markdown(summary: list[dict[str, Any]], consistency: list[dict[str, Any]],
+                      setting: Mapping[tuple[str, str], str | None]) -> str:
+    """The headline table: per scenario and estimator, what it was given (map known, pose only,
+    map estimated), ATE and RPE (mean ± 95% CI half width), the NEES verdict and the median step
+    latency; the full tables follow under Metrics. Rows are grouped by setting so an estimator
+    given the map is never read as beating one that estimates it."""
+    cells: dict[tuple[str, str], dict[str, str]] = {}
+    for row in summary:
+        metric = next((m for m in HEADLINE_METRICS if m[0] == row["metric"]), None)
+        if metric is None or row.get("mean") is None:
+            continue
+        half = None if row.get("ci95") is None or row["ci95"][0] is None else 0.5 * (row["ci95"][1] - row["ci95"][0])
+        value = f"{row['mean']:.{metric[2]}g}" + (f" ± {half:.2g}" if half is not None and row.get("n", 1) > 1 else "")
+        cells.setdefault((row["dataset"], row["estimator"]), {})[metric[0]] = value
+    verdict = {(r["dataset"], r["estimator"]): r["verdict"] for r in consistency}
+    if not cells:
+        return ""
+    order = {key: k for k, key in enumerate([*SETTINGS, None])}
+    keys = sorted(cells, key=lambda k: (k[0], order.get(setting.get(k), len(order))))
+    table = [[d, e, SETTING_SHORT.get(setting.get((d, e)), "")] + [cells[(d, e)].get(m[0], "") for m in HEADLINE_METRICS[:2]]
+             + [verdict.get((d, e), "")] + [cells[(d, e)].get(HEADLINE_METRICS[2][0], "")] for d, e in keys]
+    return ("## Headline\n\nThe columns to compare; every metric with its interval is under Metrics, the "
+            "paired tests and the consistency bands after it. NEES verdict: the time mean of the "
+            "average NEES inside, above (overconfident) or below (underconfident) its 95% chi-square band.\n\n"
+            + markdown_table(["scenario", "estimator", "given", *[m[1] for m in HEADLINE_METRICS[:2]], "NEES verdict",
+                              HEADLINE_METRICS[2][1]], table) + "\n\n")
 
 
 def range_scale_mode(range_scale: Any) -> str:
@@ -153,7 +188,8 @@ def inertial_markdown(summary: list[dict[str, Any]]) -> str:
 # plots
 
 
-def plot_all(plots: Path, payload: FilterVsSmootherPayload, summary: list[dict[str, Any]]) -> None:
+def plot_all(plots: Path, payload: FilterVsSmootherPayload, summary: list[dict[str, Any]],
+             setting: Mapping[tuple[str, str], str | None] | None = None) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -172,7 +208,7 @@ def plot_all(plots: Path, payload: FilterVsSmootherPayload, summary: list[dict[s
             fig = plot_nees(outcome, plt)
             fig.savefig(file_in(plots, f"nees_{outcome.name}", ".png", "scenario name"), dpi=100)
             plt.close(fig)
-    fig = plot_ate(summary, plt)
+    fig = plot_ate(summary, plt, setting or {})
     if fig is not None:
         fig.savefig(plots / "ate_rmse.png", dpi=100)
         plt.close(fig)
@@ -295,23 +331,39 @@ def plot_nees(outcome: ScenarioOutcome, plt):
     return fig
 
 
-def plot_ate(summary: list[dict[str, Any]], plt):
-    """Mean ATE RMSE per scenario and estimator with its 95% confidence interval."""
+#: bar colour per setting, so map-known and map-estimated estimators are never read as one ranking
+SETTING_COLORS = {"localisation": "tab:green", "pose_only": "tab:gray", "slam": "tab:blue", None: "tab:purple"}
+
+
+def plot_ate(summary: list[dict[str, Any]], plt, setting: Mapping[tuple[str, str], str | None] | None = None):
+    """Mean ATE RMSE per scenario and estimator with its 95% confidence interval, grouped and
+    coloured by setting (map known, pose only, map estimated) with a gap between the groups."""
+    setting = setting or {}
     rows = [s for s in summary if s["metric"] == "ate_rmse_m" and s["mean"] is not None]
     if not rows:
         return None
     datasets = list(dict.fromkeys(r["dataset"] for r in rows))
     estimators = list(dict.fromkeys(r["estimator"] for r in rows))
-    fig, axes = plt.subplots(1, len(datasets), figsize=(4.5 * len(datasets), 4), squeeze=False)
+    order = {key: k for k, key in enumerate([*SETTINGS, None])}
+    fig, axes = plt.subplots(1, len(datasets), figsize=(4.5 * len(datasets), 4.3), squeeze=False)
     for ax, d in zip(axes[0], datasets):
         sub = {r["estimator"]: r for r in rows if r["dataset"] == d}
-        names = [e for e in estimators if e in sub]
+        names = sorted((e for e in estimators if e in sub), key=lambda e: order.get(setting.get((d, e)), len(order)))
+        groups = [setting.get((d, e)) for e in names]
+        # a gap of one bar between settings
+        x = np.cumsum([0] + [1 + (groups[k] != groups[k - 1]) for k in range(1, len(names))]).astype(float)
         means = np.array([sub[e]["mean"] for e in names])
         lo = np.array([sub[e]["ci95"][0] if sub[e]["ci95"][0] is not None else sub[e]["mean"] for e in names])
         hi = np.array([sub[e]["ci95"][1] if sub[e]["ci95"][1] is not None else sub[e]["mean"] for e in names])
-        ax.bar(names, means, yerr=np.vstack([means - lo, hi - means]), capsize=4, color="tab:blue")
+        for g in dict.fromkeys(groups):
+            k = [i for i, gi in enumerate(groups) if gi == g]
+            ax.bar(x[k], means[k], yerr=np.vstack([means[k] - lo[k], hi[k] - means[k]]), capsize=4,
+                   color=SETTING_COLORS.get(g, "tab:purple"), label=SETTING_SHORT.get(g, "other"))
+        ax.set_xticks(x, names)
         ax.set_title(d, fontsize=10)
         ax.set_ylabel("ATE RMSE (m), mean and 95% CI")
         ax.tick_params(axis="x", labelrotation=45, labelsize=8)
+        ax.set_ylim(0.0, 1.35 * float(np.max(hi)))  # the legend sits in the headroom, off the bars
+        ax.legend(fontsize=8, loc="upper left", title="given", title_fontsize=8)
     fig.tight_layout()
     return fig
