@@ -838,8 +838,10 @@ def log_map_figure(plt, res: LidarSlamResult):
     fig = plt.figure(figsize=(fig_w, fig_h), dpi=100)
     ax = fig.add_axes((0.9 / fig_w, 0.6 / fig_h, map_w / fig_w, map_h / fig_h))
     extent = _extent(m)
+    # a map shrunk to fit (the hospital: 7000 cells across) is averaged, so one-cell walls stay grey
+    # lines instead of vanishing between the pixels nearest-neighbour sampling keeps
     ax.imshow(1.0 - m.probability(), cmap="gray", origin="lower", extent=extent, vmin=0, vmax=1,
-              interpolation="nearest")
+              interpolation="antialiased")
     ax.plot(res.scan_poses[:, 0], res.scan_poses[:, 1], color="tab:blue", lw=0.6, alpha=0.7, label="trajectory")
     seg = res.relation_segments
     if seg is not None and len(seg):
@@ -852,7 +854,7 @@ def log_map_figure(plt, res: LidarSlamResult):
             ax.add_collection(lines)
             ax.scatter(np.r_[bad[:, 0], bad[:, 2]], np.r_[bad[:, 1], bad[:, 3]], c=np.r_[bad[:, 4], bad[:, 4]],
                        cmap=cmap, norm=norm, s=14, edgecolors="k", linewidths=0.3, zorder=4,
-                       label=f"{len(bad)} relations off by > {BAD_RELATION_M:g} m")
+                       label=f"{len(bad)} relation{'s' * (len(bad) != 1)} off by > {BAD_RELATION_M:g} m")
             cax = fig.add_axes(((1.0 + map_w) / fig_w, 0.6 / fig_h, 0.15 / fig_w, 0.6 * map_h / fig_h))
             fig.colorbar(lines, cax=cax, label="relation error (m)")
     bar_m = _scale_bar_m(extent[1] - extent[0])
