@@ -423,3 +423,81 @@ def test_yielding_waits_outside_every_sweep_and_seen_span_and_backs_off_to_such_
     stack._trail = []
     d = stack.yield_decision(np.array([2.0, 2.0, 0.0]), tracks)
     assert d.back_off_xy_m is None and d.wait_gap_m == pytest.approx(1.275, abs=1e-9)
+
+
+def test_a_rollout_held_at_its_end_meets_a_track_walking_into_where_it_stops():
+    from slamkit.control.protocols import ControlOutput, ControlStatus, RobotState
+
+    # the robot at (1, 2) facing +x drives 0.5 m/s straight for the DWA's 2 s horizon, to x = 2.
+    # A 0.3 m person walks at it along y = 2 from x = 4.5 at 0.5 m/s; grown by the 0.25 m moving
+    # margin and the robot's 0.2 m it touches the robot standing at x = 2 when 4.5 - 0.5 t - 2 <=
+    # 0.75, t >= 3.5 s: after the horizon (DWA's "it can stop before it" holds), within 2 s of rest
+    stack = _straight_stack(1.0)
+    state = RobotState(np.array([1.0, 2.0, 0.0]), np.array([0.5, 0.0]), 0.0)
+    traj = stack.controller.rollouts(state, np.array([[0.5, 0.0]]), 20)
+    out = ControlOutput(np.array([0.5, 0.0]), ControlStatus.OK, candidates_xytheta=traj, chosen=0)
+    world = stack.local_world(_tracks([[4.5, 2.0]], [[-0.5, 0.0]], [0.3]))
+    checks = {}
+    for rest in (0.0, 1.0, 1.4, 1.6, 2.0):
+        stack.config = dataclasses.replace(stack.config, rest_check_s=rest)
+        checks[rest] = stack._chosen_hits(world, out)
+    assert checks == {0.0: False, 1.0: False, 1.4: False, 1.6: True, 2.0: True}
+
+
+def test_at_the_goal_a_robot_about_to_be_run_into_evades():
+    # standing at (2, 2): a person 2 m ahead walking at it (0.5 m/s) touches it (0.75 m reach) at
+    # t = 2.5 s, within the 2 s horizon + 2 s of rest; walking across 2 m away, or with
+    # rest_check_s 0, it does not count. Threatened, the stack leaves the regulator: the
+    # evasion's command, the phase back to driving (it approaches again once clear)
+    stack = _straight_stack(2.0)
+    stack.config = dataclasses.replace(stack.config, rest_check_s=2.0)
+    stack.set_goal([2.0, 2.0, 0.0])
+    pose = np.array([2.0, 2.0, 0.0])
+    at_it = _tracks([[4.0, 2.0]], [[-0.5, 0.0]], [0.3])
+    assert stack._threatened(pose, at_it, 0.0)
+    assert not stack._threatened(pose, _tracks([[4.0, 2.0]], [[0.0, 0.5]], [0.3]), 0.0)
+    decision = stack._escape(pose, at_it, 0.0)
+    assert decision.status == "evading" and stack._phase == "driving"
+    stack.config = dataclasses.replace(stack.config, rest_check_s=0.0)
+    assert not stack._threatened(pose, at_it, 0.0)
+
+
+def test_back_off_retraces_the_trail_round_its_bend():
+    # the robot came up x = 1 from y = 1 to 2, then along y = 2 to x = 2 (a trail point every 5 cm)
+    # and stands at (2.01, 2) facing +x; it backs off to (1, 1.2), round the bend. It steers at
+    # the trail point 0.25 m back, (1.75, 2) -- straight behind it, so it reverses without turning
+    # (-0.1 m/s: one cycle's acceleration from standing) -- not at the place itself, which would
+    # cut the corner (the old rule, back_off_along_trail off, turns towards it)
+    stack = _straight_stack(2.01)
+    stack.config = dataclasses.replace(stack.config, back_off_along_trail=True)
+    up = [np.array([1.0, y]) for y in 1.0 + 0.05 * np.arange(20)]
+    along = [np.array([x, 2.0]) for x in 1.0 + 0.05 * np.arange(21)]
+    stack._trail = up + along
+    pose, place = np.array([2.01, 2.0, 0.0]), np.array([1.0, 1.2])
+    aim = stack._back_off_aim(pose, place)
+    np.testing.assert_allclose(aim, [1.75, 2.0], atol=1e-12)
+    np.testing.assert_allclose(stack._drive_to(pose, place, aim), [-0.1, 0.0], atol=1e-12)
+    # backing off keeps the trail between the place and the robot (it drives back along it)
+    stack._record_trail(pose, place)
+    assert len(stack._trail) == 41
+    stack.config = dataclasses.replace(stack.config, back_off_along_trail=False)
+    np.testing.assert_allclose(stack._back_off_aim(pose, place), place)
+    assert abs(stack._drive_to(pose, place, place)[1]) > 0.1
+    stack._record_trail(pose, place)
+    assert len(stack._trail) == 5  # the old rule: up to the place only
+
+
+def test_yield_hedge_treats_a_track_never_seen_reversing_as_one_that_may_turn_back():
+    from slamkit.estimation.obstacle_tracker import Tracks
+
+    # the receding person of test_yielding_to_a_shuttler_that_may_turn_back, never seen
+    # reversing: constant velocity (yield_hedge 0, the default) says no yield; with yield_hedge
+    # 1 its reachable set covers the robot's place within the horizon: it stops where it is
+    stack = _straight_stack(2.05)
+    pose = np.array([2.05, 2.0, 0.0])
+    away = Tracks(np.arange(1), np.array([[3.0, 1.0]]), np.array([[0.0, -0.5]]), np.array([0.3]), np.eye(4)[None])
+    assert stack.yield_decision(pose, away).v_max_mps == np.inf
+    stack.config = dataclasses.replace(stack.config, yield_hedge=1.0)
+    assert stack.yield_decision(pose, away).v_max_mps == 0.0
+    with pytest.raises(ConfigError):
+        NavigationConfig(yield_hedge=1.5)
