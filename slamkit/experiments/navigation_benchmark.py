@@ -339,10 +339,20 @@ def plot_benchmark(path, rows: list[dict[str, Any]], difficulty: list[dict[str, 
     import matplotlib.pyplot as plt
 
     shown = [r for r in rows if r["world"] != "all worlds"]
-    fig, (ax, bx) = plt.subplots(1, 2, figsize=(14, 5.0), gridspec_kw={"width_ratios": [3, 2]})
-    labels = [f"{r['world']}\n{r['block']}" + (f"\n{r['variant']}" if len({x['variant'] for x in rows}) > 1 else "")
-              for r in shown]
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(max(14.0, 6.0 + 0.55 * len(shown)), 5.0),
+                                 gridspec_kw={"width_ratios": [3, 2]})
+    # the block under each point, the world (and variant) once above its group
+    labels = [{ALL_EVAL: "pooled"}.get(r["block"], r["block"]) for r in shown]
     x = np.arange(len(shown))
+    groups: dict[tuple[str, str], list[int]] = {}
+    for i, r in enumerate(shown):
+        groups.setdefault((r["world"], r["variant"]), []).append(i)
+    multi = len({r["variant"] for r in rows}) > 1
+    for (world, variant), idx in groups.items():
+        ax.text(np.mean(idx), 1.005, world + (f" / {variant}" if multi else ""), ha="center", va="bottom",
+                fontsize=8, transform=ax.get_xaxis_transform())
+        if idx[0] > 0:
+            ax.axvline(idx[0] - 0.5, color="0.6", lw=0.8)
     for offset, key, colour, name in ((-0.15, "success_rate", "tab:green", "success"),
                                       (0.15, "collision_moving_rate", "tab:red", "moving collision")):
         rate = np.array([r[key]["rate"] for r in shown])
@@ -357,7 +367,7 @@ def plot_benchmark(path, rows: list[dict[str, Any]], difficulty: list[dict[str, 
     ax.set_xticks(x, labels, fontsize=7)
     ax.set_ylim(-0.03, 1.03)
     ax.set_ylabel("rate (95% Wilson interval)")
-    ax.set_title("per world and block (shaded: pooled evaluation, development)", fontsize=9)
+    ax.set_title("per world and block (shaded: pooled evaluation, development)", fontsize=9, pad=16)
     ax.legend(fontsize=7, loc="center right")
     ax.grid(axis="y", alpha=0.3)
     factors = list(dict.fromkeys(d["factor"] for d in difficulty))
@@ -374,7 +384,8 @@ def plot_benchmark(path, rows: list[dict[str, Any]], difficulty: list[dict[str, 
     bx.set_yticks(ypos, ylabels, fontsize=7)
     bx.invert_yaxis()
     bx.axvline(GOALS["min_success_rate"], color="tab:green", ls=":", lw=1)
-    bx.set_xlim(-0.03, 1.03)
+    lows = [d["success_rate"]["ci_low"] for d in difficulty]
+    bx.set_xlim(min([0.5] + lows) - 0.03, 1.01)
     bx.set_xlabel("success rate (95% Wilson interval)")
     bx.set_title("by difficulty (evaluation runs, all worlds)", fontsize=9)
     bx.grid(axis="x", alpha=0.3)
