@@ -116,3 +116,47 @@ def test_navigation_goals_30_seeds_per_world(navigation_30_seeds):
         assert np.mean([m["success"] for m in runs]) >= min_success
         assert sum(m["collision_static"] for m in runs) <= max_static
         assert np.mean([m["collision_moving"] for m in runs]) < max_moving_rate
+
+
+#: issue 33: pipelines/navigation.yaml's evaluation blocks (seeds 1000-1089 per world, never used
+#: while changing the code), measured 2026-11-28 on main at 8713452 (stack unchanged since issue
+#: 14): (world, block) -> (successes of 30, static, moving collisions, timeouts). Office
+#: 29/0/1/0, 29/0/1/0, 28/0/2/0; warehouse 27/0/3/0, 29/0/1/0, 29/0/1/0; Willow 30/0/0/0,
+#: 26/0/2/2, 28/0/1/1: 255/270 (0.944 [0.910, 0.966] Wilson), 0 static, 12 moving (0.044
+#: [0.026, 0.076]), 3 timeouts. Every moving hit grazes (2-34 mm deep), 11 of 12 in scenarios
+#: whose fastest agent does >= 0.45 m/s; two Willow timeouts (1056, 1083) have no crossing agent
+#: and 10-12 recoveries in a 0.72 m passage. The goals (>= 95% per block, moving < 2%) are not met
+#: yet; these are regression bounds.
+MEASURED_EVALUATION = {
+    ("office", "eval1"): (29, 0, 1, 0), ("office", "eval2"): (29, 0, 1, 0), ("office", "eval3"): (28, 0, 2, 0),
+    ("warehouse", "eval1"): (27, 0, 3, 0), ("warehouse", "eval2"): (29, 0, 1, 0),
+    ("warehouse", "eval3"): (29, 0, 1, 0), ("willow", "eval1"): (30, 0, 0, 0), ("willow", "eval2"): (26, 0, 2, 2),
+    ("willow", "eval3"): (28, 0, 1, 1),
+}
+#: over the 270: at least 255 successes, at most 12 moving collisions (a bound's slack per block
+#: cannot hide a loss elsewhere)
+MEASURED_EVALUATION_ALL = (255, 12)
+
+
+@pytest.mark.slow
+def test_navigation_evaluation_blocks(tmp_path):
+    """The shipped pipeline's evaluation blocks (270 runs, ~30 min on 2 free cores) against the
+    measured figures: per world and block no fewer successes, no more collisions or timeouts."""
+    import yaml
+    from pathlib import Path
+
+    config = yaml.safe_load((Path(__file__).resolve().parents[2] / "pipelines" / "navigation.yaml").read_text())
+    config["record"] = False
+    assert config["scenarios"]["evaluation"] == {"start": 1000, "blocks": 3, "block_size": 30}
+    res = run_pipeline(config, tmp_path / "out", progress=False).results
+    rows = {(r["world"], r["block"]): r for r in res["benchmark"]["rows"]}
+    for key, (successes, static, moving, timeouts) in MEASURED_EVALUATION.items():
+        r = rows[key]
+        assert r["episodes"] == 30
+        assert r["success_rate"]["events"] >= successes
+        assert r["collision_static_rate"]["events"] <= static
+        assert r["collision_moving_rate"]["events"] <= moving
+        assert r["timeout_rate"]["events"] <= timeouts
+    pooled = rows["all worlds", "eval (all)"]
+    assert pooled["success_rate"]["events"] >= MEASURED_EVALUATION_ALL[0]
+    assert pooled["collision_moving_rate"]["events"] <= MEASURED_EVALUATION_ALL[1]
