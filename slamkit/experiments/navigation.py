@@ -45,7 +45,7 @@ import numpy as np
 from slamkit.errors import ConfigError
 from slamkit.experiments.closed_loop import start_goal_draws
 from slamkit.experiments.config_models import NavigationPipeline, seed_list
-from slamkit.experiments.navigation_benchmark import (DEV_BLOCK, benchmark_markdown, benchmark_rows, difficulty_rows,
+from slamkit.experiments.navigation_benchmark import (DEV_BLOCK, benchmark_markdown, block_of, benchmark_rows, difficulty_rows,
                                                      episode_benchmark_metrics, plot_benchmark, scenario_difficulty,
                                                      seed_blocks)
 from slamkit.experiments.navigation_map import RobotMap, map_source_config, robot_map
@@ -426,9 +426,11 @@ def report_markdown(config: Mapping[str, Any], episodes: list[Episode], summary:
              "variant's global planner (A* by default) and local planner on the estimated pose among "
              "lidar-tracked obstacles. "
              "Success: stopped within the goal tolerance (position and heading, by the truth) "
-             "without a collision. Mean ± half the 95% CI over seeds, per world and variant.\n\n")
+             "without a collision. Mean ± half the 95% CI over seeds, per world, variant and seed set "
+             "(development or evaluation).\n\n")
     text += map_source_markdown(maps or {})
-    text += summary_markdown(summary) + "\n\n" + paired_variants_markdown(config, episodes) + "\n## Runs\n\n"
+    lead = ["dataset", "estimator"] + (["seeds"] if summary and "seeds" in summary[0] else [])
+    text += summary_markdown(summary, lead) + "\n\n" + paired_variants_markdown(config, episodes) + "\n## Runs\n\n"
     rows = [[e.scenario, e.variant, e.metrics["success"], e.metrics["final_position_error_m"],
              e.metrics["collision_static"], e.metrics["collision_moving"], e.metrics["time_s"],
              e.metrics["localisation_error_max_m"], e.metrics["replans"]] for e in episodes]
@@ -524,7 +526,9 @@ def run(config: Mapping[str, Any], folder: ResultsFolder, progress: StepProgress
             episodes.append(dataclasses.replace(episode, metrics={**episode.metrics, **robot.metrics}))
             advance(1)
     runs = runs_of(episodes, {seed: block for block, seed in seed_blocks_of(config)})
-    summary = summarise(runs)
+    # development and evaluation seeds never share a mean (the protocol of navigation_benchmark)
+    summary = summarise(runs, lambda r: {"dataset": r.dataset, "estimator": r.estimator,
+                                         "seeds": "development" if block_of(r) == DEV_BLOCK else "evaluation"})
     plot(folder.plots, episodes, {s.name: s for s in scenarios})
     rows, by_difficulty = benchmark_rows(runs), difficulty_rows(runs)
     plot_benchmark(folder.plots / "benchmark.png", rows, by_difficulty)
