@@ -106,3 +106,54 @@ def test_consistency_and_realtime_metrics(intel_60s):
     assert m["loop_closures"] == m["num_loop_closures"] == 0 and m["loop_recall"] == 0.0
     assert len([e for e in first_seconds(registry.load_recording("intel-log"), 60.0) if isinstance(e, Scan)]) \
         == m["num_scans"]
+
+
+def _shipped_logs() -> list[str]:
+    return sorted(n for n in registry.names() if registry.get(n).kind == "laser_log_2d")
+
+
+def test_logs_pipeline_has_one_config_and_registry_logs():
+    """pipelines/lidar_slam_logs.yaml runs registry laser logs with one slam configuration
+    (per-motion-prior overrides only, no per-log section)."""
+    cfg = load_config(ROOT / "pipelines" / "lidar_slam_logs.yaml")
+    assert _shipped_logs() == ["fr-clinic-log", "fr079-log", "intel-log", "mit-csail-log"]
+    assert {"intel-log", "fr079-log", "mit-csail-log"} <= set(cfg["logs"]) <= set(_shipped_logs())
+    assert set(cfg.get("slam_by_motion_prior") or {}) <= {"odometry", "constant_velocity", "identity"}
+    assert not any(isinstance(x, dict) for x in cfg["logs"])
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "fr-clinic-log: with the shipped config no loop closure is accepted in the hospital's first "
+    "927 m and iSAM2's Cholesky gives up on the loop-free chain at keyframe 2279 (QR replays it)"))
+def test_logs_pipeline_runs_every_registry_laser_log():
+    """Issue 29 item 3: every raw laser log the registry ships."""
+    assert sorted(load_config(ROOT / "pipelines" / "lidar_slam_logs.yaml")["logs"]) == _shipped_logs()
+
+
+@pytest.fixture(scope="module")
+def intel_whole_consistency_m():
+    entry = registry.get("intel-log")
+    if not registry.is_available(entry):
+        pytest.skip("intel-log is not available locally")
+    cfg = slam_config_from(slam_section_for(load_config(ROOT / "pipelines" / "lidar_slam_logs.yaml"), "odometry"))
+    return run_slam(registry.load_recording(entry.name), None, cfg).metrics["map_consistency_mean_m"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("prior", [
+    pytest.param("odometry", marks=pytest.mark.xfail(strict=True, reason=(
+        "MIT CSAIL's odometry heading is ~half a scan early and 0.83x the scans' rotation on turns "
+        "(up to 13 deg per scan off, p99): with the odometry prior a revisit is drawn twice, "
+        "rotated ~10 deg; map consistency 0.143 m against Intel's 0.064 m"))),
+    "constant_velocity"])
+def test_mit_csail_map_is_as_consistent_as_intel(prior, intel_whole_consistency_m):
+    """Issue 29's goal for the logs without relations: the map consistency figure within 1.5x of
+    Intel's (Intel with odometry, 0.0156 m relation error: 0.064 m mean). Measured on the whole
+    MIT CSAIL log: lidar only 0.070 m (single walls on the map, looked at), with odometry 0.143 m."""
+    entry = registry.get("mit-csail-log")
+    if not registry.is_available(entry):
+        pytest.skip("mit-csail-log is not available locally")
+    cfg = slam_config_from(slam_section_for(load_config(ROOT / "pipelines" / "lidar_slam_logs.yaml"), prior))
+    m = run_slam(registry.load_recording(entry.name), None, cfg).metrics
+    assert m["map_consistency_overlap"] > 0.6
+    assert m["map_consistency_mean_m"] <= 1.5 * intel_whole_consistency_m
