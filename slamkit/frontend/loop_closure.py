@@ -63,6 +63,10 @@ class LoopClosureConfig:
     #: the region's global candidates per keyframe (beyond ``search_radius_m``; each is a branch
     #: and bound search, so they bound the run time), most likely first
     max_global_candidates_per_keyframe: int = 1
+    #: search the region also at a keyframe whose local search closed a loop (the keyframes near
+    #: it in the estimate may all belong to the drifted stretch). Off: the global search runs only
+    #: where the local one found nothing, which bounds its cost
+    global_after_local_closure: bool = False
     #: the global matcher (``slamkit.frontend.branch_and_bound``): grid resolution, likelihood
     #: sigma, pyramid depth, minimum score, and the heading window's cap; the translation window is
     #: the region's extent along its major axis (at least ``search_radius_m``)

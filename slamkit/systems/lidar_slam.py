@@ -522,9 +522,11 @@ class LidarSlam:
             if closure is not None:
                 self._accept(closure, poses)
                 found += 1
-        # also after a local closure: the keyframes near j in the estimate may all be from the
-        # drifted stretch, the place it revisits beyond them
-        for i, window_xy_m, window_theta_rad, cov in self._global_candidates_for(j, poses):
+        # ``loops.global_after_local_closure``: the keyframes near j in the estimate may all be
+        # from the drifted stretch, the place it revisits beyond them
+        globals_ = [] if found and not self.config.loops.global_after_local_closure else \
+            self._global_candidates_for(j, poses)
+        for i, window_xy_m, window_theta_rad, cov in globals_:
             closure = self._verify_global(i, j, poses, window_xy_m, window_theta_rad, cov)
             if closure is not None:
                 self._accept(closure, poses)
