@@ -24,6 +24,7 @@ from slamkit.experiments.lidar_slam import (_sim_parts, _simulate, ate_keyframes
 from slamkit.experiments.pipeline import load_config
 from slamkit.geometry import se2
 from slamkit.metrics.relations import read_relations
+from slamkit.frontend.loop_closure import LoopClosureConfig
 from slamkit.systems.lidar_slam import LidarSlam, LidarSlamConfig
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -262,3 +263,59 @@ def test_benchmark_goals(name, prior):
             assert abs(in_map - in_scans) < 0.005, side
         in_map, _, line_rms_m = wall_curvature(res, INTEL_BOTTOM_WALL, "x")
         assert abs(in_map) < 0.008 and line_rms_m < 0.05
+
+
+def lidar_blackouts(seq, count: int, duration_s: float, seed: int, omega_bias_radps: float, v_scale: float):
+    """``seq`` with the scans of ``count`` seeded ``duration_s`` windows removed (one window at a
+    uniform position in each of ``count`` equal slices of the log, 60 s from either end) and the
+    wheel odometry biased (heading rate + ``omega_bias_radps`` while moving, speed x ``v_scale``):
+    across each window the system has only the biased odometry, so it comes out of it drifted
+    and its later revisits arrive after metres of drift."""
+    from dataclasses import replace as _replace
+
+    from slamkit.data.sequence import Odometry
+    stamps = np.array([e.stamp_s for e in seq.events if isinstance(e, Scan)])
+    rng = np.random.default_rng(seed)
+    edges = np.linspace(stamps[0] + 60.0, stamps[-1] - 60.0 - duration_s, count + 1)
+    starts = edges[:-1] + rng.uniform(0, 1, count) * np.diff(edges)
+
+    def keep(e) -> bool:
+        return not (isinstance(e, Scan) and np.any((e.stamp_s >= starts) & (e.stamp_s < starts + duration_s)))
+
+    def bias(e):
+        if not isinstance(e, Odometry):
+            return e
+        moving = abs(e.v_mps) + abs(e.omega_radps) > 0
+        return _replace(e, v_mps=e.v_mps * v_scale, omega_radps=e.omega_radps + (omega_bias_radps if moving else 0.0))
+
+    return _replace(seq, events=tuple(bias(e) for e in seq.events if keep(e)))
+
+
+@pytest.mark.slow
+def test_revisits_after_drift_beyond_the_fixed_radius():
+    """Issue 29: loop closure that does not depend on a small drift. The whole Intel log with four
+    seeded 45 s lidar blackouts and the odometry biased by 0.4 deg/s heading rate and +5% speed
+    (``lidar_blackouts``; biased odometry alone does no harm: the scan matcher absorbs it, 0.0150 m
+    with 3 deg/s and +10%): after each blackout the map is drifted and its revisits arrive
+    metres off. Measured (one run each, 2610 relations; the log as given: 0.0156 m):
+
+    - fixed 2 m search radius alone (``region_probability: 0``): 0.208 +- 0.687 m, 218
+      relations above 0.5 m (max 5.1 m); loop precision 0.978, recall 0.507
+    - drift region (0.99) with the branch-and-bound global matcher, also after local closures:
+      0.074 +- 0.310 m, 97 above 0.5 m (max 2.2 m); 548 global closures, the largest correcting
+      3.5 m of drift; precision 0.981, recall 0.593
+
+    Closer to the clean figure, not at it: some drifted stretches are still not tied back."""
+    seq, relations = _log("intel")
+    bad = lidar_blackouts(seq, 4, 45.0, 2, np.deg2rad(0.4), 1.05)
+    base = logs_config()
+
+    def with_loops(**kw) -> LidarSlamConfig:
+        return LidarSlamConfig(**{**base.__dict__, "loops": LoopClosureConfig(**{**base.loops.__dict__, **kw})})
+
+    old = run_slam(bad, None, with_loops(region_probability=0.0), relations=relations)
+    new = run_slam(bad, None, with_loops(region_probability=0.99, global_after_local_closure=True),
+                   relations=relations)
+    old_bad, new_bad = int(np.sum(old.relations.errors_m > 0.5)), int(np.sum(new.relations.errors_m > 0.5))
+    assert old_bad > 150 and old.metrics["relation_trans_mean_m"] > 0.15
+    assert new_bad < old_bad / 1.5 and new.metrics["relation_trans_mean_m"] < 0.12
