@@ -31,6 +31,7 @@ import rerun.blueprint as rrb
 
 from slamkit.experiments.closed_loop import Episode
 from slamkit.viz.recording import Recording, open_recording
+from slamkit.viz.views import log_world_y_up, planar_2d_view
 
 MAX_CANDIDATES = 60
 GREY = (150, 150, 150, 90)
@@ -38,8 +39,7 @@ GREY = (150, 150, 150, 90)
 
 def blueprint(prefixes: list[str] | None = None) -> rrb.Blueprint:
     prefixes = prefixes or [""]
-    views = [rrb.Spatial2DView(origin=f"{p}world" if p else "world", name=p.strip("/") or "world")
-             for p in prefixes]
+    views = [planar_2d_view(p, p.strip("/") or "world") for p in prefixes]
     plots = [rrb.TimeSeriesView(origin=f"{p}plots" if p else "plots", name=f"{p}plots") for p in prefixes]
     return rrb.Blueprint(rrb.Horizontal(rrb.Grid(*views), rrb.Vertical(*plots), column_shares=[3, 1]))
 
@@ -71,6 +71,7 @@ class ClosedLoopRecorder:
         self.prefix = f"{controller}/{scenario.name}/"
         self._trail = []
         s, p = self.stream, self.prefix
+        log_world_y_up(s, f"{p}world")
         g = scenario.grid
         iy, ix = np.nonzero(g.occupied)
         cells = g.cell_to_world(np.column_stack([ix, iy]))

@@ -28,12 +28,24 @@ import rerun.blueprint as rrb
 from slamkit.experiments.navigation import Episode
 from slamkit.viz.control import MAX_CANDIDATES, _score_colors
 from slamkit.viz.recording import open_recording
+from slamkit.viz.views import log_world_y_up, planar_2d_view, series_view
 
 
-def blueprint(prefixes: list[str]) -> rrb.Blueprint:
-    views = [rrb.Spatial2DView(origin=f"{p}world", name=p.strip("/")) for p in prefixes]
-    plots = [rrb.TimeSeriesView(origin=f"{p}plots", name=f"{p}plots") for p in prefixes]
-    return rrb.Blueprint(rrb.Horizontal(rrb.Grid(*views), rrb.Vertical(*plots), column_shares=[3, 1]))
+def blueprint(prefixes: list[str], ranges: dict[str, dict[str, tuple[float, float]]] | None = None) -> rrb.Blueprint:
+    """Per episode the world (y up) beside two plots: the localisation error with its sigma, and
+    the speed (metres and metres per second do not share an axis); ``ranges`` (prefix -> plot ->
+    (min, max) plotted) leaves room for the legends above the curves."""
+    ranges = ranges or {}
+    views = [planar_2d_view(p, p.strip("/")) for p in prefixes]
+    plots = []
+    for p in prefixes:
+        loc, speed = ranges.get(p, {}).get("localisation"), ranges.get(p, {}).get("speed")
+        plots.append(series_view(f"{p}plots", f"{p.strip('/')} localisation (m)", loc[1] if loc else None,
+                                 contents=["+ $origin/localisation_error_m", "+ $origin/sigma_xy_m"]))
+        plots.append(series_view(f"{p}plots", f"{p.strip('/')} speed (m/s)", speed[1] if speed else None,
+                                 min(speed[0], 0.0) if speed else 0.0, contents=["+ $origin/speed_mps"]))
+    return rrb.Blueprint(rrb.Horizontal(rrb.Grid(*views), rrb.Vertical(*plots), column_shares=[3, 1]),
+                         collapse_panels=True)
 
 
 def ellipse_xy(mean_xy: np.ndarray, cov_xy: np.ndarray, n_sigma: float = 3.0, n: int = 32) -> np.ndarray:
@@ -64,9 +76,11 @@ class NavigationObserver:
         self.stream = self.rec.stream
         self._run: str | None = None
         self._prefixes: list[str] = []
+        self._ranges: dict[str, dict[str, tuple[float, float]]] = {}
 
     def _start(self, prefix: str, scenario, stack) -> None:
         s, g = self.stream, stack.grid
+        log_world_y_up(s, f"{prefix}world")
         _log_cells(s, f"{prefix}world/map", g, g.occupied, (60, 60, 60))
         truth = scenario.grid
         if truth is not g and (truth.shape != g.shape or not np.array_equal(truth.occupied, g.occupied)):
@@ -85,6 +99,9 @@ class NavigationObserver:
             self._run = snapshot.run
             self._prefixes.append(f"{snapshot.run}/")
             self._start(f"{snapshot.run}/", scenario, stack)
+            # the layout from the first step (a viewer loading the file shows it before the end,
+            # where close() sends it again with the plots' ranges)
+            self.stream.send_blueprint(blueprint(self._prefixes))
         p, s = f"{snapshot.run}/", self.stream
         s.set_time("sim_time", duration=float(snapshot.stamp_s))
         x = plant.world_xytheta_body
@@ -124,14 +141,21 @@ class NavigationObserver:
         if len(obs):
             s.log(f"{p}world/obstacles_true", rr.Points2D(obs.position_at(snapshot.stamp_s), radii=obs.radius_m,
                                                           colors=[(220, 40, 40, 90)]))
-        s.log(f"{p}plots/localisation_error_m", rr.Scalars(float(np.linalg.norm(mean[:2] - x[:2]))))
-        s.log(f"{p}plots/sigma_xy_m", rr.Scalars(float(np.sqrt(max(np.linalg.eigvalsh(cov[:2, :2])[-1], 0.0)))))
-        s.log(f"{p}plots/speed_mps", rr.Scalars(float(st["command"][0])))
+        error_m = float(np.linalg.norm(mean[:2] - x[:2]))
+        sigma_m = float(np.sqrt(max(np.linalg.eigvalsh(cov[:2, :2])[-1], 0.0)))
+        speed_mps = float(st["command"][0])
+        s.log(f"{p}plots/localisation_error_m", rr.Scalars(error_m))
+        s.log(f"{p}plots/sigma_xy_m", rr.Scalars(sigma_m))
+        s.log(f"{p}plots/speed_mps", rr.Scalars(speed_mps))
+        ranges = self._ranges.setdefault(p, {})
+        for plot, values in (("localisation", (error_m, sigma_m)), ("speed", (speed_mps,))):
+            lo, hi = ranges.get(plot, (np.inf, -np.inf))
+            ranges[plot] = (min(lo, *values), max(hi, *values))
 
     def on_output(self, output) -> None:
         pass
 
     def close(self) -> Path | None:
         if self._prefixes:
-            self.stream.send_blueprint(blueprint(self._prefixes))
+            self.stream.send_blueprint(blueprint(self._prefixes, self._ranges))
         return self.rec.close()

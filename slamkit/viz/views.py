@@ -92,3 +92,17 @@ def labels_fit(points_xy, view_extent_m: float | None = None, max_labels: int = 
     d = np.linalg.norm(xy[:, None, :] - xy[None, :, :], axis=2)
     np.fill_diagonal(d, np.inf)
     return bool(d.min() > LABEL_WIDTH_SHARE * max(extent, 1e-9))
+
+
+def planar_2d_view(prefix: str, name: str, world: str = "world") -> rrb.Spatial2DView:
+    """A 2D view of ``<prefix><world>/**`` with the world's y axis pointing up. Rerun's 2D views
+    draw y downwards (image convention, rerun-io/rerun#1387), which mirrors a map; the view's
+    origin is therefore the prefix and ``<prefix><world>`` carries the y-flip that
+    :func:`log_world_y_up` logs."""
+    origin = prefix.rstrip("/") or "/"
+    return rrb.Spatial2DView(origin=origin, contents=[f"+ $origin/{world}/**"], name=name)
+
+
+def log_world_y_up(stream, world_entity: str) -> None:
+    """The y-flip that makes a :func:`planar_2d_view` show the world with y up (static)."""
+    stream.log(world_entity, rr.Transform3D(scale=[1.0, -1.0, 1.0]), static=True)

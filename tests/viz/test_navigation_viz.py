@@ -46,10 +46,14 @@ def test_recording_holds_what_the_blueprint_shows(tmp_path, verify_rrd, rerun_cl
     assert f"/mpc/{sc.name}/world/mpc_horizon" in entities
     # the true map only where the robot's map is another
     assert f"/dwa/{sc.name}/world/map_true" in entities and f"/mpc/{sc.name}/world/map_true" not in entities
-    # the blueprint: a 2D view on each episode's world/ and a time-series view on its plots/
+    # the blueprint: a 2D view of each episode's world/ (origin the episode, whose world/ carries
+    # the y-flip: Rerun's 2D views draw y down) and two time-series views on its plots/
+    # (localisation in metres, speed in m/s)
     env = dict(os.environ, RERUN_ANALYTICS="0")
     dump = subprocess.run([rerun_cli, "rrd", "print", "-vvv", str(path)], capture_output=True, text=True,
                           timeout=120, env=env).stdout
     for run in ("dwa", "mpc"):
-        assert f"[{run}/{sc.name}/world]" in dump and f"[{run}/{sc.name}/plots]" in dump
-    assert dump.count("[2D]") >= 2 and dump.count("[TimeSeries]") >= 2
+        assert f"[{run}/{sc.name}]" in dump and f"[{run}/{sc.name}/plots]" in dump
+        assert f"[{run}/{sc.name} localisation (m)]" in dump and f"[{run}/{sc.name} speed (m/s)]" in dump
+    assert "[+ $origin/world/**]" in dump
+    assert dump.count("[2D]") >= 2 and dump.count("[TimeSeries]") >= 4
