@@ -28,9 +28,9 @@ graph-based SLAM", IEEE ITS Magazine 2010; the local/global split of Cartographe
    estimate moved), at least ``loops.min_path_gap_m`` of path back, the closest
    ``loops.max_candidates_per_keyframe``, each verified by ICP of j's scan against a submap
    around i (fitness, plausibility: ``slamkit.frontend.loop_closure.verify_loop``). When none is
-   accepted and the drift accumulated along the scan-match chain since the last accepted closure
-   (``slamkit.frontend.loop_closure.DriftRegion``) makes the ``loops.region_probability``
-   chi-square region reach beyond that radius, the region's most likely candidates
+   accepted (or always, ``loops.global_after_local_closure``) and the drift bound of the
+   scan-match chain and the closures (``slamkit.frontend.loop_closure.DriftRegion``) makes the
+   ``loops.region_probability`` chi-square region (0: off, the default) reach beyond that radius, the region's most likely candidates
    (``loops.max_global_candidates_per_keyframe``, within ``loops.max_search_radius_m``) are
    matched globally: branch and bound over the region's window (metres, tens of degrees;
    ``slamkit.frontend.branch_and_bound``), its optimum seeding the same ICP verification, and the
