@@ -221,12 +221,32 @@ def validate(model: type, data: Any, doc: YamlDocument | None = None, source: st
                 problem = "unknown key" + _suggest(str(loc[-1]), _known_keys(model, loc[:-1]))
             elif err["type"] == "missing":
                 problem = "required but missing"
+            elif err["type"] == "model_type":
+                problem = f"a section of fields (key: value), got {err.get('input')!r}"[:200]
             else:
                 problem = err["msg"]
                 if "input" in err and err["type"] not in ("model_type", "dict_type"):
                     problem += f" (got {err['input']!r})"[:200]
             messages.append(f"{where}: {dotted}: {problem}")
         raise ConfigError("\n".join(messages)) from None
+
+
+def write_back(data: Any, validated: Any) -> None:
+    """Make the raw mapping ``data`` say what validation understood, in place: a number written
+    as a string (PyYAML reads ``1e-8`` as a string) becomes the number, an explicit ``null``
+    (meaning "the default") is dropped, nested sections likewise. So the code that reads the
+    mapping later meets the values the validation accepted, not the raw ones."""
+    if not isinstance(data, dict) or not isinstance(validated, pydantic.BaseModel):
+        return
+    for key in list(data):
+        if data[key] is None:
+            del data[key]
+            continue
+        value = getattr(validated, str(key), None)
+        if isinstance(value, pydantic.BaseModel):
+            write_back(data[key], value)
+        elif isinstance(value, (int, float)) and not isinstance(value, bool) and isinstance(data[key], str):
+            data[key] = value
 
 
 # --- models from the algorithms' dataclasses -----------------------------------------------------
@@ -267,6 +287,10 @@ def _bounds_for(name: str, tp: Any) -> Any:
 def _field_type(name: str, tp: Any) -> Any:
     origin = typing.get_origin(tp)
     args = typing.get_args(tp)
+    if dataclasses.is_dataclass(tp) and not callable(getattr(tp, "preset", None)):
+        # a nested config without named presets: a mapping of its fields only (``slam.map: x``
+        # passed as a name and failed at run time)
+        return model_of(tp)
     if dataclasses.is_dataclass(tp):
         # a nested config, or the name of one of its presets (imu_noise: consumer_mems); the
         # discriminator picks the branch by the input's type, so errors speak of that one only

@@ -17,7 +17,7 @@ from typing import Annotated, Any, Literal, Union
 import pydantic
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field
 
-from slamkit.config import STRICT, YamlDocument, model_of, validate
+from slamkit.config import STRICT, YamlDocument, model_of, validate, write_back
 from slamkit.errors import ConfigError, SlamkitError
 from slamkit.naming import import_plugins, suggestion
 from slamkit.paths import path_component
@@ -393,7 +393,27 @@ class VisualOdometryPipeline(PipelineConfig):
 
 
 def _nested(model: type, data: Any, doc: YamlDocument | None, source: str, prefix: tuple) -> None:
-    validate(model, data if data is not None else {}, doc, source, prefix)
+    validated = validate(model, data if data is not None else {}, doc, source, prefix)
+    _VALIDATED.append((prefix, validated))
+
+
+#: (path, validated model) of every nested section checked by the running check_pipeline call,
+#: written back into the raw config when the checks pass (slamkit.config.write_back)
+_VALIDATED: list[tuple[tuple, Any]] = []
+
+
+def _write_back(config: dict[str, Any], checked: list[tuple[tuple, Any]]) -> None:
+    for prefix, validated in checked:
+        node: Any = config
+        for key in prefix:
+            if isinstance(node, dict) and key in node:
+                node = node[key]
+            elif isinstance(node, list) and isinstance(key, int) and 0 <= key < len(node):
+                node = node[key]
+            else:
+                node = None
+                break
+        write_back(node, validated)
 
 
 def check_pipeline(config: dict[str, Any], doc: YamlDocument | None = None, source: str = "<config>"
@@ -422,7 +442,12 @@ def check_pipeline(config: dict[str, Any], doc: YamlDocument | None = None, sour
         raise ConfigError(f"{where}: pipeline: {exc}") from None
     # a pipeline registered without a model (a user's own kind) gets the common fields checked
     model = validate(pipeline_of(config["pipeline"]).config_model or _OpenPipeline, config, doc, source)
-    model.check_options(config, doc, source)
+    start = len(_VALIDATED)
+    try:
+        model.check_options(config, doc, source)
+        _write_back(config, _VALIDATED[start:])
+    finally:
+        del _VALIDATED[start:]
     return model
 
 
