@@ -34,6 +34,7 @@ import rerun.blueprint as rrb
 from slamkit.experiments.lidar_slam import LidarSlamResult
 from slamkit.maps.log_odds import LogOddsMap
 from slamkit.viz.recording import OutputRecorder, open_recording
+from slamkit.viz.views import scene_bounds, top_down_view
 
 COLOR_MAP = (90, 90, 90)
 COLOR_GROUND_TRUTH = (40, 200, 80)
@@ -44,10 +45,19 @@ COLOR_FALSE_LOOP = (230, 30, 30)
 COLOR_SCAN = (30, 160, 255)
 
 
-def blueprint(runs: list[str]) -> rrb.Blueprint:
+def blueprint(runs: list[str], results=None) -> rrb.Blueprint:
+    """Per run the world seen from straight above on a metre grid (fitted to the run's
+    trajectories when ``results`` are given) beside the occupancy map."""
     views = []
-    for r in runs:
-        views.append(rrb.Spatial3DView(origin=f"{r}/world", name=f"{r}: world"))
+    for k, r in enumerate(runs):
+        res = results[k] if results is not None else None
+        if res is not None:
+            parts = [res.optimised_poses[:, :2], res.frontend_poses[:, :2]]
+            if res.ground_truth_poses is not None:
+                parts.append(res.ground_truth_poses[:, :2])
+            views.append(top_down_view(f"{r}/world", f"{r}: world", *scene_bounds(*parts)))
+        else:
+            views.append(rrb.Spatial3DView(origin=f"{r}/world", name=f"{r}: world"))
         views.append(rrb.Spatial2DView(origin=f"{r}/map", name=f"{r}: map"))
     return rrb.Blueprint(rrb.Grid(*views), collapse_panels=True)
 
@@ -130,7 +140,7 @@ def record_lidar_slam(results, path: str | Path | None = None, spawn: bool = Fal
     """Record ``LidarSlamResult``s (one subtree each) to ``path`` and/or a spawned viewer."""
     results = list(results)
     labels = [run_label(r) for r in results]
-    with open_recording("slamkit_lidar_slam", path, spawn, blueprint(labels)) as rec:
+    with open_recording("slamkit_lidar_slam", path, spawn, blueprint(labels, results)) as rec:
         for label, res in zip(labels, results):
             log_lidar_slam(rec.stream, res, label)
     return None if path is None else Path(path)

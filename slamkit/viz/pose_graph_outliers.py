@@ -14,7 +14,9 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from slamkit.experiments.pipeline import PipelineOutput
+from slamkit.viz.filter_vs_smoother import PALETTE
 from slamkit.viz.recording import OutputRecorder
+from slamkit.viz.views import series_view
 
 METRICS = ("ate_rmse_m", "outlier_recall")
 
@@ -38,10 +40,19 @@ class PoseGraphOutliersObserver(OutputRecorder):
                     if value is not None and np.isfinite(value):
                         key = (metric, r["dataset"], kind, r["estimator"])
                         series.setdefault(key, {}).setdefault(r["params"]["outliers"], []).append(value)
-        bp = rrb.Blueprint(rrb.Vertical(*(rrb.TimeSeriesView(origin=f"plots/{m}", name=m) for m in METRICS)),
+        highest = {m: max((max(np.mean(v) for v in pts.values()) for (mm, *_), pts in series.items() if mm == m),
+                          default=None) for m in METRICS}
+        bp = rrb.Blueprint(rrb.Vertical(*(series_view(f"plots/{m}", m, highest[m]) for m in METRICS)),
                            collapse_panels=True)
+        # one colour per back-end in both plots (the viewer's automatic colours can coincide)
+        backends = list(dict.fromkeys(backend for (_, _, _, backend) in series))
         with open_recording("slamkit_pose_graph_outliers", self.path, self.spawn, bp) as rec:
             for (metric, dataset, kind, backend), points in series.items():
+                rec.stream.log(f"plots/{metric}/{dataset}/{kind}/{backend}",
+                               rr.SeriesLines(colors=[PALETTE[backends.index(backend) % len(PALETTE)]],
+                                              names=[f"{dataset} {kind} {backend}"]),
+                               rr.SeriesPoints(colors=[PALETTE[backends.index(backend) % len(PALETTE)]],
+                                               markers=["circle"], marker_sizes=[3.0]), static=True)
                 counts = np.array(sorted(points))
                 rec.stream.send_columns(f"plots/{metric}/{dataset}/{kind}/{backend}",
                                         indexes=[rr.TimeColumn("outliers", sequence=counts)],
