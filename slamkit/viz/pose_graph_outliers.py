@@ -48,11 +48,11 @@ class PoseGraphOutliersObserver(OutputRecorder):
         backends = list(dict.fromkeys(backend for (_, _, _, backend) in series))
         with open_recording("slamkit_pose_graph_outliers", self.path, self.spawn, bp) as rec:
             for (metric, dataset, kind, backend), points in series.items():
+                color, name = PALETTE[backends.index(backend) % len(PALETTE)], f"{dataset} {kind} {backend}"
                 rec.stream.log(f"plots/{metric}/{dataset}/{kind}/{backend}",
-                               rr.SeriesLines(colors=[PALETTE[backends.index(backend) % len(PALETTE)]],
-                                              names=[f"{dataset} {kind} {backend}"]),
-                               rr.SeriesPoints(colors=[PALETTE[backends.index(backend) % len(PALETTE)]],
-                                               markers=["circle"], marker_sizes=[3.0]), static=True)
+                               rr.SeriesLines(colors=[color], names=[name], widths=[2.0]),
+                               rr.SeriesPoints(colors=[color], names=[name], markers=["circle"], marker_sizes=[3.0]),
+                               static=True)
                 counts = np.array(sorted(points))
                 rec.stream.send_columns(f"plots/{metric}/{dataset}/{kind}/{backend}",
                                         indexes=[rr.TimeColumn("outliers", sequence=counts)],
