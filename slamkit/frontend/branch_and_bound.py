@@ -35,10 +35,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from slamkit.errors import ConfigError, DataError
-from slamkit.frontend.correlative import CorrelativeResult
+from slamkit.frontend.correlative import CorrelativeResult, likelihood_field
 from slamkit.geometry.angles import wrap_angle
-from slamkit.maps.distance_field import distance_field_m
-from slamkit.maps.occupancy_grid import OccupancyGrid
 
 #: blocks of at most 2^h x 2^h candidates are scored whole at full resolution instead of descending
 #: (scan-matching bench, CPU time per search: 18 ms at 0, 22 ms at 1, 20 ms at 2, 29 ms at 3)
@@ -83,24 +81,13 @@ class MaxGridPyramid:
     it) and one after (the last cell's blocks are all zeros)."""
 
     def __init__(self, target_xy: np.ndarray, config: BranchAndBoundConfig = BranchAndBoundConfig()):
-        pts = np.asarray(target_xy, dtype=float)
-        if pts.ndim != 2 or pts.shape[1] != 2:
-            raise DataError(f"branch-and-bound target points must have shape (N, 2), got {pts.shape}")
-        pts = pts[np.all(np.isfinite(pts), axis=1)]
-        if len(pts) == 0:
-            raise DataError("branch-and-bound target has no finite points")
         self.config = config
         res = config.resolution_m
         # beyond 4 sigma the likelihood quantises to ~0: the grid need not reach further
-        margin = 4.0 * config.sigma_m + res
-        origin = np.floor((pts.min(axis=0) - margin) / res) * res
-        size = np.ceil((pts.max(axis=0) + margin - origin) / res).astype(np.int64) + 1
-        occ = np.zeros((size[1], size[0]), dtype=bool)
-        grid = OccupancyGrid(occ, res, origin)
-        cells = grid.world_to_cell(pts)
-        occ[cells[:, 1], cells[:, 0]] = True
-        d = distance_field_m(OccupancyGrid(occ, res, origin))
-        q = np.rint(LEVELS * np.exp(-0.5 * (d / config.sigma_m) ** 2)).astype(np.int32)
+        grid, likelihood = likelihood_field(target_xy, res, config.sigma_m, 4.0 * config.sigma_m + res,
+                                            "branch-and-bound")
+        origin = grid.origin_xy_m
+        q = np.rint(LEVELS * likelihood).astype(np.int32)
         pad = 2 ** (config.depth - 1)
         base = np.pad(q, ((pad, 1), (pad, 1)))
         self.origin_xy_m = origin - pad * res

@@ -66,31 +66,38 @@ class CorrelativeResult:
     candidates_scored: int
 
 
+def likelihood_field(target_xy: np.ndarray, resolution_m: float, sigma_m: float, margin_m: float,
+                     what: str = "scan-matching") -> tuple[OccupancyGrid, np.ndarray]:
+    """The target points rasterised at ``resolution_m`` (cell boundaries on multiples of it, the
+    grid reaching ``margin_m`` beyond the points) and the likelihood field exp(-d^2 / 2 sigma^2)
+    of a return in every cell, d its distance to the nearest target cell (Olson sec. III).
+    Non-finite points are dropped; no finite point is a DataError naming ``what``."""
+    pts = np.asarray(target_xy, dtype=float)
+    if pts.ndim != 2 or pts.shape[1] != 2:
+        raise DataError(f"{what} target points must have shape (N, 2), got {pts.shape}")
+    pts = pts[np.all(np.isfinite(pts), axis=1)]
+    if len(pts) == 0:
+        raise DataError(f"{what} target has no finite points")
+    res = resolution_m
+    origin = np.floor((pts.min(axis=0) - margin_m) / res) * res
+    size = np.ceil((pts.max(axis=0) + margin_m - origin) / res).astype(np.int64) + 1
+    occ = np.zeros((size[1], size[0]), dtype=bool)
+    cells = OccupancyGrid(occ, res, origin).world_to_cell(pts)
+    occ[cells[:, 1], cells[:, 0]] = True
+    grid = OccupancyGrid(occ, res, origin)
+    return grid, np.exp(-0.5 * (distance_field_m(grid) / sigma_m) ** 2)
+
+
 class CorrelativeGrid:
     """The likelihood grid of a target point set (and its max-pooled coarse level)."""
 
     def __init__(self, target_xy: np.ndarray, config: CorrelativeConfig = CorrelativeConfig(),
                  margin_m: float | None = None):
-        pts = np.asarray(target_xy, dtype=float)
-        if pts.ndim != 2 or pts.shape[1] != 2:
-            raise DataError(f"correlative target points must have shape (N, 2), got {pts.shape}")
-        pts = pts[np.all(np.isfinite(pts), axis=1)]
-        if len(pts) == 0:
-            raise DataError("correlative target has no finite points")
         self.config = config
-        res = config.resolution_m
-        margin = config.window_xy_m + 4.0 * config.sigma_m + res if margin_m is None else margin_m
-        # cell boundaries on multiples of the resolution in the target's frame
-        origin = np.floor((pts.min(axis=0) - margin) / res) * res
-        size = np.ceil((pts.max(axis=0) + margin - origin) / res).astype(np.int64) + 1
-        occ = np.zeros((size[1], size[0]), dtype=bool)
-        grid = OccupancyGrid(occ, res, origin)
-        cells = grid.world_to_cell(pts)
-        occ[cells[:, 1], cells[:, 0]] = True
-        grid = OccupancyGrid(occ, res, origin)
-        d = distance_field_m(grid)
-        self.grid = grid
-        self.likelihood = np.exp(-0.5 * (d / config.sigma_m) ** 2)
+        margin = (config.window_xy_m + 4.0 * config.sigma_m + config.resolution_m if margin_m is None
+                  else margin_m)
+        self.grid, self.likelihood = likelihood_field(target_xy, config.resolution_m, config.sigma_m,
+                                                      margin, "correlative")
         f = config.coarse_factor
         padded = np.pad(self.likelihood, ((0, f - 1), (0, f - 1)))
         h, w = self.likelihood.shape
