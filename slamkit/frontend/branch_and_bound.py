@@ -34,8 +34,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from slamkit.errors import ConfigError, DataError
+from slamkit.errors import ConfigError
 from slamkit.frontend.correlative import CorrelativeResult, likelihood_field
+from slamkit.frontend.icp import finite_points_xy
 from slamkit.geometry.angles import wrap_angle
 
 #: blocks of at most 2^h x 2^h candidates are scored whole at full resolution instead of descending
@@ -135,12 +136,7 @@ def _problem(source_xy: np.ndarray, pyramid: MaxGridPyramid, guess: np.ndarray,
     if cfg.resolution_m != pyramid.config.resolution_m or cfg.depth > pyramid.config.depth \
             or cfg.sigma_m != pyramid.config.sigma_m:
         raise ConfigError("branch and bound: the config's resolution, sigma and depth must be the pyramid's")
-    src = np.asarray(source_xy, dtype=float)
-    if src.ndim != 2 or src.shape[1] != 2:
-        raise DataError(f"branch-and-bound source points must have shape (N, 2), got {src.shape}")
-    src = src[np.all(np.isfinite(src), axis=1)]
-    if len(src) == 0:
-        raise DataError("branch-and-bound source has no finite points")
+    src = finite_points_xy(source_xy, "branch-and-bound source")
     g = np.asarray(guess, dtype=float).reshape(3)
     res = cfg.resolution_m
     step = cfg.theta_step_rad if cfg.theta_step_rad is not None else theta_step_for(src, res)

@@ -29,7 +29,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from slamkit.errors import ConfigError, DataError
+from slamkit.errors import ConfigError
+from slamkit.frontend.icp import finite_points_xy
 from slamkit.geometry.angles import wrap_angle
 from slamkit.maps.distance_field import distance_field_m
 from slamkit.maps.occupancy_grid import OccupancyGrid
@@ -72,12 +73,7 @@ def likelihood_field(target_xy: np.ndarray, resolution_m: float, sigma_m: float,
     grid reaching ``margin_m`` beyond the points) and the likelihood field exp(-d^2 / 2 sigma^2)
     of a return in every cell, d its distance to the nearest target cell (Olson sec. III).
     Non-finite points are dropped; no finite point is a DataError naming ``what``."""
-    pts = np.asarray(target_xy, dtype=float)
-    if pts.ndim != 2 or pts.shape[1] != 2:
-        raise DataError(f"{what} target points must have shape (N, 2), got {pts.shape}")
-    pts = pts[np.all(np.isfinite(pts), axis=1)]
-    if len(pts) == 0:
-        raise DataError(f"{what} target has no finite points")
+    pts = finite_points_xy(target_xy, f"{what} target")
     res = resolution_m
     origin = np.floor((pts.min(axis=0) - margin_m) / res) * res
     size = np.ceil((pts.max(axis=0) + margin_m - origin) / res).astype(np.int64) + 1
@@ -117,10 +113,7 @@ def correlative_search(source_xy: np.ndarray, grid: CorrelativeGrid, guess: np.n
     cfg = grid.config if config is None else config
     if cfg.resolution_m != grid.config.resolution_m or cfg.coarse_factor != grid.config.coarse_factor:
         raise ConfigError("correlative_search: the config's resolution and coarse factor must be the grid's")
-    src = np.asarray(source_xy, dtype=float)
-    src = src[np.all(np.isfinite(src), axis=1)]
-    if len(src) == 0:
-        raise DataError("correlative source has no finite points")
+    src = finite_points_xy(source_xy, "correlative source")
     g = np.asarray(guess, dtype=float).reshape(3)
     res, f = cfg.resolution_m, cfg.coarse_factor
     k = int(np.floor(cfg.window_theta_rad / cfg.theta_step_rad + 1e-9))

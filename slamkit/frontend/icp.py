@@ -137,14 +137,21 @@ class IcpTarget:
         self.normals = estimate_normals(pts, self.tree, normal_neighbours)
 
 
-def _check_points(points: np.ndarray, name: str) -> np.ndarray:
+def finite_points_xy(points: np.ndarray, what: str, min_points: int = 1) -> np.ndarray:
+    """The finite rows of an (N, 2) point set; a wrong shape or fewer than ``min_points`` finite
+    points is a DataError naming ``what`` (every scan matcher's input check)."""
     p = np.asarray(points, dtype=float)
     if p.ndim != 2 or p.shape[1] != 2:
-        raise DataError(f"ICP {name} points must have shape (N, 2), got {p.shape}")
+        raise DataError(f"{what} points must have shape (N, 2), got {p.shape}")
     p = p[np.all(np.isfinite(p), axis=1)]
-    if len(p) < 3:
-        raise DataError(f"ICP {name} needs at least 3 finite points, got {len(p)}")
+    if len(p) < max(min_points, 1):
+        raise DataError(f"{what} needs at least {min_points} finite points, got {len(p)}" if min_points > 1
+                        else f"{what} has no finite points")
     return p
+
+
+def _check_points(points: np.ndarray, name: str) -> np.ndarray:
+    return finite_points_xy(points, f"ICP {name}", 3)
 
 
 def scan_to_points(ranges_m: np.ndarray, angles_rad: np.ndarray, max_range_m: float = np.inf

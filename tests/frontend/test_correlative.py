@@ -94,3 +94,15 @@ def test_config_is_checked():
     with pytest.raises(ConfigError, match="grid"):
         correlative_search(room_scan(), CorrelativeGrid(room_scan(), CFG), np.zeros(3),
                            CorrelativeConfig(resolution_m=0.1))
+
+
+def test_malformed_point_sets_are_data_errors_naming_the_matcher_and_side() -> None:
+    from slamkit.errors import DataError
+
+    grid = CorrelativeGrid(np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0]]))
+    with pytest.raises(DataError, match=r"correlative source points must have shape \(N, 2\), got \(4, 3\)"):
+        correlative_search(np.zeros((4, 3)), grid, np.zeros(3))
+    with pytest.raises(DataError, match="correlative source has no finite points"):
+        correlative_search(np.full((4, 2), np.nan), grid, np.zeros(3))
+    with pytest.raises(DataError, match="correlative target has no finite points"):
+        CorrelativeGrid(np.full((2, 2), np.inf))
