@@ -53,9 +53,8 @@ from slamkit.experiments.observers import BeliefSnapshot, PipelineObserver, Step
 from slamkit.geometry import so3
 from slamkit.geometry.angles import wrap_angle
 from slamkit.metrics.alignment import associate, umeyama
-from slamkit.metrics.ate import ate
 from slamkit.metrics.consistency import chi2_band, nees_or_nan
-from slamkit.metrics.rpe import rpe
+from slamkit.metrics.trajectory_score import score_trajectory
 
 #: RPE segment length (m of travelled path)
 RPE_DELTA_M = 1.0
@@ -297,13 +296,13 @@ def score(run: EstimatorRun, reference: Trajectory | None,
         pairs = associate(reference, est.trajectory, max_diff_s=max_diff_s)
     except DataError as exc:
         return Scored(metrics, notes=(f"{run.name}: {exc}",))
-    result = ate(pairs.ref, pairs.est, "se2" if planar else "se3")
-    metrics["ate_rmse_m"] = result.translation_m.rmse
-    metrics["ate_rot_rmse_rad"] = result.rotation_rad.rmse
-    try:
-        metrics["rpe_rmse_m"] = rpe(pairs.ref, pairs.est, RPE_DELTA_M, "m",
-                                    pairs_from_reference=True).translation_m.rmse
-    except DataError:
+    scores = score_trajectory(pairs.ref, pairs.est, "se2" if planar else "se3", rpe_delta=RPE_DELTA_M,
+                              rpe_delta_unit="m", rpe_pairs_from_reference=True)
+    metrics["ate_rmse_m"] = scores["ate_rmse_m"]
+    metrics["ate_rot_rmse_rad"] = scores["ate_rot_rmse_rad"]
+    if "rpe_rmse_m" in scores:
+        metrics["rpe_rmse_m"] = scores["rpe_rmse_m"]
+    else:
         notes.append(f"{run.name}: path shorter than {RPE_DELTA_M} m, no RPE")
     err = world_pose_error(pairs.ref, pairs.est)
     dof = err.shape[1]

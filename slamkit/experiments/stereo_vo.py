@@ -5,7 +5,8 @@ run, with the same metrics.
 
 Pose id i of the feature files is KITTI 00 frame i (id 0 is the origin; id 1 is 0.68 m ahead, as
 ORB-SLAM's second pose is), so frames 0..76 are compared. Stereo has
-metric scale: the headline is ``ate_se3_m`` (Umeyama without scale); ``ate_sim3_m`` is given too.
+metric scale: the headline ``ate_rmse_m`` is after an SE(3) Umeyama alignment (no scale);
+``ate_sim3_rmse_m`` is given too; ``rpe_rmse_m`` / ``rpe_rot_rmse_deg`` frame to frame.
 KITTI's drift metric needs 100-800 m segments; 77 frames cover ~70 m, so the drift is computed
 over 10-50 m segments (``drift_percent_10_50m``, ``drift_deg_per_100m_10_50m``). ``initial`` is
 the feature file's own VO estimate (the starting point), ``stereo_ba`` the GTSAM result.
@@ -23,9 +24,7 @@ from slamkit.data import registry
 from slamkit.data.formats.gtsam_vo import StereoVoData, read_stereo_vo
 from slamkit.data.formats.kitti import read_kitti
 from slamkit.data.trajectory import Trajectory
-from slamkit.metrics.ate import ate
-from slamkit.metrics.kitti_drift import kitti_drift
-from slamkit.metrics.rpe import rpe
+from slamkit.metrics.trajectory_score import score_trajectory
 
 SHORT_SEGMENTS_M = (10.0, 20.0, 30.0, 40.0, 50.0)
 
@@ -46,13 +45,9 @@ def load_kitti00_stereo() -> StereoVoData:
 
 
 def _scores(gt: Trajectory, est: Trajectory) -> dict[str, float]:
-    drift = kitti_drift(gt, est, lengths_m=SHORT_SEGMENTS_M, step_frames=1)
-    rel = rpe(gt, est, 1, "frames")
-    return {"ate_se3_m": float(ate(gt, est, "se3").translation_m.rmse),
-            "ate_sim3_m": float(ate(gt, est, "sim3").translation_m.rmse),
-            "rpe_trans_m": float(rel.translation_m.rmse), "rpe_rot_deg": float(rel.rotation_deg.rmse),
-            "drift_percent_10_50m": float(drift.translation_percent),
-            "drift_deg_per_100m_10_50m": float(drift.rotation_deg_per_100m)}
+    return score_trajectory(gt, est, "se3", extra_aligns=("sim3",), rotation_unit="deg", rpe_delta=1,
+                            rpe_delta_unit="frames", drift_lengths_m=SHORT_SEGMENTS_M, drift_step_frames=1,
+                            drift_suffix="_10_50m")
 
 
 def stereo_ba_kitti00(config: BundleAdjustmentConfig = BundleAdjustmentConfig(max_iterations=30)) -> StereoVoReport:

@@ -14,7 +14,9 @@ IMU readings and feature frames in time order. Inputs it uses:
 * IMU noise: EuRoC's ADIS16448 ``imu0/sensor.yaml`` densities (``EUROC_IMU_NOISE``).
 
 VIO observes metric scale and, through gravity, roll and pitch; the yaw and the position of its
-world frame are free, so both estimates are scored with an SE(3) Umeyama alignment (``ate_se3_m``).
+world frame are free, so both estimates are scored with an SE(3) Umeyama alignment (``ate_rmse_m``,
+``ate_rot_rmse_deg``; ``ate_sim3_rmse_m`` beside it) and over 1 m of path (``rpe_rmse_m``,
+``rpe_rot_rmse_deg``, where the path is longer than 2 m).
 OpenVINS starts 5.6 s into the file (it waits for motion to initialise), so the window is the
 stamps all three trajectories share: from OpenVINS' first pose to the end of the file.
 """
@@ -32,8 +34,7 @@ from slamkit.data.formats.tum import read_tum
 from slamkit.data.trajectory import Trajectory
 from slamkit.errors import ConfigError
 from slamkit.metrics.alignment import matching_time_indices
-from slamkit.metrics.ate import ate
-from slamkit.metrics.rpe import rpe
+from slamkit.metrics.trajectory_score import score_trajectory
 from slamkit.systems.visual_inertial import VioConfig, VioEstimate, VisualInertialOdometry
 
 __all__ = ["VioReport", "load_euroc_v101", "run_vio", "vio_euroc_v101"]
@@ -70,13 +71,8 @@ def run_vio(data: EqvioData, config: VioConfig = VioConfig(), until_s: float | N
 
 
 def _scores(gt: Trajectory, est: Trajectory) -> dict[str, float]:
-    a = ate(gt, est, "se3")
-    rel = rpe(gt, est, 1.0, "m") if gt.path_length_m() > 2.0 else None
-    out = {"ate_se3_m": float(a.translation_m.rmse), "ate_rot_deg": float(a.rotation_deg.rmse),
-           "ate_sim3_m": float(ate(gt, est, "sim3").translation_m.rmse)}
-    if rel is not None:
-        out.update(rpe_trans_1m_m=float(rel.translation_m.rmse), rpe_rot_1m_deg=float(rel.rotation_deg.rmse))
-    return out
+    return score_trajectory(gt, est, "se3", extra_aligns=("sim3",), rotation_unit="deg", rpe_delta=1.0,
+                            rpe_delta_unit="m", rpe_min_path_m=2.0)
 
 
 def vio_euroc_v101(config: VioConfig = VioConfig(), until_s: float | None = None) -> VioReport:

@@ -7,10 +7,11 @@ projection, ``poses.txt`` camera-to-world ground truth, stamps = frame index x 0
 the frames; this module scores it and writes ``trajectories/<name>.tum`` (the BA run;
 ``<name>_no_ba.tum`` for the run without bundle adjustment when ``compare_without_ba``).
 
-Metrics per run: ``ate_sim3_m`` (Umeyama with scale: monocular scale is unobservable, so this
-is the figure that means something), ``ate_se3_m`` (without scale: only meaningful where the
-scale is known, reported for completeness), ``rpe_trans_m`` and ``rpe_rot_deg`` (frame to frame
-after the Sim(3) alignment), ``inlier_ratio`` (essential-matrix inliers / putative matches, mean
+Metrics per run (the vocabulary of :mod:`slamkit.metrics`): ``ate_rmse_m`` after a Sim(3)
+Umeyama alignment (monocular scale is unobservable, so this is the figure that means something;
+``sim3_scale`` its scale, ``ate_rot_rmse_deg``), ``ate_se3_rmse_m`` (without scale: only
+meaningful where the scale is known, reported for completeness), ``rpe_rmse_m`` and
+``rpe_rot_rmse_deg`` (frame to frame after the Sim(3) alignment), ``ate_percent_of_distance``, ``inlier_ratio`` (essential-matrix inliers / putative matches, mean
 over frames), ``time_per_frame_ms`` (front-end + BA, median) and the course's per-frame numbers
 as means (``keypoints_mean``, ``matches_mean``, ``inliers_mean``, ``tracked_points_mean``).
 """
@@ -35,7 +36,7 @@ from slamkit.experiments.observers import PipelineObserver
 from slamkit.experiments.pipeline import Pipeline, PipelineOutput, StepProgress
 from slamkit.experiments.results import ResultsFolder, RunRecord, markdown_table
 from slamkit.metrics.ate import ate
-from slamkit.metrics.rpe import rpe
+from slamkit.metrics.trajectory_score import score_trajectory
 from slamkit.models.camera import PinholeCamera
 from slamkit.paths import file_in
 from slamkit.systems.visual_odometry import FrameResult, VisualOdometry, VisualOdometryConfig, VoEstimate
@@ -134,16 +135,10 @@ def score(run: VoRun) -> dict[str, float]:
     }
     gt = run.sequence.ground_truth
     if gt is not None and len(frames) >= 3:
-        est = run.trajectory()
-        sim3 = ate(gt, est, "sim3")
-        metrics["ate_sim3_m"] = float(sim3.translation_m.rmse)
-        metrics["sim3_scale"] = float(sim3.alignment.scale)
-        metrics["ate_se3_m"] = float(ate(gt, est, "se3").translation_m.rmse)
-        rel = rpe(gt, est, 1, "frames", align_mode="sim3")
-        metrics["rpe_trans_m"] = float(rel.translation_m.rmse)
-        metrics["rpe_rot_deg"] = float(rel.rotation_deg.rmse)
+        metrics.update(score_trajectory(gt, run.trajectory(), "sim3", extra_aligns=("se3",), rotation_unit="deg",
+                                        rpe_delta=1, rpe_delta_unit="frames", rpe_align="sim3"))
         metrics["distance_m"] = float(gt.path_length_m())
-        metrics["ate_sim3_percent_of_distance"] = 100.0 * metrics["ate_sim3_m"] / max(metrics["distance_m"], 1e-9)
+        metrics["ate_percent_of_distance"] = 100.0 * metrics["ate_rmse_m"] / max(metrics["distance_m"], 1e-9)
     return metrics
 
 
@@ -192,7 +187,7 @@ def run(config: Mapping[str, Any], folder: ResultsFolder, progress: StepProgress
     return PipelineOutput(records, _report(config, runs), payload=VoPayload(tuple(runs)))
 
 
-_REPORT_METRICS = ("ate_sim3_m", "ate_sim3_percent_of_distance", "ate_se3_m", "rpe_trans_m", "rpe_rot_deg",
+_REPORT_METRICS = ("ate_rmse_m", "ate_percent_of_distance", "ate_se3_rmse_m", "rpe_rmse_m", "rpe_rot_rmse_deg",
                    "inlier_ratio", "keypoints_mean", "matches_mean", "inliers_mean", "tracked_points_mean",
                    "time_per_frame_ms")
 
@@ -200,7 +195,7 @@ _REPORT_METRICS = ("ate_sim3_m", "ate_sim3_percent_of_distance", "ate_se3_m", "r
 def _report(config: Mapping[str, Any], runs: list[VoRun]) -> str:
     text = f"# Monocular visual odometry: {config.get('name', 'visual_odometry')}\n\n"
     text += ("Monocular scale is unobservable: the trajectory is in the unit of the first baseline, so "
-             "ATE is reported after a Sim(3) alignment (`ate_sim3_m`); `ate_se3_m` (no scale) is only "
+             "ATE is reported after a Sim(3) alignment (`ate_rmse_m`); `ate_se3_rmse_m` (no scale) is only "
              "meaningful where the scale is known. `mono_vo_ba` runs the sliding-window bundle adjustment, "
              "`mono_vo` the same front-end without it.\n\n")
     header = ["sequence", "run", *_REPORT_METRICS]

@@ -53,4 +53,4 @@ def test_stereo_ba_within_1_5x_of_orb_slam_on_the_same_frames(data):
 
     report = stereo_ba_kitti00()
     assert report.final_error < report.initial_error
-    assert report.metrics["stereo_ba"]["ate_se3_m"] <= 1.5 * report.metrics["orb_slam"]["ate_se3_m"]
+    assert report.metrics["stereo_ba"]["ate_rmse_m"] <= 1.5 * report.metrics["orb_slam"]["ate_rmse_m"]

@@ -17,7 +17,7 @@ from slamkit.experiments.visual_odometry import load_image_sequence
 from slamkit.viz.pipelines import observer_for
 
 ROOT_PIPELINES = __import__("pathlib").Path(__file__).resolve().parents[2] / "pipelines"
-METRICS = ("ate_sim3_m", "ate_se3_m", "rpe_trans_m", "rpe_rot_deg", "inlier_ratio", "time_per_frame_ms")
+METRICS = ("ate_rmse_m", "ate_se3_rmse_m", "rpe_rmse_m", "rpe_rot_rmse_deg", "inlier_ratio", "time_per_frame_ms")
 
 
 @pytest.fixture(scope="module")
@@ -41,13 +41,13 @@ def test_folder_spec_run_writes_metrics_trajectory_and_recording(tmp_path, kitti
         assert 0.5 < r["metrics"]["inlier_ratio"] <= 1.0
         assert r["metrics"]["keypoints_mean"] > 1000
     # 6 frames, ~6 m: measured 0.012 m with BA
-    assert runs["mono_vo_ba"]["metrics"]["ate_sim3_m"] < 0.1
+    assert runs["mono_vo_ba"]["metrics"]["ate_rmse_m"] < 0.1
     traj = read_tum(out / "trajectories" / "kitti_a.tum")
     assert len(traj) == 6
     np.testing.assert_allclose(traj.stamps_s, np.arange(6) * 0.1)
     assert (out / "trajectories" / "kitti_a_no_ba.tum").exists()
     assert (out / "plots" / "trajectory_kitti_a.png").exists()
-    assert "ate_sim3_m" in (out / "report.md").read_text()
+    assert "ate_rmse_m" in (out / "report.md").read_text()
     paths = verify_rrd(out / "recording.rrd")
     base = "/kitti_a/mono_vo_ba/world"
     for entity in ("ground_truth", "estimate", "points", "camera", "camera/image", "camera/image/keypoints",
@@ -83,8 +83,8 @@ def test_shipped_pipeline_on_all_51_frames(tmp_path):
     (measured: see the report in the final commit message)."""
     res = run_pipeline(load_config(ROOT_PIPELINES / "visual_odometry.yaml"), tmp_path / "run", progress=False)
     runs = {r["estimator"]: r["metrics"] for r in res.results["runs"]}
-    assert runs["mono_vo_ba"]["ate_sim3_m"] < 0.6
-    assert runs["mono_vo_ba"]["ate_sim3_m"] < runs["mono_vo"]["ate_sim3_m"]
+    assert runs["mono_vo_ba"]["ate_rmse_m"] < 0.6
+    assert runs["mono_vo_ba"]["ate_rmse_m"] < runs["mono_vo"]["ate_rmse_m"]
 
 
 # --- issue 31: frames that cannot be used are refused by index and file -----------------------
