@@ -4,7 +4,8 @@ Every dataset (``intel``, ``city10000``, ``torus3d``, ``parking-garage``, ``kitt
 ``w10000`` ...) has an entry (:class:`DatasetEntry`): kind, format, files with sha256 and source
 address, licence, counts and reference values (published optima flagged ``published=True``; the
 MANIFEST's "gtsam local check" numbers flagged ``published=False``). The table itself lives in
-:mod:`slamkit.data.registry_table`; ``datasets/README.md`` explains the layout.
+``slamkit/data/registry_table.toml`` (package data, read by :mod:`slamkit.data.registry_table`);
+``datasets/README.md`` explains the layout.
 
 Files are looked up, first hit wins, in:
 
