@@ -143,3 +143,15 @@ def test_every_registry_estimator_satisfies_its_protocol() -> None:
         est = built(inertial if spec.sequence_kind == "inertial" else seq)
         assert built.kind == spec.kind
         assert isinstance(est, BatchEstimator if spec.kind == "batch" else Estimator), name
+
+
+def test_angle_wrapping_is_written_once() -> None:
+    """``(a + pi) % (2 pi) - pi`` is ``slamkit.geometry.angles.wrap_angle``; copies (PRM's
+    sampler and the potential-field controller had one each, issue 30) are not written again."""
+    import re
+
+    copy = re.compile(r"\+ *(np|math)\.pi\) *% *\(?2(\.0)? *\* *(np|math)\.pi")
+    found = [f"{path.relative_to(PACKAGE.parent)}:{no}"
+             for path in PACKAGE.rglob("*.py") if path.parent.name != "geometry"
+             for no, line in enumerate(path.read_text().splitlines(), 1) if copy.search(line)]
+    assert not found, f"angle wrapped by hand (use slamkit.geometry.angles.wrap_angle): {found}"

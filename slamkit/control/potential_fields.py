@@ -34,6 +34,7 @@ from slamkit.control.path_following import lookahead_point
 from slamkit.control.protocols import (non_finite_brake, ControlOutput, ControlStatus, DistanceGrid, LocalWorld,
                                        Reference, RobotState)
 from slamkit.errors import ControlError
+from slamkit.geometry.angles import wrap_angle
 
 ATTRACTIVE_KINDS = ("quadratic", "conic", "combined")
 
@@ -123,10 +124,6 @@ class PotentialFieldConfig:
             raise ControlError("PotentialFieldConfig.influence_m and dt_s must be positive")
 
 
-def _wrap(a: np.ndarray | float) -> np.ndarray | float:
-    return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
-
-
 class PotentialFieldController:
     """Gradient descent on attractive + repulsive potentials, with local-minimum escape."""
 
@@ -197,7 +194,7 @@ class PotentialFieldController:
             else:
                 heading = float(np.arctan2(f["total"][1], f["total"][0]))
                 speed = c.k_v * float(np.linalg.norm(f["total"]))
-        err = float(_wrap(heading - theta))
+        err = float(wrap_angle(heading - theta))
         v = speed * max(np.cos(err), 0.0)
         w = c.k_omega * err
         cmd = self._limit(state, v, w)

@@ -30,6 +30,7 @@ from scipy.sparse.csgraph import connected_components, dijkstra
 from scipy.spatial import cKDTree
 
 from slamkit.errors import PlanningError
+from slamkit.geometry.angles import wrap_angle
 from slamkit.planning._sampling import SamplingPlanner, check_endpoints
 from slamkit.planning.protocols import Hook, PlanEvent, PlanResult, PlanStats, PlanStatus, PlanningProblem
 from slamkit.planning.worlds import as_world
@@ -89,7 +90,7 @@ def sample_states(world, cfg: PRMConfig, rng: np.random.Generator) -> tuple[np.n
             q2 = q1.copy()
             q2[:, :2] += rng.normal(0.0, sigma, (len(q1), 2))
             if world.dim == 3:
-                q2[:, 2] = (q1[:, 2] + rng.normal(0.0, 0.5, len(q1)) + np.pi) % (2 * np.pi) - np.pi
+                q2[:, 2] = wrap_angle(q1[:, 2] + rng.normal(0.0, 0.5, len(q1)))
             v1, v2 = world.is_valid(q1), world.is_valid(q2)
             if cfg.sampler == "gaussian":
                 near = np.vstack([q1[v1 & ~v2], q2[v2 & ~v1]])
