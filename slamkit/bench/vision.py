@@ -19,14 +19,13 @@ import numpy as np
 
 from slamkit.bench.cases import BenchCase, best_of
 from slamkit.data.formats.image import read_image
+from slamkit.data.formats.image_sequence import load_image_sequence
 from slamkit.systems.visual_odometry import VisualOdometry, VisualOdometryConfig
 from slamkit.vision.orb import detect_orb, match_descriptors, match_descriptors_windowed
 from slamkit.vision.two_view import ransac_essential
 
 
 def run(quick: bool = False) -> list[BenchCase]:
-    from slamkit.experiments.visual_odometry import load_image_sequence
-
     n = 6 if quick else 30
     seq = load_image_sequence("kitti-vo-a", max_frames=n)
     images = [read_image(p) for p in seq.images]

@@ -3,16 +3,16 @@
 A sequence is a registry name (``kitti-vo-a``) or ``{name, images: DIR, calib: FILE, poses:
 FILE, times: FILE}`` in the KITTI odometry layout (``calib.txt`` P0 = the left camera's 3x4
 projection, ``poses.txt`` camera-to-world ground truth, stamps = frame index x 0.1 s unless
-``times`` are given). The system (:class:`slamkit.systems.visual_odometry.VisualOdometry`) is fed
-the frames; this module scores it and writes ``trajectories/<name>.tum`` (the BA run;
+``times`` are given), read by :mod:`slamkit.data.formats.image_sequence`. The system
+(:class:`slamkit.systems.visual_odometry.VisualOdometry`) is fed the frames; this module scores it and writes ``trajectories/<name>.tum`` (the BA run;
 ``<name>_no_ba.tum`` for the run without bundle adjustment when ``compare_without_ba``).
 
 Metrics per run (the vocabulary of :mod:`slamkit.metrics`): ``ate_rmse_m`` after a Sim(3)
 Umeyama alignment (monocular scale is unobservable, so this is the figure that means something;
 ``sim3_scale`` its scale, ``ate_rot_rmse_deg``), ``ate_se3_rmse_m`` (without scale: only
 meaningful where the scale is known, reported for completeness), ``rpe_rmse_m`` and
-``rpe_rot_rmse_deg`` (frame to frame after the Sim(3) alignment), ``ate_percent_of_distance``, ``inlier_ratio`` (essential-matrix inliers / putative matches, mean
-over frames), ``time_per_frame_ms`` (front-end + BA, median) and the course's per-frame numbers
+``rpe_rot_rmse_deg`` (frame to frame after the Sim(3) alignment), ``ate_percent_of_distance``,
+``inlier_ratio`` (essential-matrix inliers / putative matches, mean over frames), ``time_per_frame_ms`` (front-end + BA, median) and the course's per-frame numbers
 as means (``keypoints_mean``, ``matches_mean``, ``inliers_mean``, ``tracked_points_mean``).
 """
 
@@ -25,9 +25,8 @@ from typing import Any, Mapping
 import numpy as np
 
 from slamkit.backend.bundle_adjustment import BundleAdjustmentConfig
-from slamkit.data import registry
-from slamkit.data.formats.image import list_images, read_image
-from slamkit.data.formats.kitti import read_kitti, read_kitti_calib
+from slamkit.data.formats.image import read_image
+from slamkit.data.formats.image_sequence import ImageSequence, load_image_sequence
 from slamkit.data.formats.tum import write_tum
 from slamkit.data.trajectory import Trajectory
 from slamkit.errors import ConfigError, DataError
@@ -37,56 +36,10 @@ from slamkit.experiments.pipeline import Pipeline, PipelineOutput, StepProgress
 from slamkit.experiments.results import ResultsFolder, RunRecord, markdown_table
 from slamkit.metrics.ate import ate
 from slamkit.metrics.trajectory_score import score_trajectory
-from slamkit.models.camera import PinholeCamera
 from slamkit.paths import file_in
 from slamkit.systems.visual_odometry import FrameResult, VisualOdometry, VisualOdometryConfig, VoEstimate
 from slamkit.vision.klt import KltConfig
 from slamkit.vision.orb import OrbConfig
-
-#: KITTI odometry frames are 0.1 s apart
-KITTI_FRAME_PERIOD_S = 0.1
-
-
-@dataclass(frozen=True)
-class ImageSequence:
-    """A resolved camera sequence: image files, the camera, stamps and ground truth (or None)."""
-
-    name: str
-    images: tuple[Path, ...]
-    camera: PinholeCamera
-    stamps_s: np.ndarray
-    ground_truth: Trajectory | None = None
-
-
-def load_image_sequence(spec: str | Mapping[str, Any], max_frames: int | None = None) -> ImageSequence:
-    """A registry name or ``{name, images, calib, poses, times}`` (KITTI layout)."""
-    if isinstance(spec, str):
-        entry = registry.get(spec)
-        poses = registry.path_of(entry.name, "poses.txt")
-        calib = registry.path_of(entry.name, "calib.txt")
-        spec = {"name": entry.name, "images": poses.parent / "image_l", "calib": calib, "poses": poses}
-    name = str(spec.get("name") or Path(spec["images"]).parent.name)
-    files = list_images(spec["images"])
-    if max_frames is not None:
-        files = files[:max_frames]
-    P0 = read_kitti_calib(spec["calib"])
-    P = P0.get("P0", next(iter(P0.values())))
-    height, width = read_image(files[0]).shape
-    camera = PinholeCamera.from_K(P[:, :3], width=width, height=height)
-    gt = None
-    if spec.get("poses"):
-        gt = read_kitti(spec["poses"], spec.get("times"))
-        if len(gt) < len(files):
-            raise DataError(f"{len(gt)} poses for {len(files)} images", spec["poses"])
-        gt = gt.subset(np.arange(len(files)))
-    if spec.get("times"):
-        stamps = gt.stamps_s if gt is not None else read_kitti(spec["poses"], spec["times"]).stamps_s
-    else:
-        stamps = np.arange(len(files)) * KITTI_FRAME_PERIOD_S
-    if gt is not None:
-        gt = Trajectory.from_matrices(stamps, gt.matrices())
-    return ImageSequence(name, tuple(files), camera, np.asarray(stamps, float), gt)
-
 
 @dataclass(frozen=True)
 class VoRun:

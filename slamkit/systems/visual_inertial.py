@@ -20,8 +20,10 @@ projection factors). This module does what happens around it:
 
 Frames and readings must arrive in time order. Feature coordinates are undistorted, normalised
 (x/z, y/z in the camera frame), with a track id per feature. The world frame is gravity-aligned
-(z up), its origin the body at state 0. The system knows nothing of ground truth or files:
-``slamkit.experiments.visual_inertial`` feeds and scores it.
+(z up), its origin the body at state 0. The system knows nothing of ground truth or files;
+:func:`run_vio` feeds it a recording read into memory (the gtsam wheel's EuRoC replay file,
+:class:`~slamkit.data.formats.eqvio_csv.EqvioData`), and the tests score it against EuRoC's
+ground truth beside OpenVINS (``tests/systems/peer_comparison.py``).
 """
 
 from __future__ import annotations
@@ -32,12 +34,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from slamkit.backend.visual_inertial import SmartVioConfig, SmartVioSmoother
+from slamkit.data.formats.eqvio_csv import EqvioData
 from slamkit.data.inertial import STANDARD_GRAVITY_MPS2
 from slamkit.errors import ConfigError, EstimationError
 from slamkit.geometry import so3
 from slamkit.models.imu import ImuNoise
 
-__all__ = ["EUROC_IMU_NOISE", "VioConfig", "VioFrameResult", "VioEstimate", "VisualInertialOdometry"]
+__all__ = ["EUROC_IMU_NOISE", "VioConfig", "VioFrameResult", "VioEstimate", "VisualInertialOdometry", "run_vio"]
 
 #: EuRoC MAV's ADIS16448 (``imu0/sensor.yaml`` of every EuRoC sequence): continuous-time densities
 EUROC_IMU_NOISE = ImuNoise(gyro_noise_density=1.6968e-4, gyro_bias_random_walk=1.9393e-5,
@@ -177,3 +180,19 @@ class VisualInertialOdometry:
             raise EstimationError("VisualInertialOdometry.estimate(): not initialised (no frame after the static window)")
         T, v, bias = self._smoother.states()
         return VioEstimate(np.array(self._stamps), T, v, bias, np.array(self._step_ms), self._stationary)
+
+
+def run_vio(data: EqvioData, config: VioConfig = VioConfig(), until_s: float | None = None) -> VioEstimate:
+    """Feed a recording's IMU readings and frames (up to ``until_s`` seconds after the first
+    reading) to a fresh system in time order and return its estimate."""
+    vio = VisualInertialOdometry(data.imu_T_camera, config)
+    end = np.inf if until_s is None else data.imu_stamps_s[0] + until_s + 1e-9
+    i = 0
+    for t, (ids, xy) in zip(data.frame_stamps_s, data.frame_features):
+        if t > end:
+            break
+        while i < len(data.imu_stamps_s) and data.imu_stamps_s[i] <= t + 1e-9:
+            vio.step_imu(data.imu_stamps_s[i], data.accel_mps2[i], data.gyro_radps[i])
+            i += 1
+        vio.step_frame(t, ids, xy)
+    return vio.estimate()

@@ -10,10 +10,10 @@ import json
 import numpy as np
 import pytest
 
+from slamkit.data.formats.image_sequence import load_image_sequence
 from slamkit.data.formats.tum import read_tum
 from slamkit.errors import ConfigError
 from slamkit.experiments.pipeline import load_config, run_pipeline
-from slamkit.experiments.visual_odometry import load_image_sequence
 from slamkit.viz.pipelines import observer_for
 
 ROOT_PIPELINES = __import__("pathlib").Path(__file__).resolve().parents[2] / "pipelines"

@@ -5,8 +5,9 @@ import numpy as np
 import pytest
 
 from slamkit.errors import ConfigError, EstimationError
-from slamkit.experiments.visual_inertial import load_euroc_v101, vio_euroc_v101
 from slamkit.systems.visual_inertial import VioConfig, VisualInertialOdometry
+
+from peer_comparison import load_euroc_v101, vio_euroc_v101
 
 
 def test_static_initialisation_gravity_and_gyro_bias():

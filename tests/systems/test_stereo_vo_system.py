@@ -13,14 +13,14 @@ from slamkit.data import registry
 from slamkit.data.formats.gtsam_vo import read_stereo_vo
 from slamkit.errors import DataError
 
+from peer_comparison import load_kitti00_stereo, stereo_ba_kitti00
+
 
 @pytest.fixture(scope="module")
 def data():
     entry = registry.get("kitti00-stereo-features")
     if not registry.is_available(entry):
         pytest.skip("the gtsam wheel's VO_*00s.txt files are not available")
-    from slamkit.experiments.stereo_vo import load_kitti00_stereo
-
     return load_kitti00_stereo()
 
 
@@ -49,8 +49,6 @@ def test_stereo_ba_on_five_frames_lowers_the_error_and_holds_the_first_pose(data
 
 @pytest.mark.slow
 def test_stereo_ba_within_1_5x_of_orb_slam_on_the_same_frames(data):
-    from slamkit.experiments.stereo_vo import stereo_ba_kitti00
-
     report = stereo_ba_kitti00()
     assert report.final_error < report.initial_error
     assert report.metrics["stereo_ba"]["ate_rmse_m"] <= 1.5 * report.metrics["orb_slam"]["ate_rmse_m"]
