@@ -162,27 +162,64 @@ def test_a_track_that_leaves_its_span_line_starts_a_new_span_and_keeps_its_rever
     np.testing.assert_allclose(stale.span_xy_m[0], [[1.0, 2.0], [3.0, 2.0]], atol=2e-3)
 
 
-def test_a_track_lost_to_a_split_cluster_hands_its_history_to_its_successor():
+def _shuttle_x(t: float) -> float:
+    """The shuttler above: along y = 2 between x = 1 and 3 at 0.4 m/s (5 s per leg)."""
+    s = 0.4 * t % 4.0
+    return 1.0 + (s if s <= 2.0 else 4.0 - s)
+
+
+def test_a_shuttler_hidden_long_enough_to_lose_its_track_gets_its_lane_back():
+    # seen 12 s (2 reversals, span x 1..3), hidden for 3 s (30 scans > max_misses 5: the track is
+    # deleted), seen again for 1 s from t = 15 s (x 3 -> 2.6, a new track)
+    def run(config: TrackerConfig, hidden_s: float = 3.0):
+        tr = ConstantVelocityTracker(config)
+        for k in range(121):
+            tr.update(0.1 * k, Detection(np.array([[_shuttle_x(0.1 * k), 2.0]]), np.array([0.3]), np.array([10])))
+        t0 = 12.0 + hidden_s
+        for k in range(121, int(round(10 * t0))):
+            tr.update(0.1 * k, Detection(np.zeros((0, 2)), np.zeros(0), np.zeros(0, dtype=int)))
+        for k in range(int(round(10 * t0)), int(round(10 * t0)) + 11):
+            tr.update(0.1 * k, Detection(np.array([[_shuttle_x(0.1 * k), 2.0]]), np.array([0.3]), np.array([10])))
+        return tr.tracks()
+
+    out = run(TrackerConfig(lane_memory_s=30.0))
+    assert out.ids.tolist() == [1]
+    # the new track continues the lane: two reversals, the span x 1..3, the typical speed ~0.4
+    assert out.reversals.tolist() == [2]
+    np.testing.assert_allclose(np.sort(out.span_xy_m[0, :, 0]), [1.0, 3.0], atol=0.1)
+    assert 0.3 < out.speed_typical_mps[0] < 0.45
+    # without the memory it knows only its own second: no reversal, a span of ~0.3 m
+    bare = run(TrackerConfig())
+    assert bare.reversals.tolist() == [0]
+    assert np.ptp(bare.span_xy_m[0, :, 0]) < 0.45
+    # a lane remembered for 2 s is forgotten by the time the shuttler comes back after 3
+    forgot = run(TrackerConfig(lane_memory_s=2.0))
+    assert forgot.reversals.tolist() == [0]
+
+
+def test_a_track_lost_to_a_split_cluster_gives_its_lane_to_its_successor():
     # the shuttler above, seen for 12 s (2 reversals, span x 1..3); at t = 12.1 s its cluster
     # splits (near a wall part of it is explained by the map): one fragment 0.1 m ahead of it,
     # which the track takes, one 0.2 m behind, which starts a new track; from then on it is seen
     # 0.15 m behind its centre, nearer the new track, and the old one is starved and deleted
-    tr = ConstantVelocityTracker(TrackerConfig(hand_over=True))
+    def run(config: TrackerConfig):
+        tr = ConstantVelocityTracker(config)
+        for k in range(121):
+            tr.update(0.1 * k, Detection(np.array([[_shuttle_x(0.1 * k), 2.0]]), np.array([0.3]), np.array([10])))
+        x = _shuttle_x(12.1)
+        tr.update(12.1, Detection(np.array([[x + 0.1, 2.0], [x - 0.2, 2.0]]), np.array([0.15, 0.15]),
+                                  np.array([5, 5])))
+        for k in range(122, 131):
+            tr.update(0.1 * k, Detection(np.array([[_shuttle_x(0.1 * k) - 0.15, 2.0]]), np.array([0.3]),
+                                         np.array([10])))
+        return tr.tracks()
 
-    def x_at(t: float) -> float:
-        s = 0.4 * t % 4.0
-        return 1.0 + (s if s <= 2.0 else 4.0 - s)
-
-    for k in range(121):
-        tr.update(0.1 * k, Detection(np.array([[x_at(0.1 * k), 2.0]]), np.array([0.3]), np.array([10])))
-    tr.update(12.1, Detection(np.array([[x_at(12.1) + 0.1, 2.0], [x_at(12.1) - 0.2, 2.0]]), np.array([0.15, 0.15]),
-                              np.array([5, 5])))
-    for k in range(122, 131):
-        tr.update(0.1 * k, Detection(np.array([[x_at(0.1 * k) - 0.15, 2.0]]), np.array([0.3]), np.array([10])))
-    out = tr.tracks()
+    out = run(TrackerConfig(lane_memory_s=30.0))
     assert out.ids.tolist() == [1]  # the successor alone (the old track missed 6 scans > max_misses 5)
     # ... with the history it could not have seen itself: two reversals, the span from x = 1 to 3
     assert out.reversals.tolist() == [2]
     np.testing.assert_allclose(np.sort(out.span_xy_m[0, :, 0]), [1.0, 3.0], atol=0.1)
     assert 0.3 < out.speed_typical_mps[0] < 0.45
-    # (without the hand-over it would know only its own 0.9 s: no reversal, a 0.41 m span, 0.27 m/s)
+    # without the memory it knows only its own 0.9 s
+    bare = run(TrackerConfig())
+    assert bare.reversals.tolist() == [0] and np.ptp(bare.span_xy_m[0, :, 0]) < 0.45
