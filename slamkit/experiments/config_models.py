@@ -17,10 +17,26 @@ from typing import Annotated, Any, Literal, Union
 import pydantic
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field
 
-from slamkit.config import STRICT, YamlDocument, model_of, validate, write_back
+from slamkit.backend.robust import RobustSolveConfig
+from slamkit.backend.solvers import OptimizeConfig
+from slamkit.config import STRICT, YamlDocument, model_of, params_model_of, validate, write_back
+from slamkit.control.registry import CONTROLLERS
+from slamkit.data import registry
+from slamkit.data.noise import SENSOR_SIGMAS
+from slamkit.data.perturb import PerturbationConfig
 from slamkit.errors import ConfigError, SlamkitError
+from slamkit.experiments.estimators import REGISTRY, config_class
+from slamkit.experiments.navigation_benchmark import seed_blocks
+from slamkit.experiments.perturbation import perturbation_config
 from slamkit.naming import import_plugins, suggestion
 from slamkit.paths import path_component
+from slamkit.sim.grid_world import GridScenario
+from slamkit.sim.inertial_world import PRESETS as INERTIAL_PRESETS, InertialScenario
+from slamkit.sim.landmark_world import LandmarkScenario
+from slamkit.sim.outliers import OutlierConfig
+from slamkit.sim.scenario import load_scenario
+from slamkit.systems.lidar_slam import LidarSlamConfig
+from slamkit.systems.visual_odometry import VisualOdometryConfig
 
 def _plain_name(v: str) -> str:
     try:
@@ -88,8 +104,6 @@ class _OpenPipeline(PipelineConfig):
 # --- pose_graph ---------------------------------------------------------------------------------
 
 def _optimize_options() -> type:
-    from slamkit.backend.solvers import OptimizeConfig
-
     return model_of(OptimizeConfig)
 
 
@@ -111,7 +125,6 @@ class PoseGraphPipeline(PipelineConfig):
 def _check_pose_graph_sources(datasets: list[str], doc: YamlDocument | None, source: str) -> None:
     """Every ``datasets`` entry is a registry name (under its naming rule) or an existing file:
     a misspelt one fails here, naming file and line, not after the others have been solved."""
-    from slamkit.data import registry
 
     for k, name in enumerate(datasets):
         try:
@@ -135,9 +148,6 @@ class PoseGraphOutliersPipeline(PipelineConfig):
     solver: dict[str, Any] = {}
 
     def check_options(self, config: dict[str, Any], doc: YamlDocument | None, source: str) -> None:
-        from slamkit.backend.robust import RobustSolveConfig
-        from slamkit.sim.outliers import OutlierConfig
-
         _check_pose_graph_sources(self.datasets, doc, source)
         _nested(model_of(OutlierConfig), self.outliers, doc, source, ("outliers",))
         _nested(model_of(RobustSolveConfig), self.solver, doc, source, ("solver",))
@@ -177,10 +187,8 @@ def _check_perturbations(values: Any, doc: YamlDocument | None, source: str) -> 
     slamkit.experiments.perturbation) against the fields of PerturbationConfig."""
     if values is None:
         return
-    from slamkit.data.perturb import PerturbationConfig
 
     _nested(model_of(PerturbationConfig), values, doc, source, ("perturbations",))
-    from slamkit.experiments.perturbation import perturbation_config
 
     try:
         perturbation_config({"perturbations": values})
@@ -226,7 +234,6 @@ class LocalPlanningPipeline(PipelineConfig):
     record_scenarios: Annotated[int, Field(ge=0, le=1000)] = 1
 
     def check_options(self, config: dict[str, Any], doc: YamlDocument | None, source: str) -> None:
-        from slamkit.control.registry import CONTROLLERS
         from slamkit.experiments.closed_loop import ClosedLoopConfig
 
         _nested(model_of(ClosedLoopConfig), self.closed_loop, doc, source, ("closed_loop",))
@@ -271,8 +278,6 @@ class NavigationScenarios(BaseModel):
 
     @pydantic.model_validator(mode="after")
     def _evaluation_is_fresh(self) -> "NavigationScenarios":
-        from slamkit.experiments.navigation_benchmark import seed_blocks
-
         if self.evaluation is not None:
             try:
                 seed_blocks(seed_list(self.seeds), self.evaluation.model_dump())
@@ -346,8 +351,6 @@ class LidarSlamPipeline(PipelineConfig):
 
     def check_options(self, config: dict[str, Any], doc: YamlDocument | None, source: str) -> None:
         from slamkit.experiments.lidar_slam import MclCheckConfig
-        from slamkit.sim.grid_world import GridScenario
-        from slamkit.systems.lidar_slam import LidarSlamConfig
 
         if not self.worlds and not self.logs:
             where = doc.where(()) if doc is not None else source
@@ -387,8 +390,6 @@ class VisualOdometryPipeline(PipelineConfig):
     max_frames: Annotated[int, Field(ge=2, le=1_000_000)] | None = None
 
     def check_options(self, config: dict[str, Any], doc: YamlDocument | None, source: str) -> None:
-        from slamkit.systems.visual_odometry import VisualOdometryConfig
-
         _nested(model_of(VisualOdometryConfig), self.vo, doc, source, ("vo",))
 
 
@@ -460,9 +461,6 @@ def _estimator_items(raw: Any) -> list[tuple[str, dict[str, Any]]]:
 
 def _check_estimators(raw: Any, doc: YamlDocument | None, source: str,
                       path: tuple = ("estimators",)) -> None:
-    from slamkit.data.noise import SENSOR_SIGMAS
-    from slamkit.experiments.estimators import REGISTRY, config_class
-
     for label, params in _estimator_items(raw):
         try:
             kind = REGISTRY.canonical(str(params.pop("type", label)))
@@ -480,8 +478,6 @@ def _check_estimators(raw: Any, doc: YamlDocument | None, source: str,
 def _check_dataset_params(entry: ScenarioEntry, k: int, doc: YamlDocument | None, source: str) -> None:
     """A ``dataset:`` scenario's ``params`` against its reader's keyword parameters (names, types,
     NaN/inf, suffix bounds: :func:`slamkit.config.params_model_of`)."""
-    from slamkit.config import params_model_of
-    from slamkit.data import registry
     from slamkit.experiments.filter_vs_smoother.monte_carlo import dataset_reader
 
     where = doc.where(("scenarios", k, "dataset")) if doc is not None else source
@@ -494,9 +490,6 @@ def _check_dataset_params(entry: ScenarioEntry, k: int, doc: YamlDocument | None
 
 
 def _check_scenarios(model: FilterVsSmootherPipeline, doc: YamlDocument | None, source: str) -> None:
-    from slamkit.sim.inertial_world import PRESETS as INERTIAL_PRESETS, InertialScenario
-    from slamkit.sim.landmark_world import LandmarkScenario
-
     pipeline_estimators = dict(_estimator_items(model.estimators))
     from slamkit.experiments.filter_vs_smoother.config import PRESETS
 
@@ -525,8 +518,6 @@ def _check_scenarios(model: FilterVsSmootherPipeline, doc: YamlDocument | None, 
             if entry.dataset is not None:
                 _check_dataset_params(entry, k, doc, source)
             if entry.scenario is not None:
-                from slamkit.sim.scenario import load_scenario
-
                 where = doc.where(("scenarios", k)) if doc is not None else source
                 try:  # the file exists and its fields with the overrides make a scenario
                     load_scenario(entry.scenario, entry.params)

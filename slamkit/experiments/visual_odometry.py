@@ -171,8 +171,6 @@ def _plot(plots: Path, runs: list[VoRun]) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from slamkit.metrics.ate import ate
-
     for name in dict.fromkeys(r.sequence.name for r in runs):
         mine = [r for r in runs if r.sequence.name == name]
         gt = mine[0].sequence.ground_truth
