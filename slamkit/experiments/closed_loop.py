@@ -19,10 +19,13 @@ without a collision before ``max_time_s``. Metrics (units in the names): ``succe
 over dt^2), ``fallback_steps`` (cycles whose status was a brake or a local minimum) and
 ``step_latency_median_ms``.
 
-Scenarios (:func:`make_scenario`): a seeded map (the office and warehouse generators of
-``slamkit.maps.generators`` at 20 m x 20 m, or an open room with boxes), start and goal drawn
-in free space 6-14 m apart, the global path from A* on the Nav2-style costmap, and moving circles
-from :func:`slamkit.sim.moving_obstacles.crossing_obstacles` timed to meet the robot.
+Scenarios (:func:`make_scenario`): a seeded map (:func:`slamkit.sim.local_planning_world.scenario_map`:
+the office and warehouse generators at 20 m x 20 m, or an open room with boxes), start and goal
+drawn in free space 6-14 m apart, the global path from A* on the Nav2-style costmap, and moving
+circles from :func:`slamkit.sim.moving_obstacles.crossing_obstacles` timed to meet the robot. The
+world itself -- map, perfect obstacle sensor, ground-truth clearance -- is
+:mod:`slamkit.sim.local_planning_world`; this module draws what needs a planner (start, goal,
+path, the hand-over replan) and runs the loop (issue 30).
 """
 
 from __future__ import annotations
@@ -50,10 +53,9 @@ from slamkit.models.diff_drive import motion
 from slamkit.planning.astar import AStarPlanner
 from slamkit.planning.grid_search import costmap_to_cell_cost
 from slamkit.planning.protocols import PlanningProblem
+from slamkit.sim.local_planning_world import SCENARIO_KINDS, scenario_map, visible_obstacles
+from slamkit.sim.local_planning_world import clearance_m as world_clearance_m
 from slamkit.sim.moving_obstacles import MovingObstacles, crossing_obstacles
-from slamkit.sim.navigation_world import world_map
-
-SCENARIO_KINDS = ("office", "warehouse", "open")
 
 
 # --------------------------------------------------------------------------- scenarios
@@ -92,27 +94,6 @@ def replan(scenario: Scenario, xy_m: np.ndarray, t_s: float, robot_radius_m: flo
     return _simplify(res.path) if res.solved else None
 
 
-def _open_room(rng: np.random.Generator, width_m: float = 16.0, height_m: float = 12.0,
-               resolution_m: float = 0.1, boxes: int = 6) -> OccupancyGrid:
-    w, h = int(round(width_m / resolution_m)), int(round(height_m / resolution_m))
-    occ = np.zeros((h, w), dtype=bool)
-    t = 2  # two-cell walls
-    occ[:t, :] = occ[-t:, :] = occ[:, :t] = occ[:, -t:] = True
-    for _ in range(boxes):
-        bw, bh = rng.integers(5, 13, size=2)
-        x0, y0 = rng.integers(t + 10, w - t - 10 - bw), rng.integers(t + 10, h - t - 10 - bh)
-        occ[y0:y0 + bh, x0:x0 + bw] = True
-    return OccupancyGrid(occ, resolution_m, np.zeros(2), name="open")
-
-
-def _map(kind: str, rng: np.random.Generator) -> OccupancyGrid:
-    if kind == "open":
-        return _open_room(rng)
-    if kind in ("office", "warehouse"):
-        return world_map(kind, rng, resolution_m=0.1, size_m=20.0)
-    raise ConfigError(f"unknown scenario kind {kind!r}; choose from {SCENARIO_KINDS}")
-
-
 def _simplify(path: np.ndarray, every: int = 3) -> np.ndarray:
     """Keep every ``every``-th A* cell centre (and the last): the controllers interpolate anyway."""
     if len(path) <= 2:
@@ -144,7 +125,7 @@ def make_scenario(seed: int, kind: str = "office", n_obstacles: int = 3,
                   obstacle_min_side_m: float = 0.5) -> Scenario:
     """A seeded scenario (same seed and kind -> same scenario)."""
     rng = np.random.default_rng(seed)
-    grid = _map(kind, rng)
+    grid = scenario_map(kind, rng)
     # the global path keeps the robot's disc plus 0.15 m from walls, more than any controller's
     # safety margin, so a path never leads through a gap the local planner refuses to enter
     cost = costmap(grid, inscribed_radius_m=robot_radius_m + 0.15, inflation_radius_m=1.0)
@@ -214,23 +195,19 @@ class Episode:
 
 def perceive(scenario: Scenario, world_xytheta_body: np.ndarray, t_s: float,
              config: ClosedLoopConfig) -> LocalWorld:
-    obs = scenario.obstacles
-    if len(obs) == 0:
+    """What the controller is told: the static map and the circles the perfect tracker sees
+    (:func:`slamkit.sim.local_planning_world.visible_obstacles`)."""
+    if len(scenario.obstacles) == 0:
         return LocalWorld(distance=scenario.distance, t_s=t_s)
-    xy = obs.position_at(t_s)
-    seen = np.linalg.norm(xy - world_xytheta_body[:2], axis=1) - obs.radius_m <= config.sensor_range_m
-    return LocalWorld(xy[seen], obs.radius_m[seen], obs.velocity_at(t_s)[seen], scenario.distance, t_s)
+    xy, radius, velocity = visible_obstacles(scenario.obstacles, world_xytheta_body[:2], t_s, config.sensor_range_m)
+    return LocalWorld(xy, radius, velocity, scenario.distance, t_s)
 
 
 def clearance_m(scenario: Scenario, xy_m: np.ndarray, t_s: float, robot_radius_m: float) -> float:
-    """Distance from the robot's disc to the nearest obstacle surface (< 0: collision). Static
-    distances run between cell centres, so half a cell is taken off for the occupied cell's extent."""
-    d_static = float(scenario.distance.query(xy_m)[0]) - 0.5 * scenario.grid.resolution_m
-    d = d_static
-    if len(scenario.obstacles):
-        centres = scenario.obstacles.position_at(t_s)
-        d = min(d, float((np.linalg.norm(centres - xy_m, axis=1) - scenario.obstacles.radius_m).min()))
-    return d - robot_radius_m
+    """Distance from the robot's disc to the nearest obstacle surface (< 0: collision):
+    :func:`slamkit.sim.local_planning_world.clearance_m` on the scenario's map and circles."""
+    return world_clearance_m(scenario.grid, scenario.distance.distance_m, scenario.obstacles, xy_m, t_s,
+                             robot_radius_m)
 
 
 def run_episode(scenario: Scenario, controller: Controller, config: ClosedLoopConfig = ClosedLoopConfig(),
