@@ -60,7 +60,7 @@ def test_a_changed_metric_is_named_with_its_run(cr, tmp_path):
     b = _write(tmp_path / "b", other, {})
     diffs = cr.compare(a, b)
     assert len(diffs) == 1
-    assert "runs[0]{dataset=mild,estimator=ekf,seed=0}.metrics.ate_rmse_m" in diffs[0]
+    assert "runs{dataset=mild,estimator=ekf,seed=0}.metrics.ate_rmse_m" in diffs[0]
     assert cr.compare(a, b, rtol=1e-9) == []
     assert cr.main(["compare", str(a), str(b)]) == 1
 
@@ -75,6 +75,16 @@ def test_renamed_missing_and_extra_fields_and_runs_are_differences(cr, tmp_path)
     assert "ate_rmse_m: only in first" in diffs
     assert "ate_se3_m: only in second" in diffs
     assert "runs: 1 items against 2" in diffs
+
+
+def test_an_added_row_is_reported_once_not_as_a_shift(cr, tmp_path):
+    a = _write(tmp_path / "a", RESULTS, {})
+    other = copy.deepcopy(RESULTS)
+    other["summary"].insert(0, {"dataset": "mild", "estimator": "ekf", "metric": "new_metric_m", "mean": 1.0,
+                                "n": 1})
+    b = _write(tmp_path / "b", other, {})
+    assert cr.compare(a, b) == [
+        "results.json.summary{dataset=mild,estimator=ekf,metric=new_metric_m}: only in second"]
 
 
 def test_trajectory_files_compared_byte_for_byte(cr, tmp_path):

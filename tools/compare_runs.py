@@ -115,6 +115,17 @@ def compare_json(a: object, b: object, path: str = "", rtol: float = 0.0) -> lis
     if isinstance(a, list) and isinstance(b, list):
         a = [x for x in a if not _is_timing_row(x)]
         b = [x for x in b if not _is_timing_row(x)]
+        la, lb = [_label(x) for x in a], [_label(y) for y in b]
+        if all(la) and all(lb) and len(set(la)) == len(la) and len(set(lb)) == len(lb):
+            # rows that say who they are (run, summary row): matched by that, so one added or
+            # removed row is reported once instead of shifting every row after it
+            by_b = dict(zip(lb, b))
+            out = [f"{path}{label}: only in first" for label in la if label not in by_b]
+            out += [f"{path}{label}: only in second" for label in lb if label not in set(la)]
+            for x, label in zip(a, la):
+                if label in by_b:
+                    out.extend(compare_json(x, by_b[label], f"{path}{label}", rtol))
+            return out
         out = [] if len(a) == len(b) else [f"{path}: {len(a)} items against {len(b)}"]
         for i, (x, y) in enumerate(zip(a, b)):
             out.extend(compare_json(x, y, f"{path}[{i}]{_label(x)}", rtol))
