@@ -345,3 +345,75 @@ def params_model_of(fn: Any, exclude: typing.Iterable[str] = ()) -> type[pydanti
 
 def finite(x: float) -> bool:
     return isinstance(x, (int, float)) and math.isfinite(x)
+
+
+# --- from the validated mapping to the algorithms' dataclasses ---------------------------------
+
+T = typing.TypeVar("T")
+
+
+def _tupled(value: Any) -> Any:
+    if isinstance(value, (list, tuple)):
+        return tuple(_tupled(v) for v in value)
+    return value
+
+
+def _dataclass_in(hint: Any) -> type | None:
+    """The dataclass a field's type names (``X`` or ``X | None``), else None."""
+    if dataclasses.is_dataclass(hint) and isinstance(hint, type):
+        return hint
+    if typing.get_origin(hint) in (typing.Union, getattr(__import__("types"), "UnionType", None)):
+        found = [a for a in typing.get_args(hint) if dataclasses.is_dataclass(a) and isinstance(a, type)]
+        return found[0] if len(found) == 1 else None
+    return None
+
+
+def build(cls: type[T], data: Mapping[str, Any] | None, where: str | None = None, base: T | None = None) -> T:
+    """The frozen config dataclass ``cls`` from a validated mapping: the one dict-to-dataclass
+    builder (issue 30), so the pipelines restate neither defaults nor nesting.
+
+    * a key that is absent or null keeps its default (``base``'s value when given, else the
+      field's default), as a null means everywhere in a config;
+    * a mapping for a field whose default is a dataclass overrides *that default's* fields,
+      recursively (``orb: {fast_threshold: 12}`` keeps the system's other ORB settings); a
+      mapping for a field typed as a dataclass without one builds it from its class defaults;
+    * lists become tuples (frozen configs hold tuples), recursively;
+    * an unknown key is a :class:`~slamkit.errors.ConfigError` naming ``where`` and the known
+      fields ("unknown parameter(s)"), as is a value the dataclass refuses by type.
+
+    Bounds are checked where they are declared: by the pydantic model (:func:`model_of`) at the
+    edge and by the dataclass's own ``__post_init__``.
+    """
+    name = where or cls.__name__
+    if data is None:
+        data = {}
+    if not isinstance(data, Mapping):
+        raise ConfigError(f"{name}: expected a mapping of {cls.__name__} fields, got {data!r}")
+    fields = {f.name: f for f in dataclasses.fields(cls) if f.init}
+    unknown = sorted(set(map(str, data)) - set(fields))
+    if unknown:
+        raise ConfigError(f"{name}: unknown parameter(s) {unknown} for {cls.__name__}; known: {sorted(fields)}")
+    hints = typing.get_type_hints(cls)
+    kwargs: dict[str, Any] = {}
+    for key, value in data.items():
+        if value is None:
+            continue
+        f = fields[key]
+        if base is not None:
+            default = getattr(base, key)
+        elif f.default_factory is not dataclasses.MISSING:  # type: ignore[misc]
+            default = f.default_factory()  # type: ignore[misc]
+        else:
+            default = f.default
+        if isinstance(value, Mapping):
+            if dataclasses.is_dataclass(default) and not isinstance(default, type):
+                value = build(type(default), value, f"{name}.{key}", base=default)
+            elif (nested := _dataclass_in(hints.get(key))) is not None:
+                value = build(nested, value, f"{name}.{key}")
+        else:
+            value = _tupled(value)
+        kwargs[key] = value
+    try:
+        return dataclasses.replace(base, **kwargs) if base is not None else cls(**kwargs)
+    except TypeError as exc:
+        raise ConfigError(f"{name}: {exc}") from None

@@ -40,6 +40,7 @@ import numpy as np
 from slamkit.control.protocols import (ControlOutput, ControlStatus, Controller, DistanceGrid,
                                        LocalWorld, Reference, RobotState)
 from slamkit.control.registry import CONTROLLERS, make_controller
+from slamkit.config import build
 from slamkit.errors import ConfigError
 from slamkit.experiments.config_models import LocalPlanningPipeline
 from slamkit.experiments.observers import PipelineObserver
@@ -336,10 +337,7 @@ def compare(config: Mapping[str, Any], observer=None,
     except ConfigError as exc:
         raise ConfigError(f"controllers: {exc}") from None
     params = dict(config.get("controller_params", {}) or {})
-    try:
-        loop = ClosedLoopConfig(**dict(config.get("closed_loop", {}) or {}))
-    except TypeError as exc:
-        raise ConfigError(f"closed_loop: {exc}") from exc
+    loop = build(ClosedLoopConfig, config.get("closed_loop"), "closed_loop")
     n_record = int(config.get("record_scenarios", 1))
     watch = observer is not None and observer.wants_steps
     episodes = []

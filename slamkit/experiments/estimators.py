@@ -48,6 +48,7 @@ from slamkit.data.estimate import BatchEstimator, Estimator
 from slamkit.data.noise import SENSOR_SIGMAS, NoiseParams
 from slamkit.data.noise import prior_of  # noqa: F401  (the runner's and the benchmarks' prior)
 from slamkit.data.sequence import Sequence
+from slamkit.config import build as build_config
 from slamkit.errors import ConfigError
 from slamkit.naming import Registry, load_target
 
@@ -217,26 +218,6 @@ def available() -> list[str]:
     return [n for n in REGISTRY if is_available(n)]
 
 
-def _config(cls: type, params: Mapping[str, Any], where: str) -> Any:
-    """``cls(**params)``; a mapping given for a field whose default is a dataclass overrides
-    that default's fields (recursively), a list for a tuple field becomes a tuple."""
-    fields = {f.name: f for f in dataclasses.fields(cls)}
-    unknown = sorted(set(params) - set(fields))
-    if unknown:
-        raise ConfigError(f"{where}: unknown parameter(s) {unknown}; {cls.__name__} has {sorted(fields)}")
-    kwargs = {}
-    for name, value in params.items():
-        f = fields[name]
-        default = f.default_factory() if f.default_factory is not dataclasses.MISSING else f.default
-        if isinstance(value, Mapping) and dataclasses.is_dataclass(default) and not isinstance(default, type):
-            nested = _config(type(default), value, f"{where}.{name}")
-            value = dataclasses.replace(default, **{k: getattr(nested, k) for k in value})
-        elif isinstance(value, list):
-            value = tuple(value)
-        kwargs[name] = value
-    return cls(**kwargs)
-
-
 @dataclass(frozen=True)
 class EstimatorFactory:
     """A registry estimator with its params and seed: ``factory(sequence)`` builds one. The
@@ -273,7 +254,7 @@ def factory(name: str, params: Mapping[str, Any] | None = None, seed: int = 0) -
             rng = np.random.default_rng(seed) if s.random else None
             return make_estimator(name, sequence, {**noise_params, **params}, rng=rng)
         if s in SYSTEMS:
-            config = _config(config_cls, {**noise_params, **params}, f"estimator {name!r}")
+            config = build_config(config_cls, {**noise_params, **params}, f"estimator {name!r}")
             return cls.from_sequence(sequence, config=config)
         if s not in SMOOTHERS:
             return _build_plugin(s, cls, config_cls, noise_params, params, seed, sequence)
@@ -282,7 +263,7 @@ def factory(name: str, params: Mapping[str, Any] | None = None, seed: int = 0) -
         if any(f.name == "noise" for f in dataclasses.fields(config_cls)):
             given["noise"] = NoiseParams.from_metadata(sequence.metadata,
                                                        **{k: float(v) for k, v in noise_params.items()})
-        config = _config(config_cls, given, f"estimator {name!r}")
+        config = build_config(config_cls, given, f"estimator {name!r}")
         if hasattr(cls, "from_sequence"):
             return cls.from_sequence(sequence, config=config)
         return cls(config=config)
@@ -298,7 +279,7 @@ def _build_plugin(s: EstimatorSpec, cls: type, config_cls: type | None, noise_pa
         raise ConfigError(f"{where}: takes no parameters (its spec names no config class), got {sorted(params)}")
     kwargs: dict[str, Any] = {}
     if config_cls is not None:
-        kwargs["config"] = _config(config_cls, params, where)
+        kwargs["config"] = build_config(config_cls, params, where)
     if s.random:
         kwargs["rng"] = np.random.default_rng(seed)
     if hasattr(cls, "from_sequence"):

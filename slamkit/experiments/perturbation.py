@@ -27,6 +27,7 @@ from typing import Any, Iterable, Mapping, Sequence as Seq
 
 import numpy as np
 
+from slamkit.config import build
 from slamkit.data.perturb import PerturbationConfig
 from slamkit.experiments.results import RunRecord, _jsonable, markdown_table, metric_direction, summarise
 from slamkit.paths import file_in
@@ -36,12 +37,7 @@ PARAM = "perturbation"
 
 def perturbation_config(config: Mapping[str, Any]) -> PerturbationConfig:
     """The validated ``perturbations`` mapping of a pipeline config as its dataclass."""
-    # a key written as null means its default, as everywhere in a config
-    raw = {k: v for k, v in dict(config.get("perturbations") or {}).items() if v is not None}
-    if "kinds" in raw:
-        raw["kinds"] = tuple(raw["kinds"])
-    names = {f.name for f in dataclasses.fields(PerturbationConfig)}
-    return PerturbationConfig(**{k: v for k, v in raw.items() if k in names})
+    return build(PerturbationConfig, config.get("perturbations"), "perturbations")
 
 
 def perturbation_indices(config: Mapping[str, Any]) -> list[int]:

@@ -18,18 +18,18 @@ as means (``keypoints_mean``, ``matches_mean``, ``inliers_mean``, ``tracked_poin
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
 
-from slamkit.backend.bundle_adjustment import BundleAdjustmentConfig
+from slamkit.config import build
 from slamkit.data.formats.image import read_image
 from slamkit.data.formats.image_sequence import ImageSequence, load_image_sequence
 from slamkit.data.formats.tum import write_tum
 from slamkit.data.trajectory import Trajectory
-from slamkit.errors import ConfigError, DataError
+from slamkit.errors import DataError
 from slamkit.experiments.config_models import VisualOdometryPipeline
 from slamkit.experiments.observers import PipelineObserver
 from slamkit.experiments.pipeline import Pipeline, PipelineOutput, StepProgress
@@ -38,8 +38,6 @@ from slamkit.metrics.ate import ate
 from slamkit.metrics.trajectory_score import score_trajectory
 from slamkit.paths import file_in
 from slamkit.systems.visual_odometry import FrameResult, VisualOdometry, VisualOdometryConfig, VoEstimate
-from slamkit.vision.klt import KltConfig
-from slamkit.vision.orb import OrbConfig
 
 @dataclass(frozen=True)
 class VoRun:
@@ -95,19 +93,6 @@ def score(run: VoRun) -> dict[str, float]:
     return metrics
 
 
-def config_from(values: Mapping[str, Any] | None) -> VisualOdometryConfig:
-    """``VisualOdometryConfig`` from a plain mapping (nested ``orb``, ``klt`` and ``ba``), already
-    validated by the pipeline's model."""
-    values = dict(values or {})
-    nested = {"orb": OrbConfig, "ba": BundleAdjustmentConfig, "klt": KltConfig}
-    known = {f.name for f in fields(VisualOdometryConfig)}
-    unknown = sorted(set(values) - known)
-    if unknown:
-        raise ConfigError(f"visual_odometry.vo: unknown key(s) {unknown}; known: {sorted(known)}")
-    kwargs = {k: (nested[k](**v) if k in nested else v) for k, v in values.items()}
-    return VisualOdometryConfig(**kwargs)
-
-
 @dataclass(frozen=True)
 class VoPayload:
     """What the recorder draws: every run (images are read again from ``sequence.images``)."""
@@ -120,7 +105,7 @@ def run(config: Mapping[str, Any], folder: ResultsFolder, progress: StepProgress
         observer: PipelineObserver) -> PipelineOutput[VoPayload]:
     """Pipeline ``visual_odometry``: every sequence with bundle adjustment (and without, when
     ``compare_without_ba``), scored against its ground truth."""
-    vo_config = config_from(config.get("vo"))
+    vo_config = build(VisualOdometryConfig, config.get("vo"), "visual_odometry.vo")
     max_frames = config.get("max_frames")
     variants = [("mono_vo_ba", vo_config)]
     if config.get("compare_without_ba", True) and vo_config.window:

@@ -1,0 +1,64 @@
+"""slamkit.config.build: the one builder from a validated mapping to the algorithms' frozen
+dataclasses (issue 30) -- defaults never restated, nested sections over their defaults."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import pytest
+
+from slamkit.config import build
+from slamkit.errors import ConfigError
+
+
+@dataclass(frozen=True)
+class Inner:
+    a_m: float = 1.0
+    b: int = 2
+    names: tuple[str, ...] = ("x",)
+
+
+@dataclass(frozen=True)
+class Outer:
+    inner: Inner = Inner(a_m=5.0)          # a non-class default: overrides keep its other fields
+    optional: Inner | None = None          # typed as a dataclass, no default instance
+    pairs: tuple[tuple[float, float], ...] = ()
+    rate_hz: float = 10.0
+    made: Inner = field(default_factory=lambda: Inner(b=7))
+
+    def __post_init__(self) -> None:
+        if self.rate_hz <= 0:
+            raise ConfigError("rate_hz must be > 0")
+
+
+def test_empty_and_null_give_the_defaults():
+    assert build(Outer, None) == Outer() == build(Outer, {}) == build(Outer, {"rate_hz": None, "inner": None})
+
+
+def test_nested_mapping_overrides_the_default_instance():
+    out = build(Outer, {"inner": {"b": 3}, "made": {"a_m": 0.5}, "rate_hz": 20})
+    assert out.inner == Inner(a_m=5.0, b=3)      # a_m kept from Outer's default, not Inner's 1.0
+    assert out.made == Inner(a_m=0.5, b=7)
+    assert out.rate_hz == 20
+
+
+def test_dataclass_typed_field_without_default_and_lists_to_tuples():
+    out = build(Outer, {"optional": {"names": ["p", "q"]}, "pairs": [[1.0, 2.0], [3.0, 4.0]]})
+    assert out.optional == Inner(names=("p", "q"))
+    assert out.pairs == ((1.0, 2.0), (3.0, 4.0)) and isinstance(out.pairs[0], tuple)
+    hash(out)   # frozen and hashable all the way down
+
+
+def test_base_supplies_the_defaults():
+    base = Outer(rate_hz=50.0, inner=Inner(b=9))
+    out = build(Outer, {"inner": {"a_m": 2.0}}, base=base)
+    assert out == Outer(rate_hz=50.0, inner=Inner(a_m=2.0, b=9))
+
+
+def test_errors_name_the_field_path():
+    with pytest.raises(ConfigError, match=r"cfg\.inner: unknown parameter\(s\) \['c'\] for Inner; known: \['a_m', 'b', 'names'\]"):
+        build(Outer, {"inner": {"c": 1}}, "cfg")
+    with pytest.raises(ConfigError, match="Outer: expected a mapping of Outer fields"):
+        build(Outer, [1, 2])
+    with pytest.raises(ConfigError, match="rate_hz must be > 0"):   # the dataclass's own bound
+        build(Outer, {"rate_hz": -1.0})
