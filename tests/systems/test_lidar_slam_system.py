@@ -211,6 +211,41 @@ def test_odometry_that_froze_then_jumped_is_checked_against_the_scans():
     assert turns[False].min() < -150.0
 
 
+def test_isam2_cholesky_giving_up_on_a_long_loop_free_chain_moves_the_graph_to_qr():
+    """GTSAM's Cholesky calls a clique underconstrained when its factor's last two diagonal
+    entries differ by 2^12 or more: a chain without loop closures whose newest edge is ~4096x
+    more precise (in sigma) than the newest pose's marginal. A straight chain of 1 m edges with
+    sigmas 1 mm / 10 mrad gets there at pose 127 (measured; the hospital's chain, 5 mm / 1.6
+    mrad per 0.4 m keyframe, at keyframe 2349 of 927 m; the synthetic 0.4 m, 5 mm / 1.6 mrad
+    chain at 2308). Nothing is indeterminate: QR solves it. The system moves its graph to a QR
+    iSAM2 then and goes on, with every pose where the chain puts it."""
+    from slamkit.backend.isam2 import Isam2PoseGraph
+
+    info = np.linalg.inv(np.diag([1e-3 ** 2, 1e-3 ** 2, 1e-2 ** 2]))
+    z = np.array([1.0, 0.0, 0.0])
+    plain = Isam2PoseGraph("cauchy", params=LidarSlamConfig().isam2)
+    plain.add_pose(0, np.zeros(3))
+    plain.update()
+    with pytest.raises(RuntimeError, match="ndetermin"):
+        for j in range(1, 200):
+            plain.add_pose(j, se2.compose(plain.poses()[-1], z))
+            plain.add_edge(j - 1, j, z, info, robust_edge=False)
+            plain.update()
+    assert 100 <= j <= 160          # 127 measured
+    slam = LidarSlam(LidarSlamConfig())
+    slam._graph.add_pose(0, np.zeros(3))
+    slam._update()
+    for j in range(1, 200):
+        slam._graph.add_pose(j, se2.compose(slam._graph.poses()[-1], z))
+        slam._graph.add_edge(j - 1, j, z, info, robust_edge=False)
+        slam._edge_kind.append("odometry")
+        slam._update()
+    assert slam.counters["isam2_qr_fallbacks"] == 1
+    assert isinstance(slam._graph, Isam2PoseGraph) and slam._graph_qr
+    np.testing.assert_allclose(slam._graph.poses(), np.column_stack([np.arange(200.0), np.zeros(200), np.zeros(200)]),
+                               atol=1e-9)
+
+
 GOALS = {"intel": 0.031, "fr079": 0.056}
 
 
