@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import os
 
-from typing import Annotated, Any, Literal, Union
+from typing import Annotated, Any, Literal, Mapping, Union
 
 import pydantic
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field
@@ -450,6 +450,39 @@ def check_pipeline(config: dict[str, Any], doc: YamlDocument | None = None, sour
     finally:
         del _VALIDATED[start:]
     return model
+
+
+def with_defaults(config: Mapping[str, Any], model: pydantic.BaseModel) -> dict[str, Any]:
+    """``config`` (as validated and written back by :func:`check_pipeline`) with every field its
+    model leaves at a default spelt out -- what ``config.yaml`` of a run holds and what the
+    pipeline runs on, so the folder says every setting that was used (issue 30). Given values are
+    kept as written; a field missing (or null) gets its model default, recursively into nested
+    models (``scenarios: {kinds: [...]}`` gains ``seeds``, ``n_obstacles`` ...); defaults that are
+    None stay absent (None means "not set")."""
+    out = dict(config)
+    for name in type(model).model_fields:
+        value = getattr(model, name)
+        if value is None:
+            continue
+        given = out.get(name)
+        if given is None:
+            out[name] = _dumped(value)
+        elif isinstance(value, pydantic.BaseModel) and isinstance(given, Mapping):
+            out[name] = with_defaults(given, value)
+        elif isinstance(value, list) and isinstance(given, list) and len(value) == len(given):
+            out[name] = [with_defaults(g, v) if isinstance(v, pydantic.BaseModel) and isinstance(g, Mapping) else g
+                         for g, v in zip(given, value)]
+    return out
+
+
+def _dumped(value: Any) -> Any:
+    if isinstance(value, pydantic.BaseModel):
+        return value.model_dump(mode="json", exclude_none=True)
+    if isinstance(value, (list, tuple)):
+        return [_dumped(v) for v in value]
+    if isinstance(value, dict):
+        return {k: _dumped(v) for k, v in value.items()}
+    return value
 
 
 def _estimator_items(raw: Any) -> list[tuple[str, dict[str, Any]]]:

@@ -1,6 +1,10 @@
 """``slamkit run PIPELINE.yaml``: load a pipeline config, dispatch to its kind, write the results
 folder (config.yaml, results.json, report.md, plots/, trajectories/, recording.rrd).
 
+``config.yaml`` is the resolved config (:func:`config_models.with_defaults`): the validated
+config with every default of its model spelt out, and the pipeline runs on that same mapping, so
+the folder says every setting that was used (issue 30).
+
 Architecture note (issue 18): a pipeline kind is a :class:`Pipeline`, declared by its own module
 (``PIPELINE = Pipeline(...)`` in ``slamkit.experiments.pose_graph`` ...): its registry name, its
 config model (a pydantic model of :mod:`slamkit.experiments.config_models`, whose
@@ -31,7 +35,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 
 from slamkit.config import load_yaml
 from slamkit.errors import ConfigError
-from slamkit.experiments.config_models import PipelineConfig, check_pipeline
+from slamkit.experiments.config_models import PipelineConfig, check_pipeline, with_defaults
 from slamkit.experiments.observers import NullObserver, PipelineObserver
 from slamkit.experiments.perturbation import with_perturbation_report
 from slamkit.experiments.results import ResultsFolder, RunRecord
@@ -220,7 +224,8 @@ def run_pipeline(config: str | Path | Mapping[str, Any], out_dir: str | Path | N
         cfg.update(overrides)
     if "pipeline" not in cfg:
         raise ConfigError("a pipeline config needs a 'pipeline' key")
-    check_pipeline(cfg)
+    # what runs is what config.yaml says: the validated config with every default spelt out
+    cfg = with_defaults(cfg, check_pipeline(cfg))
     pipeline = pipeline_of(cfg["pipeline"])
     if out_dir is None:
         out_dir = Path("runs") / path_component(cfg.get("name", cfg["pipeline"]), "the config's name")

@@ -19,7 +19,9 @@ model before anything runs (an error names the axis values and the field).
 
 Each cell is one pipeline run (:func:`slamkit.experiments.pipeline.run_pipeline`) into
 ``<out>/cells/<key[:2]>/<key>`` (:func:`cell_path`), where ``key`` is a hash of the cell's resolved
-config (the two-digit shard keeps each folder small: a results folder looks for its own
+config -- every default of the pipeline's model spelt out (:func:`config_models.with_defaults`), so
+a default written out or left implicit is the same cell; the keys of sweeps made before issue 30
+hashed the config as written and are not found by ``--resume`` (the two-digit shard keeps each folder small: a results folder looks for its own
 leftovers among its siblings, which in one flat folder of 10,000 cells made every cell scan all
 the others); the cell folder
 is written atomically by :class:`~slamkit.experiments.results.ResultsFolder`, so a sweep killed
@@ -58,7 +60,7 @@ from pydantic import BaseModel, Field, StringConstraints, field_validator
 import slamkit
 from slamkit.config import STRICT, YamlDocument, load_yaml, validate
 from slamkit.errors import ConfigError, OutputError
-from slamkit.experiments.config_models import PlainName, Seeds, check_pipeline, seed_list
+from slamkit.experiments.config_models import PlainName, Seeds, check_pipeline, seed_list, with_defaults
 from slamkit.experiments.executors import Executor, TaskFailure, make_executor
 from slamkit.experiments.results import (MARKER, SWEEP_KIND, ResultsFolder, RunRecord, _jsonable,
                                          acquire_folder_lock, check_output_folder, is_results_folder, markdown_table,
@@ -201,7 +203,8 @@ def load_sweep(path: str | Path) -> Sweep:
                 set_path(config, axis, value)
         label = ", ".join(f"{k}={_short(v)}" for k, v in axes.items()) or "(no axes)"
         try:
-            check_pipeline(config, None, f"{path}: cell {label}")
+            # the cell runs on, writes and is keyed by its resolved config (defaults spelt out)
+            config = with_defaults(config, check_pipeline(config, None, f"{path}: cell {label}"))
         except ConfigError as exc:
             raise ConfigError(str(exc) if str(exc).startswith(str(path)) else f"{path}: cell {label}: {exc}") from None
         cell = Cell(config_key(config), axes, config)

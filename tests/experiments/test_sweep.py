@@ -68,8 +68,9 @@ def test_a_grid_crosses_every_axis_and_the_seeds(tmp_path: Path) -> None:
                                    axes={"x": [1.0, 2.0, 3.0], "dataset": ["a", "b"]}))
     assert len(sweep.cells) == 3 * 2 * 2
     assert sweep.cells[0].axes == {"x": 1.0, "dataset": "a", "seed": 5}
+    # the resolved config: the common fields' defaults spelt out (issue 30)
     assert sweep.cells[0].config == {"pipeline": "sweep_probe", "x": 1.0, "name": "sweep", "dataset": "a",
-                                     "seeds": [5]}
+                                     "seeds": [5], "record": True, "plugins": []}
     assert len({c.key for c in sweep.cells}) == 12
     assert all(c.key == config_key(c.config) and len(c.key) == 16 for c in sweep.cells)
     zipped = load_sweep(write_sweep(tmp_path, mode="zip", axes={"x": [1.0, 2.0], "dataset": ["a", "b"]}))

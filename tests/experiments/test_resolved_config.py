@@ -1,0 +1,35 @@
+"""A run's config.yaml is the resolved config (issue 30): every default of the pipeline's model
+spelt out, the given values as validated, and the pipeline runs on that same mapping."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import yaml
+
+from slamkit.experiments.config_models import check_pipeline, with_defaults
+from slamkit.experiments.pipeline import load_config, run_pipeline
+
+
+def test_defaults_are_filled_recursively_and_given_values_kept():
+    config = {"pipeline": "local_planning", "controllers": ["dwa"], "scenarios": {"kinds": ["open"], "seeds": 2}}
+    resolved = with_defaults(config, check_pipeline(dict(config)))
+    assert resolved["controllers"] == ["dwa"]
+    assert resolved["scenarios"] == {"kinds": ["open"], "seeds": 2, "n_obstacles": 3,
+                                     "obstacle_speed_mps": [0.2, 0.5], "obstacle_min_side_m": 0.5}
+    assert resolved["record"] is True and resolved["record_scenarios"] == 1 and resolved["closed_loop"] == {}
+    assert "name" not in resolved          # a None default means "not set": left out
+    assert config == {"pipeline": "local_planning", "controllers": ["dwa"],
+                      "scenarios": {"kinds": ["open"], "seeds": 2}}   # the input is not modified
+
+
+def test_the_run_folder_says_every_setting_and_reloads(tmp_path: Path):
+    config = {"pipeline": "pose_graph", "name": "pg", "datasets": ["intel"], "options": {"max_iterations": 5},
+              "record": False}
+    run_pipeline(config, tmp_path / "out", progress=False)
+    written = yaml.safe_load((tmp_path / "out" / "config.yaml").read_text())
+    assert written == {"pipeline": "pose_graph", "name": "pg", "datasets": ["intel"],
+                       "options": {"max_iterations": 5}, "record": False, "plugins": [],
+                       "solvers": ["lm"], "inits": ["file"], "robust": "none", "certify": "auto"}
+    (tmp_path / "again.yaml").write_text((tmp_path / "out" / "config.yaml").read_text())
+    assert load_config(tmp_path / "again.yaml") == written
