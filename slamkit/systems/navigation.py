@@ -255,6 +255,17 @@ class NavigationConfig:
     #: the back-off retraces the robot's trail (steering 0.25 m back along it) rather than
     #: driving straight at its place (:meth:`NavigationStack._back_off_aim`)
     back_off_along_trail: bool = False
+    #: yielding gives way to a track slowed below ``blocking_speed_mps`` whose typical speed is
+    #: above it (a shuttler at its turn), predicted by the reachable set of the speed it lost
+    #: (:meth:`NavigationStack.local_world`, ``turning``). Without it a shuttler braking to turn
+    #: drops out of yielding while its filtered speed passes 0, and the robot, released, drives
+    #: into its lane as it comes back (issue 33, warehouse development seed 412: released at
+    #: 18.9 s, the shuttler under 0.15 m/s at 19.2-19.4 s, hit at 19.8 s). Measured on development
+    #: seeds 400-429 (constant-velocity traffic), paired with off: moving hits office 1 -> 3,
+    #: warehouse 4 -> 0, Willow 2 -> 2 (7 -> 5 of 90), failures 8 -> 8; the new office hits are
+    #: other mechanisms (backing off at 0.3 m/s from a 0.48 m/s shuttler, a head-on approach).
+    #: Off until a block of fresh seeds says more.
+    yield_turning: bool = False
     # -- goal
     approach_radius_m: float = 0.35
     approach_speed_mps: float = 0.15
@@ -644,20 +655,35 @@ class NavigationStack:
             self._trail.append(pose[:2].copy())
             del self._trail[:-int(math.ceil((self.config.yield_back_off_m + 1.0) / 0.05))]
 
-    def _moving(self, tracks: Tracks) -> np.ndarray:
-        """(K,) tracks moving faster than ``blocking_speed_mps``."""
-        return np.linalg.norm(tracks.velocity_mps, axis=1) >= self.config.blocking_speed_mps
+    def _moving(self, tracks: Tracks, typical: bool = False) -> np.ndarray:
+        """(K,) tracks moving faster than ``blocking_speed_mps`` (``typical``: now or typically --
+        a track slowed down to turn is still traffic)."""
+        speed = np.linalg.norm(tracks.velocity_mps, axis=1)
+        if typical:
+            speed = np.maximum(speed, tracks.speed_typical_mps)
+        return speed >= self.config.blocking_speed_mps
 
-    def local_world(self, tracks: Tracks, t_s: float = 0.0, hedges: tuple[float, float] | None = None) -> LocalWorld:
+    def _yield_moving(self, tracks: Tracks) -> np.ndarray:
+        """(K,) the tracks yielding gives way to (:meth:`_moving`, typical speeds with ``yield_turning``)."""
+        return self._moving(tracks, typical=self.config.yield_turning)
+
+    def local_world(self, tracks: Tracks, t_s: float = 0.0, hedges: tuple[float, float] | None = None,
+                    turning: bool = False) -> LocalWorld:
         """What the local planner, the evasion, yielding and the safe-stop check see: the walls
         and every track, moving ones grown by ``moving_margin_m``, predicted with the hedge of
         ``prediction_hedge`` (``reversed_prediction_hedge`` for a track that has reversed
-        before; ``hedges``: other values for the two) -- the stack's only prediction of the tracks."""
+        before; ``hedges``: other values for the two) -- the stack's only prediction of the tracks.
+        ``turning``: a track slower than its typical speed is turning or stopping, so its way on
+        is unknown: the missing fraction of its typical speed, 1 - |v| / typical, is the least
+        hedge it gets (a shuttler at its turn, |v| ~ 0, is predicted by its reachable set)."""
         c = self.config
         moving = self._moving(tracks)
         plain, reversed_ = (c.prediction_hedge, c.reversed_prediction_hedge) if hedges is None else hedges
         lam = np.where(tracks.reversals > 0, reversed_, plain)
-        speed = np.maximum(np.linalg.norm(tracks.velocity_mps, axis=1), tracks.speed_typical_mps)
+        speed_now = np.linalg.norm(tracks.velocity_mps, axis=1)
+        speed = np.maximum(speed_now, tracks.speed_typical_mps)
+        if turning:
+            lam = np.maximum(lam, np.clip(1.0 - speed_now / np.maximum(speed, 1e-9), 0.0, 1.0))
         return LocalWorld(tracks.xy_m, tracks.radius_m + c.moving_margin_m * moving,
                           (1.0 - lam)[:, None] * tracks.velocity_mps, self.distance, t_s, lam * speed)
 
@@ -674,8 +700,9 @@ class NavigationStack:
         Returns centres (T, M, 2) and reach (T, M) (disc radius, ``moving_margin_m`` and the
         robot radius: closer, the robot touches it)."""
         c = self.config
-        moving = np.flatnonzero(self._moving(tracks))
-        world = self.local_world(tracks, self._t_s, hedges=(c.yield_hedge, c.yield_reversed_hedge))
+        moving = np.flatnonzero(self._yield_moving(tracks))
+        world = self.local_world(tracks, self._t_s, hedges=(c.yield_hedge, c.yield_reversed_hedge),
+                                 turning=c.yield_turning)
         centres = world.circles_at(tau_s)[:, moving]
         reach = world.radii_at(tau_s)[:, moving] + c.robot_radius_m
         if c.yield_span_shuttle:
@@ -701,7 +728,7 @@ class NavigationStack:
         if centres.shape[1]:
             d = np.linalg.norm(xy[:, None, None, :] - centres[None], axis=-1) - reach[None]
             out = np.minimum(out, d.min(axis=(1, 2)))
-        moving = self._moving(tracks)
+        moving = self._yield_moving(tracks)
         if moving.any():
             span = tracks.span_xy_m[moving]
             d = (point_segment_distance(xy, span[:, 0], span[:, 1])
@@ -732,7 +759,7 @@ class NavigationStack:
           sweep would touch it where it stands (stopping would not help), it leaves the traffic
           to the local planner's evasion (+inf)."""
         c = self.config
-        moving = self._moving(tracks)
+        moving = self._yield_moving(tracks)
         if self.path is None or not moving.any():
             return YieldDecision(math.inf)
         s0 = project_on_path(self.path, pose[:2])

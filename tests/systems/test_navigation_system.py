@@ -501,3 +501,27 @@ def test_yield_hedge_treats_a_track_never_seen_reversing_as_one_that_may_turn_ba
     assert stack.yield_decision(pose, away).v_max_mps == 0.0
     with pytest.raises(ConfigError):
         NavigationConfig(yield_hedge=1.5)
+
+
+def test_yield_turning_keeps_giving_way_to_a_shuttler_slowed_at_its_turn():
+    from slamkit.estimation.obstacle_tracker import Tracks
+
+    # a shuttler (r 0.3, typically 0.5 m/s, seen reversing along x = 3 from y = -1.5 to 1) brakes
+    # at its turn 1 m from the path: its filtered speed is 0.05 m/s, under blocking_speed_mps
+    # (0.15), so plain yielding drops it and the robot at (2.05, 2) drives on into its lane. With
+    # yield_turning its typical speed keeps it traffic, predicted by the reachable set of the speed
+    # it lost (hedge 1 - 0.05 / 0.5 = 0.9): it covers the path ahead, the robot stays where it is
+    def shuttler(y_m: float) -> Tracks:
+        return Tracks(np.arange(1), np.array([[3.0, y_m]]), np.array([[0.0, 0.05]]), np.array([0.3]), np.eye(4)[None],
+                      reversals=np.array([1]), speed_typical_mps=np.array([0.5]),
+                      span_xy_m=np.array([[[3.0, -1.5], [3.0, 1.0]]]))
+
+    stack = _straight_stack(2.05)
+    pose = np.array([2.05, 2.0, 0.0])
+    assert stack.yield_decision(pose, shuttler(1.0)).v_max_mps == np.inf
+    stack.config = dataclasses.replace(stack.config, yield_turning=True)
+    d = stack.yield_decision(pose, shuttler(1.0))
+    assert d.v_max_mps == 0.0 and d.wait_gap_m == 0.0
+    # turning at the far end of its lane, 3 m from the path, it reaches no point of the path
+    # within the slack of the robot's passing: no yield
+    assert stack.yield_decision(pose, shuttler(-1.0)).v_max_mps == np.inf
