@@ -24,7 +24,6 @@ steps and its output.
 
 from __future__ import annotations
 
-import json
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -191,14 +190,19 @@ class ProgressReporter:
 def load_config(path: str | Path) -> dict[str, Any]:
     """Read and validate a pipeline config file (see :mod:`slamkit.experiments.config_models`):
     every error names the file, line and field before anything runs."""
+    return _load_checked(path)[0]
+
+
+def _load_checked(path: str | Path) -> tuple[dict[str, Any], PipelineConfig]:
+    """The validated config of the file at ``path`` and its model (validated once)."""
     path = Path(path)
     doc = load_yaml(path, "pipeline config")
     config = doc.data
     if not isinstance(config, dict) or "pipeline" not in config:
         raise ConfigError(f"{path}: a pipeline config is a mapping with a 'pipeline' key")
-    check_pipeline(config, doc, str(path))
+    model = check_pipeline(config, doc, str(path))
     config.setdefault("name", path.stem)
-    return config
+    return config, model
 
 
 def validate_pipeline_config(path: str | Path) -> dict[str, Any]:
@@ -219,13 +223,18 @@ def run_pipeline(config: str | Path | Mapping[str, Any], out_dir: str | Path | N
 
     With ``observer_factory`` and ``record: true`` in the config (the default), the observer
     writes ``recording.rrd`` inside the folder before it is committed."""
-    cfg = load_config(config) if isinstance(config, (str, Path)) else dict(config)
+    model: PipelineConfig | None = None
+    if isinstance(config, (str, Path)):
+        cfg, model = _load_checked(config)   # validated once, naming the file's lines
+    else:
+        cfg = dict(config)
     if overrides:
         cfg.update(overrides)
+        model = None
     if "pipeline" not in cfg:
         raise ConfigError("a pipeline config needs a 'pipeline' key")
     # what runs is what config.yaml says: the validated config with every default spelt out
-    cfg = with_defaults(cfg, check_pipeline(cfg))
+    cfg = with_defaults(cfg, model if model is not None else check_pipeline(cfg))
     pipeline = pipeline_of(cfg["pipeline"])
     if out_dir is None:
         out_dir = Path("runs") / path_component(cfg.get("name", cfg["pipeline"]), "the config's name")
@@ -250,5 +259,4 @@ def run_pipeline(config: str | Path | Mapping[str, Any], out_dir: str | Path | N
             observer.close()
         final = folder.commit(cfg["pipeline"], output.runs, output.report_md, output.summary,
                               output.extra)
-    results = json.loads((final / "results.json").read_text())
-    return PipelineResult(final, results, output.report_md)
+    return PipelineResult(final, folder.results, output.report_md)

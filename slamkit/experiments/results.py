@@ -403,6 +403,8 @@ class ResultsFolder:
         self.final.parent.mkdir(parents=True, exist_ok=True)
         self._lock_fd = self._acquire_lock()
         self.committed = False
+        #: the results.json written by :meth:`commit`, parsed (None before)
+        self.results: dict[str, Any] | None = None
         try:
             self.final = check_output_folder(self.final)  # again, now that we hold the lock
             check_replace(self.final, pipeline, overwrite)
@@ -476,7 +478,9 @@ class ResultsFolder:
         }
         if extra:
             results.update(_jsonable(dict(extra)))
-        (self.path / "results.json").write_text(json.dumps(results, indent=2, allow_nan=False))
+        text = json.dumps(results, indent=2, allow_nan=False)
+        (self.path / "results.json").write_text(text)
+        self.results = json.loads(text)  # as a reader of the file gets it, without reading it back
         (self.path / "report.md").write_text(report_md)
         return self.finalize(pipeline)
 
