@@ -122,11 +122,10 @@ def test_logs_pipeline_has_one_config_and_registry_logs():
     assert not any(isinstance(x, dict) for x in cfg["logs"])
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "fr-clinic-log: with the shipped config no loop closure is accepted in the hospital's first "
-    "927 m and iSAM2's Cholesky gives up on the loop-free chain at keyframe 2279 (QR replays it)"))
 def test_logs_pipeline_runs_every_registry_laser_log():
-    """Issue 29 item 3: every raw laser log the registry ships."""
+    """Issue 29 item 3: every raw laser log the registry ships (the hospital since the system
+    moves its graph to QR when iSAM2's Cholesky gives up on its loop-free chain: whole log with
+    odometry 1 fallback, map consistency 0.239 m; lidar only 0.245 m)."""
     assert sorted(load_config(ROOT / "pipelines" / "lidar_slam_logs.yaml")["logs"]) == _shipped_logs()
 
 
