@@ -61,7 +61,8 @@ from slamkit.planning.grid_search import costmap_to_cell_cost
 from slamkit.planning.protocols import PlanningProblem
 from slamkit.sim.social_force import crossing_traffic
 from slamkit.sim.navigation_world import WORLDS, NavigationPlant, NavigationScenario, world_map
-from slamkit.systems.navigation import NavigationCommand, NavigationConfig, NavigationStack, layer_timing_summary
+from slamkit.systems.navigation import (MOVED_FIELDS, SECTIONS, NavigationCommand, NavigationConfig, NavigationStack,
+                                        layer_timing_summary)
 
 def make_navigation_scenario(seed: int, kind: str, willow_yaml: str | None = None,
                              robot_radius_m: float = 0.2, distance_m: tuple[float, float] = (6.0, 14.0),
@@ -326,15 +327,19 @@ def _variants(config: Mapping[str, Any]) -> list[tuple[str, NavigationConfig, Ep
 
 
 def _build(cls, values: Mapping[str, Any], where: str):
-    """``cls(**values)`` with the nested configs (``mcl``, ``detector``, ``tracker``) given as
+    """``cls(**values)`` with the nested configs (``mcl``, ``detector``, ``tracker`` and the
+    sections ``planning``, ``yielding``, ``safety``, ``goal``, ``recovery``: ``SECTIONS``) given as
     mappings over their defaults; every failure is a ConfigError naming ``where``."""
     fields = {f.name: f for f in dataclasses.fields(cls)}
     unknown = set(values) - set(fields)
     if unknown:
-        raise ConfigError(f"{where}: unknown keys {sorted(map(str, unknown))}; known: {sorted(fields)}")
+        moved = [f"{k} -> {MOVED_FIELDS[k]}" for k in sorted(map(str, unknown)) if cls is NavigationConfig
+                 and k in MOVED_FIELDS]
+        hint = f" (moved into a section: {', '.join(moved)})" if moved else ""
+        raise ConfigError(f"{where}: unknown keys {sorted(map(str, unknown))}{hint}; known: {sorted(fields)}")
     values = dict(values)
     try:
-        for key in ("mcl", "detector", "tracker"):
+        for key in SECTIONS if cls is NavigationConfig else ():
             if key in values:
                 nested = _section(values[key], f"{where}.{key}")
                 default = getattr(NavigationConfig(), key)

@@ -9,7 +9,7 @@ import pytest
 from slamkit.errors import ConfigError
 from slamkit.experiments.config_models import check_pipeline
 from slamkit.experiments.navigation import _variants
-from slamkit.experiments.pipeline import run_pipeline
+from slamkit.experiments.pipeline import run_pipeline, validate_pipeline_config
 
 
 def test_unknown_stack_keys_are_config_errors():
@@ -20,6 +20,25 @@ def test_unknown_stack_keys_are_config_errors():
     nav = {"mcl": {"n_min": 100, "n_max": 100}, "controller": "rollout"}
     (name, cfg, ep), = _variants({"navigation": nav, "episode": {"max_time_s": 5.0}})
     assert (name, cfg.mcl.n_max, cfg.controller, ep.max_time_s) == ("nominal", 100, "rollout", 5.0)
+
+
+def test_the_stack_config_nests_its_sections_and_names_moved_keys(tmp_path):
+    # issue 30: planning, yielding, safety, goal and recovery are sections over their defaults
+    (_, cfg, _), = _variants({"navigation": {"yielding": {"hedge": 0.3}, "safety": {"rest_check_s": 2.0}}})
+    assert (cfg.yielding.hedge, cfg.yielding.reversed_hedge, cfg.safety.rest_check_s) == (0.3, 0.3, 2.0)
+    with pytest.raises(ConfigError, match=r"yield_hedge -> yielding\.hedge"):
+        _variants({"navigation": {"yield_hedge": 0.3}})
+    with pytest.raises(ConfigError, match=r"navigation\.yielding: unknown keys \['hegde'\]"):
+        _variants({"navigation": {"yielding": {"hegde": 0.3}}})
+    with pytest.raises(ConfigError, match=r"navigation\.yielding: expected a mapping"):
+        _variants({"navigation": {"yielding": 0.3}})
+    with pytest.raises(ConfigError, match=r"YieldingConfig\.hedge must be in \[0, 1\]"):
+        _variants({"variants": [{"name": "x", "navigation": {"yielding": {"hedge": 1.5}}}]})
+    # refused by the pipeline's validation, before anything runs
+    path = tmp_path / "c.yaml"
+    path.write_text("pipeline: navigation\nnavigation:\n  planning: {path_margn_m: 0.1}\n")
+    with pytest.raises(ConfigError, match=r"navigation\.planning: unknown keys \['path_margn_m'\]"):
+        validate_pipeline_config(path)
 
 
 def test_a_short_run_writes_the_results_folder(tmp_path):
@@ -46,7 +65,7 @@ def test_a_short_run_writes_the_results_folder(tmp_path):
 #: the safe stop, the 0.65 m/s cruise cap and the evasion kept off the walls: office 0.867 / 1 /
 #: 2, warehouse 0.90 / 0 / 0, Willow 0.70 / 4 / 1. With them: office 0.90 / 0 / 2, warehouse
 #: 0.933 / 0 / 1, Willow 0.867 / 0 / 3. With yielding hedged for tracks seen reversing
-#: (yield_reversed_hedge 0.3): office 0.967 / 0 / 0, warehouse 0.90 / 0 / 2, Willow 0.90 / 0 / 1
+#: (yielding.reversed_hedge 0.3): office 0.967 / 0 / 0, warehouse 0.90 / 0 / 2, Willow 0.90 / 0 / 1
 #: (mean final error 1.70 / 1.79 / 1.25 cm); its failures that were not collisions were MCL
 #: bias at the goal (office 27, warehouse 7, Willow 8: stopped 3.0-3.3 cm off) and Willow 13
 #: stuck in recoveries. With the signed likelihood field, the roughening floor and the recovery

@@ -13,7 +13,7 @@ from slamkit.data.sequence import Odometry
 from slamkit.errors import ConfigError
 from slamkit.experiments.navigation import EpisodeConfig, make_navigation_scenario, run_episode
 from slamkit.maps.occupancy_grid import OccupancyGrid
-from slamkit.systems.navigation import NavigationConfig, NavigationStack
+from slamkit.systems.navigation import CommandStatus, NavigationConfig, NavigationStack, SafetyConfig, YieldingConfig
 
 
 def _room() -> OccupancyGrid:
@@ -27,6 +27,7 @@ def test_events_in_commands_out_and_a_public_belief():
     stack.reset([1.0, 2.0, 0.0], np.diag([0.01, 0.01, 0.01]))
     assert isinstance(stack, LatestBelief)
     assert stack.command(0.0).status == "no_goal"
+    assert stack.command(0.0).status is CommandStatus.NO_GOAL  # an enum that is its string
     stack.set_goal([4.5, 2.0, 0.0])
     out = stack.command(0.0)
     assert out.status == "driving" and out.command[0] >= 0.0 and out.safe_stop
@@ -45,6 +46,11 @@ def test_config_is_checked():
         NavigationConfig(uncertainty="maybe")
     with pytest.raises(ConfigError, match="grid planner"):
         NavigationConfig(global_planner="rrt_star")
+    # the sections are their own frozen configs (a mapping is the pipeline's to build)
+    with pytest.raises(ConfigError, match="yielding must be a YieldingConfig"):
+        NavigationConfig(yielding={"hedge": 0.3})
+    with pytest.raises(ConfigError, match="SafetyConfig.brake_decel_mps2 must be > 0"):
+        SafetyConfig(brake_decel_mps2=0.0)
 
 
 def test_short_closed_loop_run_reaches_the_goal_within_3_cm():
@@ -67,7 +73,7 @@ def test_covariance_aware_costmap_inflates_by_k_sigma():
     fixed = NavigationStack(grid, NavigationConfig())
     cov = np.diag([0.04**2, 0.02**2, 0.01])
     # k sigma = 1.645 * 0.04 = 6.58 cm -> 7 cm (cached per whole centimetre); fixed: always 0
-    assert stack._sigma_key(cov) == 7 and fixed._sigma_key(cov) == 0
+    assert stack.planning.sigma_key(cov) == 7 and fixed.planning.sigma_key(cov) == 0
     # inscribed radius 0.2 + 0.15 (+ 0.07): the cell whose centre is 0.375 m from the wall cells'
     # centres (x = 0.1 + 0.375) is free with fixed inflation, blocked with the covariance-aware one
     iy, ix = 40, int(round((0.1 + 0.375) / 0.05 - 0.5))
@@ -75,7 +81,7 @@ def test_covariance_aware_costmap_inflates_by_k_sigma():
 
 
 def test_safe_stop_check_on_a_braking_trajectory():
-    stack = NavigationStack(_room(), NavigationConfig(brake_decel_mps2=1.0))
+    stack = NavigationStack(_room(), NavigationConfig(safety=SafetyConfig(brake_decel_mps2=1.0)))
     stack.reset([1.0, 2.0, 0.0], np.diag([1e-4, 1e-4, 1e-4]))
     from slamkit.control.protocols import LocalWorld
 
@@ -117,16 +123,16 @@ def test_dstar_lite_repairs_its_search_where_astar_starts_over():
     stack.reset([1.0, 2.0, 0.0], np.diag([1e-4, 1e-4, 1e-4]))
     stack.set_goal([5.0, 2.0, 0.0])
     cost = stack.cell_cost(0)
-    first = stack._search(np.array([1.0, 2.0]), cost)
+    first = stack.planning.search(np.array([1.0, 2.0]), cost)
     assert first.solved and stack.plan_expansions[-1] == first.stats.expansions > 50
-    moved = stack._search(np.array([1.2, 2.0]), cost)
+    moved = stack.planning.search(np.array([1.2, 2.0]), cost)
     assert moved.solved and moved.stats.expansions == 0
     blocked = cost.copy()
     g = stack.grid
     iy, ix = np.mgrid[0:g.height, 0:g.width]
     centres = g.cell_to_world(np.column_stack([ix.ravel(), iy.ravel()])).reshape(g.height, g.width, 2)
     blocked[np.linalg.norm(centres - [3.0, 1.6], axis=2) <= 0.6] = np.inf  # the lower half of the room
-    repaired = stack._search(np.array([1.2, 2.0]), blocked)
+    repaired = stack.planning.search(np.array([1.2, 2.0]), blocked)
     fresh = make_planner("astar").plan(PlanningProblem(g, np.array([1.2, 2.0]), np.array([5.0, 2.0]), cell_cost=blocked))
     assert repaired.solved and fresh.solved
     assert repaired.cost == pytest.approx(fresh.cost, rel=1e-9) and repaired.cost > moved.cost
@@ -215,7 +221,7 @@ def test_yielding_to_a_shuttler_that_may_turn_back():
     from slamkit.estimation.obstacle_tracker import Tracks
 
     # the person of the yielding example 1 m past the path, walking away at 0.5 m/s: constant
-    # velocity says no yield. Seen reversing before and with yield_reversed_hedge 1, it may be
+    # velocity says no yield. Seen reversing before and with yielding.reversed_hedge 1, it may be
     # anywhere within 0.5 t: grown by the margin and the robot its disc reaches the path (1 m off)
     # at t = 0.5 s, before the robot (there at 0.95 / 0.65 = 1.46 s), and within the 6 s horizon
     # it covers the robot's own place (1.38 m off, reach 3.75 m): the robot stops where it is
@@ -223,23 +229,23 @@ def test_yielding_to_a_shuttler_that_may_turn_back():
     pose = np.array([2.05, 2.0, 0.0])
     away = dict(ids=np.arange(1), xy_m=np.array([[3.0, 1.0]]), velocity_mps=np.array([[0.0, -0.5]]),
                 radius_m=np.array([0.3]), covariance=np.eye(4)[None])
-    stack.config = dataclasses.replace(stack.config, yield_reversed_hedge=0.0)
+    stack.config = dataclasses.replace(stack.config, yielding=dataclasses.replace(stack.config.yielding, reversed_hedge=0.0))
     assert stack.yield_decision(pose, Tracks(**away, reversals=np.array([1]))).v_max_mps == np.inf
     # the default hedge 0.3: centre receding at 0.35 m/s, disc growing at 0.15 m/s -- the trailing
     # edge still recedes (at 0.2 m/s) from 1 m off: it never comes back over the path, no yield
-    stack.config = dataclasses.replace(stack.config, yield_reversed_hedge=0.3)
+    stack.config = dataclasses.replace(stack.config, yielding=dataclasses.replace(stack.config.yielding, reversed_hedge=0.3))
     assert stack.yield_decision(pose, Tracks(**away, reversals=np.array([1]))).v_max_mps == np.inf
-    stack.config = dataclasses.replace(stack.config, yield_reversed_hedge=1.0)
+    stack.config = dataclasses.replace(stack.config, yielding=dataclasses.replace(stack.config.yielding, reversed_hedge=1.0))
     assert stack.yield_decision(pose, Tracks(**away, reversals=np.array([1]))).v_max_mps == 0.0
     # one never seen reversing is still predicted with its constant velocity
     assert stack.yield_decision(pose, Tracks(**away)).v_max_mps == np.inf
 
 def test_speed_cap_keeps_the_arc():
-    from slamkit.systems.navigation import _speed_capped
+    from slamkit.systems.navigation import speed_capped
 
-    np.testing.assert_allclose(_speed_capped(np.array([0.8, 0.4]), 0.5), [0.5, 0.25])
-    np.testing.assert_allclose(_speed_capped(np.array([-0.3, 0.6]), 0.5), [-0.3, 0.6])
-    np.testing.assert_allclose(_speed_capped(np.array([0.4, 1.0]), 0.0), [0.0, 0.0])
+    np.testing.assert_allclose(speed_capped(np.array([0.8, 0.4]), 0.5), [0.5, 0.25])
+    np.testing.assert_allclose(speed_capped(np.array([-0.3, 0.6]), 0.5), [-0.3, 0.6])
+    np.testing.assert_allclose(speed_capped(np.array([0.4, 1.0]), 0.0), [0.0, 0.0])
 
 
 def test_recovery_backs_off_from_a_wall_towards_free_space():
@@ -248,12 +254,12 @@ def test_recovery_backs_off_from_a_wall_towards_free_space():
     stack = _straight_stack(0.37)
     world = LocalWorld(distance=stack.distance)
     # 0.27 m from the left wall's surface: the disc is 0.07 m clear, less than the 0.15 m path margin
-    assert stack._back_off(np.array([0.37, 2.0, 0.0]), world) == pytest.approx([0.1, 0.0])  # facing away: forwards
-    assert stack._back_off(np.array([0.37, 2.0, np.pi]), world) == pytest.approx([-0.1, 0.0])  # facing it: backwards
+    assert stack.recovery.back_off(np.array([0.37, 2.0, 0.0]), world) == pytest.approx([0.1, 0.0])  # facing away: forwards
+    assert stack.recovery.back_off(np.array([0.37, 2.0, np.pi]), world) == pytest.approx([-0.1, 0.0])  # facing it: backwards
     # heading 1.4 rad (the wall on its left): 0.1 m either way gains 1.7 cm < 2.5 cm -> turn towards
     # the field's gradient (+x): omega = clip(1.5 * -1.4, -0.8, 0.8)
-    assert stack._back_off(np.array([0.37, 2.0, 1.4]), world) == pytest.approx([0.0, -0.8])
-    assert stack._back_off(np.array([1.0, 2.0, 0.0]), world) is None  # clear: back to the path
+    assert stack.recovery.back_off(np.array([0.37, 2.0, 1.4]), world) == pytest.approx([0.0, -0.8])
+    assert stack.recovery.back_off(np.array([1.0, 2.0, 0.0]), world) is None  # clear: back to the path
 
 
 def test_recovery_heads_for_the_farthest_path_point_it_can_drive_to_straight():
@@ -276,14 +282,14 @@ def test_recovery_heads_for_the_farthest_path_point_it_can_drive_to_straight():
     # inside the disc + recovery margin (0.25 m). The farthest 5 cm step whose line clears it is
     # 0.85 m along: (2.826, 1.1), line clearance 0.253 m; 0.90 m along: 0.245 m
     assert line_clearance([2.976, 1.1]) == pytest.approx(0.232, abs=1e-3)
-    target = stack._recovery_target(pose, world)
+    target = stack.recovery.recovery_target(pose, world)
     np.testing.assert_allclose(target, [2.1 + 0.3 + 0.85 - 0.3 * np.sqrt(2), 1.1], atol=1e-9)
     assert line_clearance(target) == pytest.approx(0.253, abs=1e-3)
     assert line_clearance(target + [0.05, 0.0]) == pytest.approx(0.245, abs=1e-3)
     # nothing visible (the robot itself 0.18 m from the corner): the path point 5 cm beyond the
     # nearest, which is (2.275, 1.225) on the first segment
     close = np.array([2.4, 1.35, 0.0])
-    np.testing.assert_allclose(stack._recovery_target(close, world),
+    np.testing.assert_allclose(stack.recovery.recovery_target(close, world),
                                [2.275 + 0.05 / np.sqrt(2), 1.225 - 0.05 / np.sqrt(2)], atol=1e-9)
 
 
@@ -296,13 +302,13 @@ def test_safe_stop_is_acted_on():
     # braking from 0.5 m/s reaches 0.35 m ahead (see above), from 0.6 m/s 0.2 + 0.06 * 3.5 = 0.41 m:
     # with a surface 0.40 m ahead the 0.6 m/s command loses its safe stop, braking now keeps one
     wall = LocalWorld([[1.5, 2.0]], [0.1], [[0.0, 0.0]])
-    cmd, safe = stack._keep_safe_stop(pose, np.array([0.6, 0.0]), wall)
+    cmd, safe = stack.safety.keep_safe_stop(pose, np.array([0.6, 0.0]), wall)
     assert not safe and cmd == pytest.approx([0.4, 0.0]) and stack.no_safe_stop_cycles == 0
-    cmd, safe = stack._keep_safe_stop(pose, np.array([0.3, 0.0]), wall)
+    cmd, safe = stack.safety.keep_safe_stop(pose, np.array([0.3, 0.0]), wall)
     assert safe and cmd == pytest.approx([0.3, 0.0])
     # 0.32 m ahead: no braking is free -> the command stands and the cycle is counted
     near = LocalWorld([[1.42, 2.0]], [0.1], [[0.0, 0.0]])
-    cmd, safe = stack._keep_safe_stop(pose, np.array([0.6, 0.0]), near)
+    cmd, safe = stack.safety.keep_safe_stop(pose, np.array([0.6, 0.0]), near)
     assert not safe and cmd == pytest.approx([0.6, 0.0]) and stack.no_safe_stop_cycles == 1
 
 
@@ -341,14 +347,14 @@ def test_evasion_never_runs_into_a_wall_while_an_arc_stays_clear():
     out = stack.controller.compute(state, Reference(stack.path, speed_mps=0.5), world)
     assert out.status.value == "fallback_brake"
     # the default evasion (held arcs only) takes (0.4, -0.03)
-    cmd = stack._evade(state, world, out)
+    cmd = stack.safety.evade(state, world, out)
     assert cmd == pytest.approx([0.4, -0.03], abs=1e-9)
     held = rollout_arcs(pose, cmd[None], 0.1, 20)[0]
     assert stack.distance.query(held[:, :2])[0].min() > stack.config.robot_radius_m
-    stack.config = dataclasses.replace(stack.config, evade_brake_profiles=True)
-    cmd = stack._evade(state, world, out)
+    stack.config = dataclasses.replace(stack.config, safety=dataclasses.replace(stack.config.safety, evade_brake_profiles=True))
+    cmd = stack.safety.evade(state, world, out)
     assert cmd == pytest.approx([0.2, -0.3], abs=1e-9)
-    first, profiles = stack._brake_profiles(state, 20, 0.1)
+    first, profiles = stack.safety.brake_profiles(state, 20, 0.1)
     chosen = profiles[1]  # v -> -0.3 m/s, omega -> -0.75 rad/s (order: v_end major, omega_end minor)
     assert first[1] == pytest.approx(cmd)
     np.testing.assert_allclose(chosen[-1, :2], [2.728, 0.665], atol=2e-3)
@@ -362,7 +368,7 @@ def test_brake_profiles_stop_or_back_off_within_the_acceleration_limits():
     # rises by 0.3 rad/s per step towards one of -1.5 .. 1.5 rad/s
     stack = _straight_stack(1.0)
     state = RobotState(np.array([1.0, 2.0, 0.0]), np.array([0.3, 0.0]), 0.0)
-    first, traj = stack._brake_profiles(state, 20, 0.1)
+    first, traj = stack.safety.brake_profiles(state, 20, 0.1)
     assert first.shape == (10, 2) and traj.shape == (10, 21, 3)
     np.testing.assert_allclose(first[:, 0], 0.2)
     np.testing.assert_allclose(np.sort(np.unique(first[:, 1].round(9))), [-0.3, 0.0, 0.3])
@@ -414,13 +420,13 @@ def test_yielding_waits_outside_every_sweep_and_seen_span_and_backs_off_to_such_
     # going on would meet A within 0.5 s of its sweep, so it backs off to the nearest trail point
     # 5 cm clear of B's span, x = 1.42 (0.08 m clear; 1.47 is 0.03 m), and reverses towards it at
     # the controller's acceleration: -0.1 m/s after one 0.1 s cycle from standing
-    stack._trail = [np.array([x, 2.0]) for x in 0.82 + 0.05 * np.arange(24)]
+    stack.yielding.trail = [np.array([x, 2.0]) for x in 0.82 + 0.05 * np.arange(24)]
     d = stack.yield_decision(np.array([2.0, 2.0, 0.0]), tracks)
     assert d.v_max_mps == 0.0
     np.testing.assert_allclose(d.back_off_xy_m, [1.42, 2.0], atol=1e-9)
-    np.testing.assert_allclose(stack._drive_to(np.array([2.0, 2.0, 0.0]), d.back_off_xy_m), [-0.1, 0.0], atol=1e-12)
+    np.testing.assert_allclose(stack.yielding.drive_to(np.array([2.0, 2.0, 0.0]), d.back_off_xy_m), [-0.1, 0.0], atol=1e-12)
     # no trail to back along: it stops where A's sweep begins (the first conflicting point)
-    stack._trail = []
+    stack.yielding.trail = []
     d = stack.yield_decision(np.array([2.0, 2.0, 0.0]), tracks)
     assert d.back_off_xy_m is None and d.wait_gap_m == pytest.approx(1.275, abs=1e-9)
 
@@ -439,8 +445,8 @@ def test_a_rollout_held_at_its_end_meets_a_track_walking_into_where_it_stops():
     world = stack.local_world(_tracks([[4.5, 2.0]], [[-0.5, 0.0]], [0.3]))
     checks = {}
     for rest in (0.0, 1.0, 1.4, 1.6, 2.0):
-        stack.config = dataclasses.replace(stack.config, rest_check_s=rest)
-        checks[rest] = stack._chosen_hits(world, out)
+        stack.config = dataclasses.replace(stack.config, safety=dataclasses.replace(stack.config.safety, rest_check_s=rest))
+        checks[rest] = stack.safety.chosen_hits(world, out)
     assert checks == {0.0: False, 1.0: False, 1.4: False, 1.6: True, 2.0: True}
 
 
@@ -450,16 +456,16 @@ def test_at_the_goal_a_robot_about_to_be_run_into_evades():
     # rest_check_s 0, it does not count. Threatened, the stack leaves the regulator: the
     # evasion's command, the phase back to driving (it approaches again once clear)
     stack = _straight_stack(2.0)
-    stack.config = dataclasses.replace(stack.config, rest_check_s=2.0)
+    stack.config = dataclasses.replace(stack.config, safety=dataclasses.replace(stack.config.safety, rest_check_s=2.0))
     stack.set_goal([2.0, 2.0, 0.0])
     pose = np.array([2.0, 2.0, 0.0])
     at_it = _tracks([[4.0, 2.0]], [[-0.5, 0.0]], [0.3])
-    assert stack._threatened(pose, at_it, 0.0)
-    assert not stack._threatened(pose, _tracks([[4.0, 2.0]], [[0.0, 0.5]], [0.3]), 0.0)
-    decision = stack._escape(pose, at_it, 0.0)
-    assert decision.status == "evading" and stack._phase == "driving"
-    stack.config = dataclasses.replace(stack.config, rest_check_s=0.0)
-    assert not stack._threatened(pose, at_it, 0.0)
+    assert stack.safety.threatened(pose, at_it, 0.0)
+    assert not stack.safety.threatened(pose, _tracks([[4.0, 2.0]], [[0.0, 0.5]], [0.3]), 0.0)
+    decision = stack.safety.escape(pose, at_it, 0.0)
+    assert decision.status == "evading" and stack.regulator.phase == "driving"
+    stack.config = dataclasses.replace(stack.config, safety=dataclasses.replace(stack.config.safety, rest_check_s=0.0))
+    assert not stack.safety.threatened(pose, at_it, 0.0)
 
 
 def test_back_off_retraces_the_trail_round_its_bend():
@@ -469,38 +475,38 @@ def test_back_off_retraces_the_trail_round_its_bend():
     # (-0.1 m/s: one cycle's acceleration from standing) -- not at the place itself, which would
     # cut the corner (the old rule, back_off_along_trail off, turns towards it)
     stack = _straight_stack(2.01)
-    stack.config = dataclasses.replace(stack.config, back_off_along_trail=True)
+    stack.config = dataclasses.replace(stack.config, yielding=dataclasses.replace(stack.config.yielding, back_off_along_trail=True))
     up = [np.array([1.0, y]) for y in 1.0 + 0.05 * np.arange(20)]
     along = [np.array([x, 2.0]) for x in 1.0 + 0.05 * np.arange(21)]
-    stack._trail = up + along
+    stack.yielding.trail = up + along
     pose, place = np.array([2.01, 2.0, 0.0]), np.array([1.0, 1.2])
-    aim = stack._back_off_aim(pose, place)
+    aim = stack.yielding.back_off_aim(pose, place)
     np.testing.assert_allclose(aim, [1.75, 2.0], atol=1e-12)
-    np.testing.assert_allclose(stack._drive_to(pose, place, aim), [-0.1, 0.0], atol=1e-12)
+    np.testing.assert_allclose(stack.yielding.drive_to(pose, place, aim), [-0.1, 0.0], atol=1e-12)
     # backing off keeps the trail between the place and the robot (it drives back along it)
-    stack._record_trail(pose, place)
-    assert len(stack._trail) == 41
-    stack.config = dataclasses.replace(stack.config, back_off_along_trail=False)
-    np.testing.assert_allclose(stack._back_off_aim(pose, place), place)
-    assert abs(stack._drive_to(pose, place, place)[1]) > 0.1
-    stack._record_trail(pose, place)
-    assert len(stack._trail) == 5  # the old rule: up to the place only
+    stack.yielding.record_trail(pose, place)
+    assert len(stack.yielding.trail) == 41
+    stack.config = dataclasses.replace(stack.config, yielding=dataclasses.replace(stack.config.yielding, back_off_along_trail=False))
+    np.testing.assert_allclose(stack.yielding.back_off_aim(pose, place), place)
+    assert abs(stack.yielding.drive_to(pose, place, place)[1]) > 0.1
+    stack.yielding.record_trail(pose, place)
+    assert len(stack.yielding.trail) == 5  # the old rule: up to the place only
 
 
 def test_yield_hedge_treats_a_track_never_seen_reversing_as_one_that_may_turn_back():
     from slamkit.estimation.obstacle_tracker import Tracks
 
     # the receding person of test_yielding_to_a_shuttler_that_may_turn_back, never seen
-    # reversing: constant velocity (yield_hedge 0, the default) says no yield; with yield_hedge
+    # reversing: constant velocity (yielding.hedge 0, the default) says no yield; with yielding.hedge
     # 1 its reachable set covers the robot's place within the horizon: it stops where it is
     stack = _straight_stack(2.05)
     pose = np.array([2.05, 2.0, 0.0])
     away = Tracks(np.arange(1), np.array([[3.0, 1.0]]), np.array([[0.0, -0.5]]), np.array([0.3]), np.eye(4)[None])
     assert stack.yield_decision(pose, away).v_max_mps == np.inf
-    stack.config = dataclasses.replace(stack.config, yield_hedge=1.0)
+    stack.config = dataclasses.replace(stack.config, yielding=dataclasses.replace(stack.config.yielding, hedge=1.0))
     assert stack.yield_decision(pose, away).v_max_mps == 0.0
     with pytest.raises(ConfigError):
-        NavigationConfig(yield_hedge=1.5)
+        YieldingConfig(hedge=1.5)
 
 
 def test_yield_turning_keeps_giving_way_to_a_shuttler_slowed_at_its_turn():
@@ -509,7 +515,7 @@ def test_yield_turning_keeps_giving_way_to_a_shuttler_slowed_at_its_turn():
     # a shuttler (r 0.3, typically 0.5 m/s, seen reversing along x = 3 from y = -1.5 to 1) brakes
     # at its turn 1 m from the path: its filtered speed is 0.05 m/s, under blocking_speed_mps
     # (0.15), so plain yielding drops it and the robot at (2.05, 2) drives on into its lane. With
-    # yield_turning its typical speed keeps it traffic, predicted by the reachable set of the speed
+    # yielding.turning its typical speed keeps it traffic, predicted by the reachable set of the speed
     # it lost (hedge 1 - 0.05 / 0.5 = 0.9): it covers the path ahead, the robot stays where it is
     def shuttler(y_m: float) -> Tracks:
         return Tracks(np.arange(1), np.array([[3.0, y_m]]), np.array([[0.0, 0.05]]), np.array([0.3]), np.eye(4)[None],
@@ -519,7 +525,7 @@ def test_yield_turning_keeps_giving_way_to_a_shuttler_slowed_at_its_turn():
     stack = _straight_stack(2.05)
     pose = np.array([2.05, 2.0, 0.0])
     assert stack.yield_decision(pose, shuttler(1.0)).v_max_mps == np.inf
-    stack.config = dataclasses.replace(stack.config, yield_turning=True)
+    stack.config = dataclasses.replace(stack.config, yielding=dataclasses.replace(stack.config.yielding, turning=True))
     d = stack.yield_decision(pose, shuttler(1.0))
     assert d.v_max_mps == 0.0 and d.wait_gap_m == 0.0
     # turning at the far end of its lane, 3 m from the path, it reaches no point of the path

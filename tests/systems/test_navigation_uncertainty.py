@@ -14,7 +14,7 @@ from slamkit.experiments.navigation import EpisodeConfig, make_navigation_scenar
 from slamkit.maps.generators import PassageHallConfig, passage_hall
 from slamkit.maps.occupancy_grid import OccupancyGrid
 from slamkit.sim.navigation_world import NavigationPlant
-from slamkit.systems.navigation import NavigationConfig, NavigationStack
+from slamkit.systems.navigation import GlobalPlanningConfig, NavigationConfig, NavigationStack
 
 
 def _wall_with_gap() -> OccupancyGrid:
@@ -57,19 +57,19 @@ def test_the_lidar_returns_nothing_inside_a_blind_box():
 
 
 def test_an_infeasible_chance_margin_falls_back_to_the_largest_feasible_one():
-    cfg = NavigationConfig(uncertainty="covariance", collision_probability=0.05, path_margin_m=0.05)
+    cfg = NavigationConfig(uncertainty="covariance", collision_probability=0.05, planning=GlobalPlanningConfig(path_margin_m=0.05))
     stack = NavigationStack(_wall_with_gap(), cfg)
     stack.reset([1.0, 2.0, 0.0], np.diag([1e-4, 1e-4, 1e-4]))
     stack.set_goal([5.0, 2.0, 0.0])
     none = Tracks(np.zeros(0, int), np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0), np.zeros((0, 4, 4)))
     # sigma 1 cm: k sigma = 1.645 cm -> 2 cm; inscribed 0.27 < 0.30 m: the gap is open, k as asked
-    assert stack._plan(np.array([1.0, 2.0, 0.0]), np.diag([1e-4, 1e-4, 0.0]), none, np.zeros(0, int))
+    assert stack.planning.plan(np.array([1.0, 2.0, 0.0]), np.diag([1e-4, 1e-4, 0.0]), none, np.zeros(0, int))
     assert stack.chance_k == pytest.approx(1.644854, abs=1e-6) and stack.chance_fallbacks == 0
     assert np.abs(stack.path[:, 1] - 2.0).max() < 0.1  # straight through the gap
     # sigma 10 cm: k sigma = 16.45 -> 17 cm closes the gap (0.25 + 0.17 > 0.30); the largest
     # margin that leaves it open is 4 cm (inscribed 0.29 < 0.30; 5 cm reaches the wall cells'
     # 0.30), i.e. k = 1.645 * 4 / 17 = 0.387, a planned collision probability of 0.349
-    assert stack._plan(np.array([1.0, 2.0, 0.0]), np.diag([0.01, 0.01, 0.0]), none, np.zeros(0, int))
+    assert stack.planning.plan(np.array([1.0, 2.0, 0.0]), np.diag([0.01, 0.01, 0.0]), none, np.zeros(0, int))
     assert stack.chance_k == pytest.approx(1.644854 * 4 / 17, abs=1e-6) and stack.chance_fallbacks == 1
     assert stack.planned_collision_probability_max == pytest.approx(norm.sf(1.644854 * 4 / 17), abs=1e-6)
     assert stack.planned_collision_probability_max == pytest.approx(0.3494, abs=1e-3)

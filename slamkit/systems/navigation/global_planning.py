@@ -1,0 +1,234 @@
+"""Global planning of the navigation stack: the path from the estimated pose to the goal on the
+Nav2 costmap of the robot's map, with its cost cache and the chance margins of planning under
+uncertainty (:class:`GlobalPlanning`, configured by :class:`GlobalPlanningConfig`, the
+``planning`` section of :class:`~slamkit.systems.navigation.NavigationConfig`).
+
+A* (or any grid planner of the registry, ``NavigationConfig.global_planner``) plans from
+scratch; D* Lite (``dstar_lite``) searches once and then repairs its search incrementally (the
+cells whose cost changed and the moved start, :meth:`GlobalPlanning.search`). The stack
+(:mod:`.stack`) asks for a plan every ``replan_period_s``, at once when the path is blocked (a
+confirmed, slow track within ``block_lookahead_m`` of the path ahead, :meth:`blocking_tracks`,
+whose disc is then blocked in the costmap), and after a recovery (:mod:`.recovery`).
+
+Chance margins (``NavigationConfig.uncertainty``, see the package docstring): with
+``"covariance"`` the costmap's inscribed radius grows by k sigma (cached per whole centimetre,
+:meth:`cell_cost`), lowered by bisection when it leaves no path (``chance_k``); with
+``"covariance"`` or ``"local"`` the local planner's obstacles are tightened by k sigma
+(:meth:`chance_world`).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+from scipy.stats import norm
+
+from slamkit.control.chance_constraints import tightened_distance, tightened_world, worst_sigma_m
+from slamkit.control.protocols import DistanceGrid, LocalWorld
+from slamkit.errors import ConfigError
+from slamkit.estimation.obstacle_tracker import Tracks
+from slamkit.maps.distance_field import distance_field_m
+from slamkit.maps.inflation import chance_sigma_multiplier, costmap
+from slamkit.planning.grid_search import costmap_to_cell_cost
+from slamkit.planning.protocols import PlanResult, PlanningProblem
+from slamkit.planning.registry import make_planner
+
+if TYPE_CHECKING:
+    from slamkit.systems.navigation.stack import NavigationStack
+
+
+@dataclass(frozen=True)
+class GlobalPlanningConfig:
+    replan_period_s: float = 1.0
+    #: the costmap's inscribed radius is robot_radius_m + path_margin_m (+ k sigma)
+    path_margin_m: float = 0.15
+    inflation_radius_m: float = 1.0
+    #: a confirmed track slower than ``NavigationConfig.blocking_speed_mps`` within this of the
+    #: path ahead blocks it
+    block_lookahead_m: float = 3.0
+
+    def __post_init__(self) -> None:
+        if not self.replan_period_s > 0:
+            raise ConfigError(f"GlobalPlanningConfig.replan_period_s must be > 0, got {self.replan_period_s}")
+
+
+class GlobalPlanning:
+    """The stack's global planner and its state: the inflated cost maps (per centimetre of chance
+    margin), the last search (for D* Lite's repair), the chance multiplier ``chance_k`` of the last
+    plan, and the counters ``replans``, ``plan_expansions``, ``chance_fallbacks``."""
+
+    def __init__(self, stack: NavigationStack):
+        self.stack = stack
+        self.planner = make_planner(stack.config.global_planner)
+        self._field_m = distance_field_m(stack.grid)
+        self._cell_cost: dict[int, np.ndarray] = {}
+        self._tightened: dict[int, DistanceGrid] = {}
+
+    @property
+    def config(self) -> GlobalPlanningConfig:
+        return self.stack.config.planning
+
+    def reset(self) -> None:
+        self.last_plan_s = -math.inf
+        self.replans = 0
+        self.searched_cost: np.ndarray | None = None
+        #: grid cells each global search expanded (a D* Lite repair: only the changed part)
+        self.plan_expansions: list[int] = []
+        #: the chance-constraint multiplier of the last plan (covariance-aware inflation), its
+        #: smallest value over the run, and how many plans had to lower it (see plan)
+        self.chance_k = self.chance_k_min = chance_sigma_multiplier(self.stack.config.collision_probability)
+        self.chance_fallbacks = 0
+
+    def sigma_key(self, cov: np.ndarray) -> int:
+        """The covariance-aware margin k sigma in whole centimetres (0 with fixed inflation), so
+        inflated maps are cached per centimetre."""
+        nav = self.stack.config
+        if nav.uncertainty != "covariance":
+            return 0
+        return int(math.ceil(100.0 * chance_sigma_multiplier(nav.collision_probability) * worst_sigma_m(cov)))
+
+    @property
+    def planned_collision_probability_max(self) -> float:
+        """The weakest chance constraint a plan met so far: 1 - Phi(k) with the smallest k the
+        plans could afford (the configured delta unless the infeasible-k fallback lowered k);
+        nan with fixed inflation."""
+        if self.stack.config.uncertainty == "fixed":
+            return float("nan")
+        return float(norm.sf(self.chance_k_min))
+
+    def cell_cost(self, margin_cm: int) -> np.ndarray:
+        """A* multipliers of the costmap inflated by robot radius + path margin + ``margin_cm``."""
+        if margin_cm not in self._cell_cost:
+            c = self.config
+            inscribed = self.stack.config.robot_radius_m + c.path_margin_m + 0.01 * margin_cm
+            cost = costmap(self.stack.grid, inscribed, max(c.inflation_radius_m, inscribed), distance_m=self._field_m)
+            self._cell_cost[margin_cm] = costmap_to_cell_cost(cost)
+        return self._cell_cost[margin_cm]
+
+    def blocking_tracks(self, tracks: Tracks) -> np.ndarray:
+        """Indices of slow confirmed tracks within reach of the path ahead."""
+        stack = self.stack
+        if stack.path is None or len(tracks.ids) == 0:
+            return np.zeros(0, dtype=int)
+        nav = stack.config
+        slow = np.linalg.norm(tracks.velocity_mps, axis=1) < nav.blocking_speed_mps
+        pose, _ = stack.current_pose()
+        ahead = stack.path[np.linalg.norm(stack.path - pose[:2], axis=1) <= self.config.block_lookahead_m]
+        if not len(ahead) or not slow.any():
+            return np.zeros(0, dtype=int)
+        d = np.linalg.norm(ahead[None, :, :] - tracks.xy_m[:, None, :], axis=2).min(axis=1)
+        return np.flatnonzero(slow & (d <= tracks.radius_m + nav.robot_radius_m))
+
+    def plan(self, pose: np.ndarray, cov: np.ndarray, tracks: Tracks, block: np.ndarray) -> bool:
+        """A* on the costmap inflated by the chance margin k sigma. When no path exists with the
+        full margin (k sigma closes a narrow passage, or the estimate sits inside the margin),
+        the largest margin that leaves one is used instead (feasibility shrinks monotonically
+        as the margin grows, so a bisection over whole centimetres finds it), and ``chance_k``
+        records the k it amounts to, i.e. the collision probability actually planned for.
+        Sets the stack's ``path`` when a plan is found."""
+        t0 = time.perf_counter()
+        stack = self.stack
+        nav = stack.config
+        g = stack.grid
+        blocked = None
+        if len(block):
+            iy, ix = np.mgrid[0:g.height, 0:g.width]
+            centres = g.cell_to_world(np.column_stack([ix.ravel(), iy.ravel()]))
+            d = np.linalg.norm(centres[:, None, :] - tracks.xy_m[block][None], axis=2)
+            blocked = (d <= tracks.radius_m[block] + nav.robot_radius_m).any(axis=1).reshape(g.height, g.width)
+
+        start_cell = g.world_to_cell(pose[None, :2])[0]
+
+        def plan(margin_cm: int):
+            cost = self.cell_cost(margin_cm)
+            if margin_cm > 0:
+                # the estimate itself may sit inside the chance margin (near a wall with a wide
+                # belief): within the margin of the start the fixed costmap applies, so the robot
+                # can plan its way out instead of lowering k for the whole map
+                n = int(math.ceil(0.01 * margin_cm / g.resolution_m)) + 1
+                y0, y1 = max(start_cell[1] - n, 0), min(start_cell[1] + n + 1, g.height)
+                x0, x1 = max(start_cell[0] - n, 0), min(start_cell[0] + n + 1, g.width)
+                cost = cost.copy()
+                cost[y0:y1, x0:x1] = self.cell_cost(0)[y0:y1, x0:x1]
+            if blocked is not None:
+                cost = np.where(blocked, np.inf, cost)
+            return self.search(pose[:2], cost)
+
+        want = self.sigma_key(cov)
+        res, got = plan(want), want
+        if not res.solved and want > 0:
+            lo_res = plan(0)
+            if lo_res.solved:
+                res, got, hi = lo_res, 0, want
+                while hi - got > 1:
+                    mid = (got + hi) // 2
+                    mid_res = plan(mid)
+                    if mid_res.solved:
+                        res, got = mid_res, mid
+                    else:
+                        hi = mid
+                self.chance_fallbacks += 1
+        if nav.uncertainty == "covariance":
+            k = chance_sigma_multiplier(nav.collision_probability)
+            self.chance_k = k if got >= want else k * got / want
+            self.chance_k_min = min(self.chance_k_min, self.chance_k)
+        if not res.solved:
+            # the start may sit inside the inflated margin (after a brush past a wall or a jump
+            # of the estimate): plan on the bare map's free cells instead
+            res = self.planner.plan(PlanningProblem(g, pose[:2], stack.goal[:2]))
+            self.searched_cost = None
+        stack.timings_s["global_planner"].append(time.perf_counter() - t0)
+        self.last_plan_s = stack._t_s
+        if not res.solved:
+            return False
+        stack.path = res.path[:, :2]
+        self.replans += 1
+        return True
+
+    def search(self, start_xy: np.ndarray, cost: np.ndarray) -> PlanResult:
+        """The global search on ``cost``: from scratch, or -- for an incremental planner (D* Lite,
+        ``update``) that has searched this goal before -- a repair of its last search: only the
+        cells whose cost changed since (tracks that blocked or freed the path, a new k sigma
+        margin) and the moved start. Any failed search is forgotten, so the next one is fresh."""
+        held = self.searched_cost
+        if held is not None and hasattr(self.planner, "update"):
+            changed = np.flatnonzero(cost.ravel() != held.ravel())
+            new = cost.ravel()[changed]
+            width = self.stack.grid.width
+            cells = np.column_stack([changed % width, changed // width])
+            res = self.planner.update(cells, ~np.isfinite(new), start_xy=start_xy,
+                                      cell_cost=np.where(np.isfinite(new), new, 1.0))
+        else:
+            res = self.planner.plan(PlanningProblem(self.stack.grid, start_xy, self.stack.goal[:2], cell_cost=cost))
+        self.searched_cost = cost if res.solved else None
+        self.plan_expansions.append(res.stats.expansions)
+        return res
+
+    def chance_world(self, world: LocalWorld, pose: np.ndarray, cov: np.ndarray, tracks: Tracks) -> LocalWorld:
+        """The local planner's world with its obstacles tightened by k sigma (``uncertainty``
+        ``"covariance"`` or ``"local"``)."""
+        stack = self.stack
+        # the k the global plan could afford (the configured one unless the fallback lowered
+        # it): tightening the local planner's obstacles by more would refuse the very gap
+        # the plan leads through
+        # -- and never by more than the free space around the estimate leaves (beyond the
+        # disc and the controller's own margin): a tightening that puts the robot inside an
+        # obstacle leaves no admissible motion, and a robot that stands still on odometry
+        # alone only grows less certain (measured on passage_11: stalled 45 s, error 2 m)
+        sigma = worst_sigma_m(cov)
+        k = self.chance_k
+        if sigma > 0:
+            room = (float(stack.distance.query(pose[None, :2])[0][0]) - stack.config.robot_radius_m
+                    - float(getattr(stack.controller.config, "safety_margin_m", 0.0)))
+            k = min(k, max(room, 0.0) / sigma)
+            self.chance_k_min = min(self.chance_k_min, k)
+        key = int(math.ceil(100.0 * k * sigma))
+        if key not in self._tightened:
+            self._tightened[key] = tightened_distance(stack.distance, cov, k_sigma=k)
+        # the tracks were measured from the robot: the pose error moves them with it
+        return tightened_world(world, pose[:2], cov, circle_cov_xy=tracks.covariance[:, :2, :2],
+                               distance=self._tightened[key], k_sigma=k, relative_circles=True)
