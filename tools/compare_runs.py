@@ -18,7 +18,9 @@ run folders (each with a ``results.json``) or two folders of such run folders, a
   ``time_*`` but simulated ``time_to_*``/``time_over_*``, real-time factors, peak memory,
   ``created``, the version) -- numbers must be
   equal (``--rtol`` loosens that, default 0: identical), lists equally long, keys the same;
-  ``summary`` rows of a timing metric are skipped as a whole;
+  ``summary`` rows of a timing metric are skipped as a whole; rows that name themselves (a run's
+  dataset/estimator/seed, a summary row's metric) are matched by that label, so a row added on
+  one side is one line, not a shift of every later row;
 * ``trajectories/``: the same file names with the same bytes (where they differ the largest
   numeric difference is printed).
 
