@@ -25,7 +25,7 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
-from slamkit.experiments.navigation import Episode
+from slamkit.experiments.navigation import Episode, NavigationScene, NavigationSnapshot
 from slamkit.viz.control import MAX_CANDIDATES, _score_colors
 from slamkit.viz.recording import open_recording
 from slamkit.viz.views import log_world_y_up, planar_2d_view, series_view
@@ -64,8 +64,9 @@ def _log_cells(stream, entity: str, grid, mask: np.ndarray, color) -> None:
 
 
 class NavigationObserver:
-    """The ``navigation`` pipeline's recorder (registered in ``slamkit.viz.pipelines``): its
-    step snapshots carry the scenario, the variant, the stack and the plant of one cycle."""
+    """The ``navigation`` pipeline's recorder (registered in ``slamkit.viz.pipelines``): each step
+    snapshot's state is a :class:`~slamkit.experiments.navigation.NavigationSnapshot` (copied
+    arrays; the recorder never holds the live stack or plant)."""
 
     payload_type = list[Episode]
     wants_steps = True
@@ -78,72 +79,67 @@ class NavigationObserver:
         self._prefixes: list[str] = []
         self._ranges: dict[str, dict[str, tuple[float, float]]] = {}
 
-    def _start(self, prefix: str, scenario, stack) -> None:
-        s, g = self.stream, stack.grid
+    def _start(self, prefix: str, scene: NavigationScene) -> None:
+        s, g = self.stream, scene.robot_map
         log_world_y_up(s, f"{prefix}world")
         _log_cells(s, f"{prefix}world/map", g, g.occupied, (60, 60, 60))
-        truth = scenario.grid
+        truth = scene.true_map
         if truth is not g and (truth.shape != g.shape or not np.array_equal(truth.occupied, g.occupied)):
             _log_cells(s, f"{prefix}world/map_true", truth, truth.occupied, (40, 120, 220, 110))
-        _log_cells(s, f"{prefix}world/costmap", g, ~np.isfinite(stack.cell_cost(0)) & ~g.occupied,
-                   (230, 200, 120, 90))
-        goal = scenario.goal_xytheta
+        _log_cells(s, f"{prefix}world/costmap", g, scene.costmap_blocked, (230, 200, 120, 90))
+        goal = scene.goal_xytheta
         s.log(f"{prefix}world/goal", rr.Arrows2D(origins=[goal[:2]], vectors=[0.4 * np.array([np.cos(goal[2]), np.sin(goal[2])])],
                                                  colors=[(0, 160, 0)]), static=True)
         self._track_trails: dict[int, list[np.ndarray]] = {}
 
     def on_step(self, snapshot) -> None:
-        st = snapshot.state
-        stack, plant, scenario = st["stack"], st["plant"], st["scenario"]
+        st: NavigationSnapshot = snapshot.state
         if snapshot.run != self._run:
             self._run = snapshot.run
             self._prefixes.append(f"{snapshot.run}/")
-            self._start(f"{snapshot.run}/", scenario, stack)
+            self._start(f"{snapshot.run}/", st.scene)
             # the layout from the first step (a viewer loading the file shows it before the end,
             # where close() sends it again with the plots' ranges)
             self.stream.send_blueprint(blueprint(self._prefixes))
         p, s = f"{snapshot.run}/", self.stream
         s.set_time("sim_time", duration=float(snapshot.stamp_s))
-        x = plant.world_xytheta_body
-        mean, cov = stack.current_pose()
-        s.log(f"{p}world/ground_truth", rr.Points2D([x[:2]], radii=[stack.config.robot_radius_m],
+        x = st.true_xytheta
+        mean, cov = st.estimate_xytheta, st.covariance
+        s.log(f"{p}world/ground_truth", rr.Points2D([x[:2]], radii=[st.scene.robot_radius_m],
                                                     colors=[(30, 90, 220, 120)]))
         s.log(f"{p}world/ground_truth/heading", rr.Arrows2D(origins=[x[:2]], vectors=[0.4 * np.array([np.cos(x[2]), np.sin(x[2])])]))
         s.log(f"{p}world/estimate", rr.Points2D([mean[:2]], radii=[0.03], colors=[(220, 120, 0)]))
         s.log(f"{p}world/estimate/ellipse", rr.LineStrips2D([ellipse_xy(mean[:2], cov[:2, :2])], colors=[(220, 120, 0)]))
-        parts = stack.particles
-        s.log(f"{p}world/estimate/particles", rr.Points2D(parts[:500, :2], radii=[0.005], colors=[(220, 120, 0, 120)]))
-        if stack.path is not None:
-            s.log(f"{p}world/global_path", rr.LineStrips2D([stack.path], colors=[(0, 0, 0)], radii=[0.02]))
-        out = st.get("output")
-        if out is not None and out.candidates_xytheta is not None and len(out.candidates_xytheta):
-            cand = out.candidates_xytheta
+        s.log(f"{p}world/estimate/particles", rr.Points2D(st.particles_xytheta[:, :2], radii=[0.005],
+                                                          colors=[(220, 120, 0, 120)]))
+        if st.path_xy_m is not None:
+            s.log(f"{p}world/global_path", rr.LineStrips2D([st.path_xy_m], colors=[(0, 0, 0)], radii=[0.02]))
+        if st.candidates_xytheta is not None:
+            cand = st.candidates_xytheta
             pick = np.unique(np.linspace(0, len(cand) - 1, min(MAX_CANDIDATES, len(cand))).astype(int))
             s.log(f"{p}world/candidates", rr.LineStrips2D([c[:, :2] for c in cand[pick]],
-                                                         colors=_score_colors(out.scores[pick]), radii=[0.006]))
-            if out.chosen >= 0:
-                s.log(f"{p}world/candidates/chosen", rr.LineStrips2D([cand[out.chosen, :, :2]], colors=[(0, 200, 0)], radii=[0.03]))
-        if out is not None and out.predicted_xytheta is not None:
-            s.log(f"{p}world/mpc_horizon", rr.LineStrips2D([out.predicted_xytheta[:, :2]], colors=[(200, 0, 200)], radii=[0.025]))
-        s.log(f"{p}world/scan_unexplained", rr.Points2D(stack.last_scan_points, radii=[0.02], colors=[(255, 0, 0)]))
-        tr = stack.tracks()
-        s.log(f"{p}world/tracks", rr.Points2D(tr.xy_m, radii=tr.radius_m, colors=[(255, 140, 0, 110)],
-                                              labels=[str(i) for i in tr.ids]))
-        s.log(f"{p}world/tracks/velocity", rr.Arrows2D(origins=tr.xy_m, vectors=tr.velocity_mps))
-        live = {int(i): xy for i, xy in zip(tr.ids, tr.xy_m)}
+                                                         colors=_score_colors(st.candidate_scores[pick]), radii=[0.006]))
+            if st.chosen >= 0:
+                s.log(f"{p}world/candidates/chosen", rr.LineStrips2D([cand[st.chosen, :, :2]], colors=[(0, 200, 0)], radii=[0.03]))
+        if st.mpc_horizon_xytheta is not None:
+            s.log(f"{p}world/mpc_horizon", rr.LineStrips2D([st.mpc_horizon_xytheta[:, :2]], colors=[(200, 0, 200)], radii=[0.025]))
+        s.log(f"{p}world/scan_unexplained", rr.Points2D(st.scan_unexplained_xy_m, radii=[0.02], colors=[(255, 0, 0)]))
+        s.log(f"{p}world/tracks", rr.Points2D(st.track_xy_m, radii=st.track_radius_m, colors=[(255, 140, 0, 110)],
+                                              labels=[str(i) for i in st.track_ids]))
+        s.log(f"{p}world/tracks/velocity", rr.Arrows2D(origins=st.track_xy_m, vectors=st.track_velocity_mps))
+        live = {int(i): xy for i, xy in zip(st.track_ids, st.track_xy_m)}
         self._track_trails = {i: self._track_trails.get(i, []) for i in live}  # ended tracks drop out
         for i, xy in live.items():
             self._track_trails[i].append(xy.copy())
         trails = [(i, np.array(t)) for i, t in self._track_trails.items() if len(t) >= 2]
         s.log(f"{p}world/tracks/trails", rr.LineStrips2D([t for _, t in trails], labels=[str(i) for i, _ in trails],
                                                          colors=[(255, 140, 0)], radii=[0.01]))
-        obs = scenario.obstacles
-        if len(obs):
-            s.log(f"{p}world/obstacles_true", rr.Points2D(obs.position_at(snapshot.stamp_s), radii=obs.radius_m,
+        if len(st.obstacles_radius_m):
+            s.log(f"{p}world/obstacles_true", rr.Points2D(st.obstacles_xy_m, radii=st.obstacles_radius_m,
                                                           colors=[(220, 40, 40, 90)]))
         error_m = float(np.linalg.norm(mean[:2] - x[:2]))
         sigma_m = float(np.sqrt(max(np.linalg.eigvalsh(cov[:2, :2])[-1], 0.0)))
-        speed_mps = float(st["command"][0])
+        speed_mps = float(st.command[0])
         s.log(f"{p}plots/localisation_error_m", rr.Scalars(error_m))
         s.log(f"{p}plots/sigma_xy_m", rr.Scalars(sigma_m))
         s.log(f"{p}plots/speed_mps", rr.Scalars(speed_mps))

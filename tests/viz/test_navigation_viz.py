@@ -57,3 +57,54 @@ def test_recording_holds_what_the_blueprint_shows(tmp_path, verify_rrd, rerun_cl
         assert f"[{run}/{sc.name} localisation (m)]" in dump and f"[{run}/{sc.name} speed (m/s)]" in dump
     assert "[+ $origin/world/**]" in dump
     assert dump.count("[2D]") >= 2 and dump.count("[TimeSeries]") >= 4
+
+
+def test_the_recorder_gets_typed_snapshots_not_the_live_stack():
+    # issue 30, item 4: each step's state is a frozen NavigationSnapshot of copied, read-only
+    # arrays; nothing in it is the stack, the plant or an array they go on writing
+    import dataclasses
+
+    import pytest
+
+    from slamkit.experiments.navigation import SNAPSHOT_MAX_PARTICLES, NavigationSnapshot
+    from slamkit.systems.navigation import CommandStatus, NavigationStack
+
+    class Keep:
+        wants_steps = True
+
+        def __init__(self):
+            self.snapshots = []
+
+        def on_step(self, snapshot):
+            self.snapshots.append(snapshot)
+
+    sc = make_navigation_scenario(1, "office")
+    keep = Keep()
+    live = []
+    hook = _snapshots(keep, f"dwa/{sc.name}", sc)
+
+    def on_step(stack, plant, t_s, decision):
+        live.append((stack, plant, stack.path))
+        hook(stack, plant, t_s, decision)
+
+    run_episode(sc, NavigationConfig(), EpisodeConfig(max_time_s=2.0), "dwa", on_step)
+    assert len(keep.snapshots) == 20
+    first, last = keep.snapshots[0].state, keep.snapshots[-1].state
+    assert isinstance(first, NavigationSnapshot) and first.scene is last.scene
+    stack, plant, _ = live[-1]
+    for st in (first, last):
+        for f in dataclasses.fields(st):
+            value = getattr(st, f.name)
+            assert not isinstance(value, NavigationStack) and value is not plant
+            if isinstance(value, np.ndarray):
+                assert not value.flags.writeable, f.name
+        assert isinstance(st.status, CommandStatus) and st.covariance.shape == (3, 3)
+        assert 0 < len(st.particles_xytheta) <= SNAPSHOT_MAX_PARTICLES
+    # the last cycle's values, copied: the truth, the belief, the path, the command
+    np.testing.assert_array_equal(last.true_xytheta, plant.world_xytheta_body)
+    np.testing.assert_array_equal(last.estimate_xytheta, stack.current_pose()[0])
+    assert last.path_xy_m is not None and not np.shares_memory(last.path_xy_m, stack.path)
+    assert last.candidates_xytheta is not None and last.candidate_scores is not None
+    assert first.scene.costmap_blocked.any() and first.obstacles_xy_m.shape == (len(sc.obstacles), 2)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        first.status = CommandStatus.NO_GOAL
