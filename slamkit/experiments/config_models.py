@@ -119,6 +119,12 @@ class PoseGraphPipeline(PipelineConfig):
 
     def check_options(self, config: dict[str, Any], doc: YamlDocument | None, source: str) -> None:
         _check_pose_graph_sources(self.datasets, doc, source)
+        # the combinations are the pipeline's own lists: an option may not set them a second time
+        for key, owner in (("solver", "solvers"), ("init", "inits"), ("robust", "robust")):
+            if key in self.options:
+                where = doc.where(("options", key)) if doc is not None else source
+                raise ConfigError(f"{where}: options.{key}: set by the pipeline's '{owner}' (every "
+                                  f"combination runs); remove it from options")
         _nested(_optimize_options(), self.options, doc, source, ("options",))
 
 

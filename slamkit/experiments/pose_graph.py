@@ -24,6 +24,7 @@ from slamkit.data.formats.g2o import write_g2o
 from slamkit.data.formats.tum import write_tum
 from slamkit.data.pose_graph import PoseGraph
 from slamkit.data.trajectory import Trajectory
+from slamkit.config import build
 from slamkit.paths import file_in
 from slamkit.errors import BackendError, ConfigError
 from slamkit.experiments.config_models import PoseGraphPipeline
@@ -263,7 +264,8 @@ def run(config: Mapping[str, Any], folder: ResultsFolder, progress: StepProgress
     reports: list[OptimizeReport] = []
     skipped: list[str] = []
     for dataset, solver, init in combos:
-        cfg = OptimizeConfig(solver=solver, init=init, robust=robust, **options)
+        cfg = build(OptimizeConfig, options, "pose_graph.options",
+                    base=OptimizeConfig(solver=solver, init=init, robust=robust))
         try:
             report = optimize_source(dataset, cfg, certify_mode=certify_mode)
         except ConfigError as exc:

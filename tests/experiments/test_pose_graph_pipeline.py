@@ -168,3 +168,19 @@ def test_the_report_puts_sesyncs_published_optimum_beside_the_certified_one(shar
     # certified F 31.7037 beside f* 31.70: ratio 1.0001 (f* has 4 significant digits)
     assert cells[10] == "yes" and float(cells[12]) == 31.7
     assert float(cells[13]) == pytest.approx(31.7037 / 31.70, abs=2e-5)
+
+
+def test_an_option_that_the_combinations_set_is_refused_before_anything_runs(tmp_path) -> None:
+    """options.solver / init / robust are the pipeline's own lists (issue 30: this was a TypeError
+    from OptimizeConfig after validation); the error names file and line."""
+    from slamkit.errors import ConfigError
+    from slamkit.experiments.pipeline import load_config
+
+    cfg = tmp_path / "pg.yaml"
+    cfg.write_text("pipeline: pose_graph\ndatasets: [intel]\nsolvers: [lm]\noptions:\n  solver: gn\n")
+    with pytest.raises(ConfigError, match=r"pg.yaml:5: options.solver: set by the pipeline's 'solvers'"):
+        load_config(cfg)
+    with pytest.raises(ConfigError, match="options.robust: set by the pipeline's 'robust'"):
+        run_pipeline({"pipeline": "pose_graph", "datasets": ["intel"], "options": {"robust": "huber"}},
+                     tmp_path / "out", progress=False)
+    assert not (tmp_path / "out").exists()
