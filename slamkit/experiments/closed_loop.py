@@ -161,7 +161,8 @@ class ClosedLoopConfig:
 @dataclass(frozen=True)
 class ControlStep:
     """One closed-loop cycle as observers (the Rerun recorder, progress bars) see it; pipeline
-    observers receive it as the ``state['step']`` of an ``observers.StepSnapshot``."""
+    observers receive it as the ``step`` of an ``observers.StepSnapshot``'s
+    :class:`LocalPlanningSnapshot`."""
 
     step: int
     t_s: float
@@ -306,10 +307,21 @@ def scenario_list(config: Mapping[str, Any]) -> list[Scenario]:
                           obstacle_min_side_m=side) for i, seed in enumerate(seeds)]
 
 
+@dataclass(frozen=True)
+class LocalPlanningSnapshot:
+    """The state of a ``local_planning`` step snapshot (issue 30, item 4: a type, not a dict of
+    string keys): the episode's scenario, the controller's name and the cycle's
+    :class:`ControlStep` (values only: the pose, the controller's output, the obstacles)."""
+
+    scenario: Scenario
+    controller: str
+    step: ControlStep
+
+
 class _PipelineStepAdapter:
     """Forwards closed-loop steps to a pipeline observer (``slamkit.experiments.observers``) as
-    ``StepSnapshot(kind="local_planning", run="<controller>/<scenario>", ...)`` whose state holds
-    the scenario, the controller name and this module's :class:`ControlStep`."""
+    ``StepSnapshot(kind="local_planning", run="<controller>/<scenario>", ...)`` whose state is a
+    :class:`LocalPlanningSnapshot`."""
 
     def __init__(self, observer, controller: str, scenario: Scenario):
         self.observer, self.controller, self.scenario = observer, controller, scenario
@@ -321,9 +333,8 @@ class _PipelineStepAdapter:
         from slamkit.experiments.observers import StepSnapshot
 
         self.observer.on_step(StepSnapshot("local_planning", f"{self.controller}/{self.scenario.name}",
-                                           snap.step, snap.t_s, {"scenario": self.scenario,
-                                                                 "controller": self.controller,
-                                                                 "step": snap}))
+                                           snap.step, snap.t_s,
+                                           LocalPlanningSnapshot(self.scenario, self.controller, snap)))
 
 
 def compare(config: Mapping[str, Any], observer=None,

@@ -27,8 +27,8 @@ StateT = TypeVar("StateT")
 @dataclass(frozen=True)
 class StepSnapshot(Generic[StateT]):
     """One step of one run: ``state`` is the pipeline's record of it (the runner's
-    :class:`BeliefSnapshot`; for local planning a mapping holding the closed loop's
-    ``ControlStep``; for lidar SLAM the keyframe pose and scan)."""
+    :class:`BeliefSnapshot`; for navigation a ``navigation.NavigationSnapshot``; for local
+    planning a ``closed_loop.LocalPlanningSnapshot``; for lidar SLAM the keyframe pose and scan)."""
 
     kind: str
     run: str

@@ -29,7 +29,7 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
-from slamkit.experiments.closed_loop import Episode
+from slamkit.experiments.closed_loop import Episode, LocalPlanningSnapshot
 from slamkit.viz.recording import Recording, open_recording
 from slamkit.viz.views import log_world_y_up, planar_2d_view
 
@@ -121,8 +121,8 @@ class ClosedLoopRecorder:
 
 class LocalPlanningObserver:
     """The ``local_planning`` pipeline's recorder (registered in ``slamkit.viz.pipelines``): receives
-    ``slamkit.experiments.observers.StepSnapshot``s whose state carries the scenario, the
-    controller and the closed-loop step, and draws them with :class:`ClosedLoopRecorder`."""
+    ``slamkit.experiments.observers.StepSnapshot``s whose state is a
+    :class:`~slamkit.experiments.closed_loop.LocalPlanningSnapshot` (scenario, controller, step), and draws them with :class:`ClosedLoopRecorder`."""
 
     payload_type = list[Episode]
     wants_steps = True
@@ -134,12 +134,12 @@ class LocalPlanningObserver:
         self._prefixes: list[str] = []
 
     def on_step(self, snapshot) -> None:
-        state = snapshot.state
+        state: LocalPlanningSnapshot = snapshot.state
         if snapshot.run != self._run:
             self._run = snapshot.run
-            self.recorder.on_episode(state["scenario"], state["controller"])
+            self.recorder.on_episode(state.scenario, state.controller)
             self._prefixes.append(self.recorder.prefix)
-        self.recorder.on_step(state["step"])
+        self.recorder.on_step(state.step)
 
     def on_output(self, output) -> None:
         pass

@@ -191,3 +191,25 @@ def test_potential_field_hands_over_to_the_global_planner():
     assert ep.metrics["path_length_m"] > 14.0  # around the U, not through it (straight line: 10 m)
     walk = run_episode(sc, make_controller("potential_fields", {"escape": "random_walk"}))
     assert not walk.reached_goal and "escaping" in walk.statuses
+
+
+def test_pipeline_observers_get_a_typed_snapshot():
+    # issue 30, item 4: a step snapshot's state is a LocalPlanningSnapshot, not a dict of string keys
+    from slamkit.experiments.closed_loop import ControlStep, LocalPlanningSnapshot, compare
+
+    class Keep:
+        wants_steps = True
+
+        def __init__(self):
+            self.seen = []
+
+        def on_step(self, snapshot):
+            self.seen.append(snapshot)
+
+    keep = Keep()
+    compare({"controllers": ["dwa"], "scenarios": {"kinds": ["open"], "seeds": [1]},
+             "closed_loop": {"max_time_s": 0.5}}, keep)
+    assert len(keep.seen) == 5 and keep.seen[0].run == "dwa/open_1"
+    st = keep.seen[0].state
+    assert isinstance(st, LocalPlanningSnapshot) and isinstance(st.step, ControlStep)
+    assert (st.controller, st.scenario.name, st.step.step) == ("dwa", "open_1", 1)
