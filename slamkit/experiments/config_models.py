@@ -119,13 +119,20 @@ class PoseGraphPipeline(PipelineConfig):
 
     def check_options(self, config: dict[str, Any], doc: YamlDocument | None, source: str) -> None:
         _check_pose_graph_sources(self.datasets, doc, source)
-        # the combinations are the pipeline's own lists: an option may not set them a second time
-        for key, owner in (("solver", "solvers"), ("init", "inits"), ("robust", "robust")):
-            if key in self.options:
-                where = doc.where(("options", key)) if doc is not None else source
-                raise ConfigError(f"{where}: options.{key}: set by the pipeline's '{owner}' (every "
-                                  f"combination runs); remove it from options")
+        _refuse_pipeline_keys(self.options, "options", {"solver": "solvers", "init": "inits", "robust": "robust"},
+                              doc, source)
         _nested(_optimize_options(), self.options, doc, source, ("options",))
+
+
+def _refuse_pipeline_keys(section: dict[str, Any], name: str, owners: dict[str, str], doc: YamlDocument | None,
+                          source: str) -> None:
+    """The combinations are the pipeline's own lists: a section may not set them a second time
+    (``owners``: field -> the pipeline key that sets it)."""
+    for key, owner in owners.items():
+        if key in section:
+            where = doc.where((name, key)) if doc is not None else source
+            raise ConfigError(f"{where}: {name}.{key}: set by the pipeline's '{owner}' (every "
+                              f"combination runs); remove it from {name}")
 
 
 def _check_pose_graph_sources(datasets: list[str], doc: YamlDocument | None, source: str) -> None:
@@ -155,6 +162,8 @@ class PoseGraphOutliersPipeline(PipelineConfig):
 
     def check_options(self, config: dict[str, Any], doc: YamlDocument | None, source: str) -> None:
         _check_pose_graph_sources(self.datasets, doc, source)
+        _refuse_pipeline_keys(self.outliers, "outliers", {"kind": "kinds", "count": "counts"}, doc, source)
+        _refuse_pipeline_keys(self.solver, "solver", {"backend": "backends"}, doc, source)
         _nested(model_of(OutlierConfig), self.outliers, doc, source, ("outliers",))
         _nested(model_of(RobustSolveConfig), self.solver, doc, source, ("solver",))
 

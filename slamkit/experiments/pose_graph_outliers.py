@@ -25,6 +25,7 @@ import numpy as np
 
 from slamkit.backend.robust import ROBUST_BACKENDS, RobustResult, RobustSolveConfig, solve_robust
 from slamkit.frontend.pcm import pcm
+from slamkit.config import build
 from slamkit.data import registry
 from slamkit.data.pose_graph import PoseGraph
 from slamkit.errors import BackendError
@@ -62,7 +63,7 @@ def run(config: Mapping[str, Any], folder: ResultsFolder, progress: StepProgress
         if dataset not in clean:
             graph, entry = registry.load_pose_graph_source(dataset)
             gt = registry.ground_truth(entry.name) if entry is not None else None
-            base = solve_robust(graph, RobustSolveConfig(backend="none", **solve_options))
+            base = solve_robust(graph, _solve_config("none", solve_options))
             reference = gt if gt is not None else _trajectory(graph, base.poses)
             # without ground truth the reference is the outlier-free optimum itself: its ATE is 0
             # up to rounding (1e-15 m) and a ratio to it means nothing
@@ -71,7 +72,8 @@ def run(config: Mapping[str, Any], folder: ResultsFolder, progress: StepProgress
         graph, reference, base, clean_ate = clean[dataset]
         corrupted = (CorruptedGraph(graph, np.zeros(graph.num_edges, bool), OutlierConfig(kind, 0), seed)
                      if count == 0 else
-                     add_outliers(graph, OutlierConfig(kind=kind, count=count, **outlier_options),
+                     add_outliers(graph, build(OutlierConfig, outlier_options, "pose_graph_outliers.outliers",
+                                                base=OutlierConfig(kind=kind, count=count)),
                                   np.random.default_rng(seed), seed))
         clean_traj = _trajectory(graph, base.poses)
         for backend in backends:
@@ -104,13 +106,17 @@ def run(config: Mapping[str, Any], folder: ResultsFolder, progress: StepProgress
 BACKENDS = ROBUST_BACKENDS + ("pcm", "pcm_gnc")
 
 
+def _solve_config(backend: str, solve_options: Mapping[str, Any]) -> RobustSolveConfig:
+    return build(RobustSolveConfig, solve_options, "pose_graph_outliers.solver", base=RobustSolveConfig(backend=backend))
+
+
 def _solve(graph: PoseGraph, backend: str, solve_options: Mapping[str, Any]) -> RobustResult:
     if not backend.startswith("pcm"):
-        return solve_robust(graph, RobustSolveConfig(backend=backend, **solve_options))
+        return solve_robust(graph, _solve_config(backend, solve_options))
     with Stopwatch() as sw:
         accepted = pcm(graph).accepted
-        result = solve_robust(graph, RobustSolveConfig(backend="gnc" if backend == "pcm_gnc" else "none",
-                                                       **solve_options), accepted=accepted)
+        result = solve_robust(graph, _solve_config("gnc" if backend == "pcm_gnc" else "none", solve_options),
+                              accepted=accepted)
     return replace(result, backend=backend, time_solve_s=sw.elapsed_s)
 
 

@@ -123,3 +123,15 @@ def test_sphere2500_1000_random_outliers_pcm_in_space(shared_datasets) -> None:
     ratio, scores = _goal("sphere2500", "pcm_gnc")
     assert ratio == pytest.approx(1.0, abs=0.002)
     assert scores["outlier_recall"] == 1.0 and scores["inlier_recall"] == 1.0
+
+
+@pytest.mark.parametrize("section, key, owner", [("outliers", "kind", "kinds"), ("outliers", "count", "counts"),
+                                                 ("solver", "backend", "backends")])
+def test_a_section_may_not_set_what_the_combinations_set(section, key, owner) -> None:
+    """outliers.kind / count and solver.backend are the pipeline's own lists (issue 30: these were
+    a TypeError from the dataclass after validation)."""
+    from slamkit.experiments.config_models import check_pipeline
+
+    config = {"pipeline": "pose_graph_outliers", "datasets": ["ring"], section: {key: "random" if key == "kind" else 1}}
+    with pytest.raises(ConfigError, match=rf"{section}\.{key}: set by the pipeline's '{owner}'"):
+        check_pipeline(config)
