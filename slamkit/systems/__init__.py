@@ -8,4 +8,8 @@ ICP, keyframes, loop closure, iSAM2 and a final batch solve, log-odds map);
 (ORB or KLT front-end, 5-point RANSAC, PnP, sliding-window bundle adjustment);
 :class:`~slamkit.systems.visual_inertial.VisualInertialOdometry` (visual_inertial.py):
 visual-inertial odometry (static initialisation, IMU preintegration and smart projection
-factors in iSAM2, zero-velocity updates)."""
+factors in iSAM2, zero-velocity updates);
+:class:`~slamkit.systems.navigation.NavigationStack` (navigation/, a package): MCL, tracked
+obstacles, global and local planning, with one module per responsibility (``stack``,
+``global_planning``, ``yielding``, ``safety``, ``goal``, ``recovery``; the table in its
+docstring)."""

@@ -3,22 +3,16 @@ course's Example 10.3, with section 11.4's safety under uncertainty on top).
 
 Where each responsibility lives (issue 30: one module each, with its own config section):
 
-==========================  =============================================================
-module                      responsibility (config section of :class:`NavigationConfig`)
-==========================  =============================================================
-:mod:`.stack`               :class:`NavigationStack`: orchestration, localisation (MCL),
-                            perception (tracks from the scan), the local planner and the
-                            one prediction of the tracks (top-level fields)
-:mod:`.global_planning`     the global path, its cost cache, the chance margins (``planning``)
-:mod:`.yielding`            yielding to crossing traffic: sweep, waiting places, back-off
-                            along the trail (``yielding``)
-:mod:`.safety`              the safety guard: evasion, passive safety, brake profiles,
-                            safe stop (``safety``)
-:mod:`.goal`                the goal regulator's final approach (``goal``)
-:mod:`.recovery`            stuck detection and nav2-style recovery (``recovery``)
-:mod:`.command`             :class:`NavigationCommand` and :class:`CommandStatus`
-:mod:`.config`              :class:`NavigationConfig`, its sections, the local planner's defaults
-==========================  =============================================================
+| module | responsibility (config section of :class:`NavigationConfig`) |
+|---|---|
+| :mod:`.stack` | :class:`NavigationStack`: orchestration, localisation (MCL), perception (tracks from the scan), the local planner and the one prediction of the tracks (top-level fields) |
+| :mod:`.global_planning` | the global path, its cost cache, the chance margins (``planning``) |
+| :mod:`.yielding` | yielding to crossing traffic: sweep, waiting places, back-off along the trail (``yielding``) |
+| :mod:`.safety` | the safety guard: evasion, passive safety, brake profiles, safe stop (``safety``) |
+| :mod:`.goal` | the goal regulator's final approach (``goal``) |
+| :mod:`.recovery` | stuck detection and nav2-style recovery (``recovery``) |
+| :mod:`.command` | :class:`NavigationCommand` and :class:`CommandStatus` |
+| :mod:`.config` | :class:`NavigationConfig`, its sections, the local planner's defaults |
 
 Layers, each timed per call (``NavigationStack.timings_s``):
 

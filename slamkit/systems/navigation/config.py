@@ -3,15 +3,13 @@ localisation, perception, which global and local planner, the local planner's pr
 tracks, planning under uncertainty) and one nested section per responsibility, each defined in
 its module beside the code it configures:
 
-==============  ===========================  =======================================
-section         dataclass                    module
-==============  ===========================  =======================================
-``planning``    :class:`GlobalPlanningConfig`  :mod:`.global_planning`
-``yielding``    :class:`YieldingConfig`        :mod:`.yielding`
-``safety``      :class:`SafetyConfig`          :mod:`.safety`
-``goal``        :class:`GoalConfig`            :mod:`.goal`
-``recovery``    :class:`RecoveryConfig`        :mod:`.recovery`
-==============  ===========================  =======================================
+| section | dataclass | module |
+|---|---|---|
+| ``planning`` | :class:`GlobalPlanningConfig` | :mod:`.global_planning` |
+| ``yielding`` | :class:`YieldingConfig` | :mod:`.yielding` |
+| ``safety`` | :class:`SafetyConfig` | :mod:`.safety` |
+| ``goal`` | :class:`GoalConfig` | :mod:`.goal` |
+| ``recovery`` | :class:`RecoveryConfig` | :mod:`.recovery` |
 
 In YAML a section is a mapping over its defaults (``navigation: {yielding: {hedge: 0.3}}``);
 :data:`MOVED_FIELDS` names where each field of the former flat config went.

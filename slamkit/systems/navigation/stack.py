@@ -25,7 +25,7 @@ from typing import Mapping
 
 import numpy as np
 
-from slamkit.control.protocols import ControlStatus, DistanceGrid, LocalWorld, Reference, RobotState
+from slamkit.control.protocols import ControlOutput, ControlStatus, DistanceGrid, LocalWorld, Reference, RobotState
 from slamkit.control.registry import make_controller
 from slamkit.data.estimate import Estimate, Prior
 from slamkit.data.noise import NoiseParams
@@ -34,8 +34,8 @@ from slamkit.data.trajectory import Trajectory
 from slamkit.errors import ConfigError
 from slamkit.estimation.lidar_mcl import LidarMCL
 from slamkit.estimation.obstacle_tracker import ConstantVelocityTracker, Tracks, cluster_points, unexplained_points
-from slamkit.maps.occupancy_grid import OccupancyGrid
 from slamkit.maps.distance_field import surface_distance_field_m
+from slamkit.maps.occupancy_grid import OccupancyGrid
 from slamkit.systems.navigation.command import CommandStatus, NavigationCommand, speed_capped
 from slamkit.systems.navigation.config import NavigationConfig, default_controller_params
 from slamkit.systems.navigation.global_planning import GlobalPlanning
@@ -275,7 +275,8 @@ class NavigationStack:
         return LocalWorld(tracks.xy_m, tracks.radius_m + c.moving_margin_m * moving,
                           (1.0 - lam)[:, None] * tracks.velocity_mps, self.distance, t_s, lam * speed)
 
-    def _send(self, cmd: np.ndarray, status: CommandStatus, output=None, safe: bool = True) -> NavigationCommand:
+    def _send(self, cmd: np.ndarray, status: CommandStatus, output: ControlOutput | None = None,
+              safe: bool = True) -> NavigationCommand:
         cmd = np.asarray(cmd, float).reshape(2).copy()
         self._last_cmd = cmd
         return NavigationCommand(cmd, status, output, safe)
