@@ -59,6 +59,11 @@ def import_plugins(modules: Iterable[str], where: str = "plugins",
     searched (appended to ``sys.path``, so spawned workers search them too), e.g. the config
     file's folder for a plug-in module beside it. A module that cannot be imported is a
     ConfigError naming it and ``where`` (the config field or option that listed it)."""
+    modules = list(modules)
+    if not modules:
+        # nothing to import: the search folders are not remembered either (a resolved config
+        # spells out `plugins: []`; its folder must not join the workers' PYTHONPATH)
+        return []
     folders = [str(folder) for folder in search_path]
     for folder in folders:
         if folder not in sys.path:

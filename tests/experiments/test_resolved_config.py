@@ -33,3 +33,8 @@ def test_the_run_folder_says_every_setting_and_reloads(tmp_path: Path):
                        "solvers": ["lm"], "inits": ["file"], "robust": "none", "certify": "auto"}
     (tmp_path / "again.yaml").write_text((tmp_path / "out" / "config.yaml").read_text())
     assert load_config(tmp_path / "again.yaml") == written
+    # its `plugins: []` imports nothing and leaves no search folder for worker processes (a Ray
+    # sweep's workers lost their PYTHONPATH to it)
+    from slamkit.naming import plugin_env
+
+    assert str(tmp_path) not in plugin_env().get("PYTHONPATH", "")
