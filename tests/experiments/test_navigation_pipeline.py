@@ -179,3 +179,34 @@ def test_navigation_evaluation_blocks(tmp_path):
     pooled = rows["all worlds", "eval (all)"]
     assert pooled["success_rate"]["events"] >= MEASURED_EVALUATION_ALL[0]
     assert pooled["collision_moving_rate"]["events"] <= MEASURED_EVALUATION_ALL[1]
+
+
+#: issue 33's second traffic setting, pipelines/navigation_social.yaml (social-force people,
+#: reversing forklifts), first evaluation block (seeds 1000-1029 per world), measured 2026-11-28
+#: at 2ae0f36: (world -> successes of 30, static, moving collisions, timeouts). Beside it the
+#: constant-velocity shuttles on the same seeds gave 29/0/1/0, 27/0/3/0, 30/0/0/0 (above).
+#: Regression bounds: the goals are not met yet.
+MEASURED_SOCIAL_FORCE_EVAL1 = {"office": (27, 0, 3, 0), "warehouse": (30, 0, 0, 0), "willow": (28, 0, 2, 0)}
+
+
+@pytest.mark.slow
+def test_navigation_social_force_first_evaluation_block(tmp_path):
+    """pipelines/navigation_social.yaml on its first evaluation block (90 runs, ~15 min on 2 free
+    cores) against the measured figures."""
+    import yaml
+    from pathlib import Path
+
+    config = yaml.safe_load((Path(__file__).resolve().parents[2] / "pipelines" / "navigation_social.yaml").read_text())
+    config["record"] = False
+    assert config["scenarios"]["agents"] == "social_force"
+    config["scenarios"]["seeds"] = [0]
+    config["scenarios"]["evaluation"] = {"start": 1000, "blocks": 1, "block_size": 30}
+    res = run_pipeline(config, tmp_path / "out", progress=False).results
+    rows = {(r["world"], r["block"]): r for r in res["benchmark"]["rows"]}
+    for world, (successes, static, moving, timeouts) in MEASURED_SOCIAL_FORCE_EVAL1.items():
+        r = rows[world, "eval1"]
+        assert r["episodes"] == 30
+        assert r["success_rate"]["events"] >= successes
+        assert r["collision_static_rate"]["events"] <= static
+        assert r["collision_moving_rate"]["events"] <= moving
+        assert r["timeout_rate"]["events"] <= timeouts
