@@ -182,7 +182,7 @@ class GlobalPlanning:
             res = self.planner.plan(PlanningProblem(g, pose[:2], stack.goal[:2]))
             self.searched_cost = None
         stack.timings_s["global_planner"].append(time.perf_counter() - t0)
-        self.last_plan_s = stack._t_s
+        self.last_plan_s = stack.now_s
         if not res.solved:
             return False
         stack.path = res.path[:, :2]

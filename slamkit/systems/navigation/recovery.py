@@ -94,7 +94,7 @@ class Recovery:
                 ahead = pose[:2] + np.outer(np.linspace(0.0, 0.3, 4), [math.cos(pose[2]), math.sin(pose[2])])
                 if np.all(world.clearance_m(ahead) > stack.config.robot_radius_m + c.margin_m):
                     cmd = np.array([0.1, float(np.clip(1.5 * bearing, -0.8, 0.8))])
-        if stack._t_s + 0.1 >= self.recover_until:
+        if stack.now_s + 0.1 >= self.recover_until:
             stack.planning.last_plan_s = -math.inf  # replan from where the recovery left the robot
         stack.timings_s["local_planner"].append(time.perf_counter() - t0)
         return stack._send(cmd, CommandStatus.RECOVERY)

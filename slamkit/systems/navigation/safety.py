@@ -123,7 +123,7 @@ class SafetyGuard:
         (replans, approaches again) once it has passed."""
         stack = self.stack
         t0 = time.perf_counter()
-        state = RobotState(pose, stack._last_cmd, t_s)
+        state = RobotState(pose, stack.last_command, t_s)
         world = stack.local_world(tracks, t_s)
         cand = stack.controller.candidates(state)
         dt = stack.controller.config.rollout_dt_s
@@ -192,7 +192,7 @@ class SafetyGuard:
         free; when neither is, the cycle counts in ``no_safe_stop_cycles`` and the command
         stands (braking would not avoid the contact either: the evasion chose it). Returns
         (command, whether the planned command was safe)."""
-        last = self.stack._last_cmd
+        last = self.stack.last_command
         if self.safe_stop_exists(pose, cmd, world):
             return cmd, True
         if self.safe_stop_exists(pose, last, world):

@@ -116,6 +116,17 @@ class NavigationStack:
     def tracks(self) -> Tracks:
         return self.tracker.tracks()
 
+    # ------------------------------------------------------------------ what the parts share
+    @property
+    def now_s(self) -> float:
+        """The stack's clock: the latest event or command time seen."""
+        return self._t_s
+
+    @property
+    def last_command(self) -> np.ndarray:
+        """(2,) the command sent last (v, omega): the yielding back-off and the safe stop start from it."""
+        return self._last_cmd
+
     # ------------------------------------------------------------------ the parts' counters
     @property
     def reached(self) -> bool:

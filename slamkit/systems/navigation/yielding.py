@@ -176,7 +176,7 @@ class Yielding:
         robot radius: closer, the robot touches it)."""
         c, stack = self.config, self.stack
         moving = np.flatnonzero(self.moving(tracks))
-        world = stack.local_world(tracks, stack._t_s, hedges=(c.hedge, c.reversed_hedge), turning=c.turning)
+        world = stack.local_world(tracks, stack.now_s, hedges=(c.hedge, c.reversed_hedge), turning=c.turning)
         centres = world.circles_at(tau_s)[:, moving]
         reach = world.radii_at(tau_s)[:, moving] + stack.config.robot_radius_m
         if c.span_shuttle:
@@ -291,7 +291,7 @@ class Yielding:
         # acceleration, on along the path), then back at the back-off speed; against the sweep
         # at each time (its last past the horizon)
         a = self._accel_max_mps2()
-        v0 = max(float(stack._last_cmd[0]), 0.0)
+        v0 = max(float(stack.last_command[0]), 0.0)
         t_stop, overshoot = v0 / a, 0.5 * v0**2 / a
         s0 = project_on_path(stack.path, pose[:2])
         ahead = point_at(stack.path, s0 + np.linspace(0.0, overshoot, 4))
@@ -323,7 +323,7 @@ class Yielding:
         forwards or backwards, whichever faces it with the smaller turn, at most
         ``back_off_speed_mps`` and slow enough to stop on the target at ``decel_mps2``,
         changing v by at most the controller's acceleration per 0.1 s."""
-        c, last = self.config, self.stack._last_cmd
+        c, last = self.config, self.stack.last_command
         d = target_xy - pose[:2]
         a = d if aim_xy is None else aim_xy - pose[:2]
         e = float(wrap_angle(math.atan2(a[1], a[0]) - pose[2]))
