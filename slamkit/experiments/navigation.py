@@ -527,7 +527,7 @@ class NavigationScene:
 class NavigationSnapshot:
     """One control cycle of a navigation episode as the viewer draws it (issue 30, item 4): copied,
     read-only arrays, never the live stack or plant. The truth (``true_xytheta``, the crossing
-    obstacles ``obstacles_xy_m`` / ``obstacles_radius_m`` of the scenario at the stamp) beside the
+    obstacles ``obstacles_xy_m`` / ``obstacles_radius_m`` of the episode's traffic at the stamp) beside the
     stack's belief (``estimate_xytheta``, ``covariance`` (3, 3), at most
     :data:`SNAPSHOT_MAX_PARTICLES` ``particles_xytheta``), its global ``path_xy_m`` (None before
     the first plan), the scan end points the map does not explain, the lidar tracks (ids,
@@ -566,7 +566,9 @@ def navigation_snapshot(scene: NavigationScene, scenario: NavigationScenario, st
     """The snapshot of the cycle that has just ended (read at once: the stack and plant move on)."""
     mean, cov = stack.current_pose()
     tracks = stack.tracks()
-    obs = scenario.obstacles
+    # the plant's own traffic: social-force people react to this episode's robot, so the
+    # scenario's template would draw them walking as if it were not there
+    obs = plant.obstacles
     out = decision.output
     has_candidates = out is not None and out.candidates_xytheta is not None and len(out.candidates_xytheta) > 0
     return NavigationSnapshot(

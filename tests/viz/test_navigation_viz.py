@@ -108,3 +108,28 @@ def test_the_recorder_gets_typed_snapshots_not_the_live_stack():
     assert first.scene.costmap_blocked.any() and first.obstacles_xy_m.shape == (len(sc.obstacles), 2)
     with pytest.raises(dataclasses.FrozenInstanceError):
         first.status = CommandStatus.NO_GOAL
+
+
+def test_the_snapshot_draws_the_episode_s_own_social_force_traffic():
+    # social-force people react to the robot, so the plant runs its own copy of the scenario's
+    # traffic: the true obstacles drawn are that copy's, not the template's (which walks as if
+    # there were no robot)
+    sc = make_navigation_scenario(1, "office", agents="social_force")
+    seen = []
+
+    class Keep:
+        wants_steps = True
+
+        def on_step(self, snapshot):
+            seen.append(snapshot.state)
+
+    hook = _snapshots(Keep(), f"dwa/{sc.name}", sc)
+    plants = []
+
+    def on_step(stack, plant, t_s, decision):
+        plants.append((plant, t_s))
+        hook(stack, plant, t_s, decision)
+
+    run_episode(sc, NavigationConfig(), EpisodeConfig(max_time_s=3.0), "dwa", on_step)
+    plant, t_s = plants[-1]
+    np.testing.assert_array_equal(seen[-1].obstacles_xy_m, plant.obstacles.position_at(t_s))
