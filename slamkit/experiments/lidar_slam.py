@@ -265,7 +265,7 @@ def run_slam(sequence: Sequence, truth: OccupancyGrid | None = None,
         "correlative_wins": float(c["correlative_wins"]),
         # the global loop search's share (slamkit.systems.lidar_slam), when the system counts it
         **{k: float(c[k]) for k in ("loop_candidates_global", "loop_closures_global", "odometry_checks",
-                                    "odometry_check_wins", "isam2_qr_fallbacks") if k in c},
+                                    "odometry_check_wins", "isam2_qr_fallbacks", "loop_global_far_rejected") if k in c},
     }
     duration = float(est.stamps_s[-1] - est.stamps_s[0])
     total = t_end - t_start

@@ -124,3 +124,7 @@ def test_config_is_checked():
         LoopClosureConfig(drift_xy_m2_per_m=-1.0)
     with pytest.raises(ConfigError):
         LoopClosureConfig(global_depth=0)
+    with pytest.raises(ConfigError, match="global_far_min_fitness"):
+        LoopClosureConfig(global_far_min_fitness=0.0)
+    with pytest.raises(ConfigError, match="global_far"):
+        LoopClosureConfig(global_far_m=-0.1)
