@@ -135,6 +135,18 @@ def _refuse_pipeline_keys(section: dict[str, Any], name: str, owners: dict[str, 
                               f"combination runs); remove it from {name}")
 
 
+def _refuse_moved_keys(section: dict[str, Any], prefix: tuple, moved: Mapping[str, str],
+                       doc: YamlDocument | None, source: str) -> None:
+    """A key of a config's former flat layout is refused with the place it moved to
+    (``moved``: old key -> its dotted path now), not merely as unknown."""
+    for key in section:
+        if key in moved:
+            where = doc.where(prefix + (key,)) if doc is not None else source
+            dotted = ".".join(str(x) for x in prefix + (key,))
+            raise ConfigError(f"{where}: {dotted}: moved into a section: {key} -> {moved[key]} "
+                              f"(write it as {'.'.join(str(x) for x in prefix)}.{moved[key]})")
+
+
 def _check_pose_graph_sources(datasets: list[str], doc: YamlDocument | None, source: str) -> None:
     """Every ``datasets`` entry is a registry name (under its naming rule) or an existing file:
     a misspelt one fails here, naming file and line, not after the others have been solved."""
@@ -323,10 +335,23 @@ class NavigationPipeline(PipelineConfig):
     map: dict[str, Any] = {}
 
     def check_options(self, config: dict[str, Any], doc: YamlDocument | None, source: str) -> None:
-        from slamkit.experiments.navigation import _variants
+        # (slamkit.systems.navigation's names through the pipeline module: the circle's side)
+        from slamkit.experiments.navigation import MOVED_FIELDS, EpisodeConfig, NavigationConfig, _variants
         from slamkit.experiments.navigation_map import MapSourceConfig, map_source_config
 
-        _variants(config)  # builds every variant's configs: unknown keys and bad values are errors
+        # the base sections and every variant's overrides against the models of NavigationConfig
+        # (its nested sections included) and EpisodeConfig, each error with its YAML line; a key
+        # of the former flat NavigationConfig names the section it moved into (MOVED_FIELDS)
+        sections: list[tuple[tuple, dict[str, Any], type]] = [
+            (("navigation",), self.navigation, NavigationConfig), (("episode",), self.episode, EpisodeConfig)]
+        for i, variant in enumerate(self.variants):
+            sections += [(("variants", i, "navigation"), variant.navigation, NavigationConfig),
+                         (("variants", i, "episode"), variant.episode, EpisodeConfig)]
+        for prefix, values, cls in sections:
+            if cls is NavigationConfig:
+                _refuse_moved_keys(values, prefix, MOVED_FIELDS, doc, source)
+            _nested(model_of(cls), values, doc, source, prefix)
+        _variants(config)  # builds every variant's configs: the dataclasses' own checks
         # the map section's fields checked with their YAML line, then the config built (its
         # own checks: source, unknown, the nested lidar-SLAM config)
         _nested(model_of(MapSourceConfig), self.map, doc, source, ("map",))

@@ -67,6 +67,23 @@ def _refused(tmp_path, text: str | bytes, loader=validate_pipeline_config) -> st
      "c.yaml:4: estimators.batch.max_iterations: Input should be a valid integer"),
     ("pipeline: local_planning\nclosed_loop: {max_time_s: 1.0e+20}\n",
      "c.yaml:2: closed_loop.max_time_s: Input should be less than or equal to 86400 (got 1e+20)"),
+    # navigation: the stack's section and each variant's overrides against NavigationConfig's and
+    # EpisodeConfig's models, nested sections included; a former flat key names its section (issue 30)
+    ("pipeline: navigation\nnavigation:\n  controller: dwa\n  yielding: {hegde: 0.3}\n",
+     "c.yaml:4: navigation.yielding.hegde: unknown key (did you mean 'hedge'?)"),
+    ("pipeline: navigation\nnavigation:\n  yielding: 0.3\n",
+     "c.yaml:3: navigation.yielding: a section of fields (key: value), got 0.3"),
+    ("pipeline: navigation\nvariants:\n  - name: a\n  - name: b\n    navigation:\n      yield_hedge: 0.2\n",
+     "c.yaml:6: variants.1.navigation.yield_hedge: moved into a section: yield_hedge -> yielding.hedge"),
+    ("pipeline: navigation\nnavigation: {stuck_s: 4.0}\n",
+     "c.yaml:2: navigation.stuck_s: moved into a section: stuck_s -> recovery.stuck_s"),
+    ("pipeline: navigation\nnavigation:\n  mcl: {n_maxx: 100}\n",
+     "c.yaml:3: navigation.mcl.n_maxx: unknown key (did you mean 'n_max'?)"),
+    ("pipeline: navigation\nepisode:\n  max_time_s: 30.0\nvariants:\n  - name: a\n    episode:\n"
+     "      goal_tolerence_m: 0.1\n",
+     "c.yaml:7: variants.0.episode.goal_tolerence_m: unknown key (did you mean 'goal_tolerance_m'?)"),
+    ("pipeline: navigation\nepisode:\n  max_time_s: 1.0e+20\n",
+     "c.yaml:3: episode.max_time_s: Input should be less than or equal to 86400 (got 1e+20)"),
     ("pipeline: lidar_slam\nworlds: [{world: office}]\nslam: {keyframes: {min_translaton_m: 1}}\n",
      "c.yaml:3: slam.keyframes.min_translaton_m: unknown key (did you mean 'min_translation_m'?)"),
     ("pipeline: pose_grap\ndatasets: [ring]\n", "c.yaml:1: pipeline: unknown pipeline 'pose_grap' (did you mean 'pose_graph'?)"),

@@ -37,7 +37,12 @@ def test_the_stack_config_nests_its_sections_and_names_moved_keys(tmp_path):
     # refused by the pipeline's validation, before anything runs
     path = tmp_path / "c.yaml"
     path.write_text("pipeline: navigation\nnavigation:\n  planning: {path_margn_m: 0.1}\n")
-    with pytest.raises(ConfigError, match=r"navigation\.planning: unknown keys \['path_margn_m'\]"):
+    with pytest.raises(ConfigError, match=r"c\.yaml:3: navigation\.planning\.path_margn_m: unknown key "
+                                          r"\(did you mean 'path_margin_m'\?\)"):
+        validate_pipeline_config(path)
+    path.write_text("pipeline: navigation\nvariants:\n  - name: x\n    navigation: {yield_hedge: 0.3}\n")
+    with pytest.raises(ConfigError, match=r"c\.yaml:4: variants\.0\.navigation\.yield_hedge: moved into a section: "
+                                          r"yield_hedge -> yielding\.hedge"):
         validate_pipeline_config(path)
 
 
