@@ -368,7 +368,8 @@ def _dataclass_in(hint: Any) -> type | None:
     return None
 
 
-def build(cls: type[T], data: Mapping[str, Any] | None, where: str | None = None, base: T | None = None) -> T:
+def build(cls: type[T], data: Mapping[str, Any] | None, where: str | None = None, base: T | None = None,
+          moved: Mapping[str, str] | None = None) -> T:
     """The frozen config dataclass ``cls`` from a validated mapping: the one dict-to-dataclass
     builder (issue 30), so the pipelines restate neither defaults nor nesting.
 
@@ -379,7 +380,10 @@ def build(cls: type[T], data: Mapping[str, Any] | None, where: str | None = None
       mapping for a field typed as a dataclass without one builds it from its class defaults;
     * lists become tuples (frozen configs hold tuples), recursively;
     * an unknown key is a :class:`~slamkit.errors.ConfigError` naming ``where`` and the known
-      fields ("unknown parameter(s)"), as is a value the dataclass refuses by type.
+      fields ("unknown parameter(s)"; ``moved``: a former key -> the dotted path it moved to,
+      named in the message), as is a value the dataclass refuses by type (or by ValueError), and
+      a value that is not a mapping for a field holding a dataclass (a preset's name aside); the
+      dataclass's own ConfigError is prefixed with ``where`` unless it starts with it.
 
     Bounds are checked where they are declared: by the pydantic model (:func:`model_of`) at the
     edge and by the dataclass's own ``__post_init__``.
@@ -392,7 +396,10 @@ def build(cls: type[T], data: Mapping[str, Any] | None, where: str | None = None
     fields = {f.name: f for f in dataclasses.fields(cls) if f.init}
     unknown = sorted(set(map(str, data)) - set(fields))
     if unknown:
-        raise ConfigError(f"{name}: unknown parameter(s) {unknown} for {cls.__name__}; known: {sorted(fields)}")
+        went = [f"{k} -> {moved[k]}" for k in unknown if moved and k in moved]
+        hint = f" (moved into a section: {', '.join(went)})" if went else ""
+        raise ConfigError(f"{name}: unknown parameter(s) {unknown} for {cls.__name__}{hint}; "
+                          f"known: {sorted(fields)}")
     hints = typing.get_type_hints(cls)
     kwargs: dict[str, Any] = {}
     for key, value in data.items():
@@ -411,9 +418,16 @@ def build(cls: type[T], data: Mapping[str, Any] | None, where: str | None = None
             elif (nested := _dataclass_in(hints.get(key))) is not None:
                 value = build(nested, value, f"{name}.{key}")
         else:
+            nested = type(default) if dataclasses.is_dataclass(default) and not isinstance(default, type) \
+                else _dataclass_in(hints.get(key))
+            if (nested is not None and not isinstance(value, nested)
+                    and not (isinstance(value, str) and callable(getattr(nested, "preset", None)))):
+                raise ConfigError(f"{name}.{key}: expected a mapping of {nested.__name__} fields, got {value!r}")
             value = _tupled(value)
         kwargs[key] = value
     try:
         return dataclasses.replace(base, **kwargs) if base is not None else cls(**kwargs)
-    except TypeError as exc:
+    except ConfigError as exc:  # the dataclass's own check: named by where it is, once
+        raise (exc if str(exc).startswith(name) else ConfigError(f"{name}: {exc}")) from None
+    except (TypeError, ValueError, ArithmeticError) as exc:
         raise ConfigError(f"{name}: {exc}") from None

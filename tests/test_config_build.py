@@ -62,3 +62,27 @@ def test_errors_name_the_field_path():
         build(Outer, [1, 2])
     with pytest.raises(ConfigError, match="rate_hz must be > 0"):   # the dataclass's own bound
         build(Outer, {"rate_hz": -1.0})
+
+
+def test_a_moved_key_names_where_it_went_and_a_section_needs_a_mapping():
+    with pytest.raises(ConfigError, match=r"cfg: unknown parameter\(s\) \['a_m'\] for Outer "
+                                          r"\(moved into a section: a_m -> inner\.a_m\); known:"):
+        build(Outer, {"a_m": 2.0}, "cfg", moved={"a_m": "inner.a_m"})
+    with pytest.raises(ConfigError, match=r"cfg\.inner: expected a mapping of Inner fields, got 0\.3"):
+        build(Outer, {"inner": 0.3}, "cfg")
+    with pytest.raises(ConfigError, match=r"cfg\.optional: expected a mapping of Inner fields, got 'x'"):
+        build(Outer, {"optional": "x"}, "cfg")
+    assert build(Outer, {"inner": Inner(b=9)}).inner == Inner(b=9)   # an instance is taken as it is
+
+
+def test_a_value_error_of_the_dataclass_is_a_config_error_naming_where():
+    @dataclass(frozen=True)
+    class Picky:
+        n: int = 1
+
+        def __post_init__(self) -> None:
+            if self.n > 5:
+                raise ValueError("n at most 5")
+
+    with pytest.raises(ConfigError, match=r"picky: n at most 5"):
+        build(Picky, {"n": 6}, "picky")

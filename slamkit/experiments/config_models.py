@@ -19,7 +19,7 @@ from pydantic import AfterValidator, BaseModel, ConfigDict, Field
 
 from slamkit.backend.robust import RobustSolveConfig
 from slamkit.backend.solvers import OptimizeConfig
-from slamkit.config import STRICT, YamlDocument, model_of, params_model_of, validate, write_back
+from slamkit.config import STRICT, YamlDocument, build, model_of, params_model_of, validate, write_back
 from slamkit.control.registry import CONTROLLERS
 from slamkit.data import registry
 from slamkit.data.noise import SENSOR_SIGMAS
@@ -337,7 +337,7 @@ class NavigationPipeline(PipelineConfig):
     def check_options(self, config: dict[str, Any], doc: YamlDocument | None, source: str) -> None:
         # (slamkit.systems.navigation's names through the pipeline module: the circle's side)
         from slamkit.experiments.navigation import MOVED_FIELDS, EpisodeConfig, NavigationConfig, _variants
-        from slamkit.experiments.navigation_map import MapSourceConfig, map_source_config
+        from slamkit.experiments.navigation_map import MapSourceConfig
 
         # the base sections and every variant's overrides against the models of NavigationConfig
         # (its nested sections included) and EpisodeConfig, each error with its YAML line; a key
@@ -355,7 +355,7 @@ class NavigationPipeline(PipelineConfig):
         # the map section's fields checked with their YAML line, then the config built (its
         # own checks: source, unknown, the nested lidar-SLAM config)
         _nested(model_of(MapSourceConfig), self.map, doc, source, ("map",))
-        map_source_config(config.get("map"))
+        build(MapSourceConfig, config.get("map"), "map")
 
 
 # --- lidar_slam ----------------------------------------------------------------------------------

@@ -42,13 +42,14 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
+from slamkit.config import build
 from slamkit.errors import ConfigError
 from slamkit.experiments.closed_loop import start_goal_draws
 from slamkit.experiments.config_models import NavigationPipeline, seed_list
 from slamkit.experiments.navigation_benchmark import (DEV_BLOCK, benchmark_markdown, block_of, benchmark_rows, difficulty_rows,
                                                      episode_benchmark_metrics, plot_benchmark, scenario_difficulty,
                                                      seed_blocks)
-from slamkit.experiments.navigation_map import RobotMap, map_source_config, robot_map
+from slamkit.experiments.navigation_map import MapSourceConfig, RobotMap, robot_map
 from slamkit.experiments.observers import PipelineObserver
 from slamkit.experiments.pipeline import Pipeline, PipelineOutput, StepProgress
 from slamkit.experiments.results import (ResultsFolder, RunRecord, markdown_table, paired_difference, summarise,
@@ -62,7 +63,7 @@ from slamkit.planning.grid_search import costmap_to_cell_cost
 from slamkit.planning.protocols import PlanningProblem
 from slamkit.sim.social_force import crossing_traffic
 from slamkit.sim.navigation_world import WORLDS, NavigationPlant, NavigationScenario, world_map
-from slamkit.systems.navigation import (MOVED_FIELDS, SECTIONS, CommandStatus, NavigationCommand, NavigationConfig,
+from slamkit.systems.navigation import (MOVED_FIELDS, CommandStatus, NavigationCommand, NavigationConfig,
                                         NavigationStack, layer_timing_summary)
 
 def make_navigation_scenario(seed: int, kind: str, willow_yaml: str | None = None,
@@ -304,7 +305,9 @@ def _section(value: Any, where: str) -> dict[str, Any]:
 
 def _variants(config: Mapping[str, Any]) -> list[tuple[str, NavigationConfig, EpisodeConfig]]:
     """(name, stack config, episode config) per variant: the base ``navigation``/``episode``
-    sections, each variant's overrides on top."""
+    sections with each variant's keys on top -- a key the variant names replaces the base's
+    value as a whole (a nested section too: ``planning: {...}`` in a variant replaces the base's
+    ``planning`` mapping, over the section's defaults) -- built by :func:`slamkit.config.build`."""
     base_nav = _section(config.get("navigation"), "navigation")
     base_ep = _section(config.get("episode"), "episode")
     variants = config.get("variants", [{"name": "nominal"}])
@@ -314,10 +317,10 @@ def _variants(config: Mapping[str, Any]) -> list[tuple[str, NavigationConfig, Ep
     for i, v in enumerate(variants):
         v = _section(v, f"variants.{i}")
         name = str(v.get("name", f"variant_{i}"))
-        nav = _build(NavigationConfig, {**base_nav, **_section(v.get("navigation"), f"variants.{name}.navigation")},
-                     f"variants.{name}.navigation")
-        ep = _build(EpisodeConfig, {**base_ep, **_section(v.get("episode"), f"variants.{name}.episode")},
-                    f"variants.{name}.episode")
+        nav = build(NavigationConfig, {**base_nav, **_section(v.get("navigation"), f"variants.{name}.navigation")},
+                    f"variants.{name}.navigation", moved=MOVED_FIELDS)
+        ep = build(EpisodeConfig, {**base_ep, **_section(v.get("episode"), f"variants.{name}.episode")},
+                   f"variants.{name}.episode")
         out.append((name, nav, ep))
     names = [n for n, _, _ in out]
     for v in variants:
@@ -325,38 +328,6 @@ def _variants(config: Mapping[str, Any]) -> list[tuple[str, NavigationConfig, Ep
         if other is not None and (other not in names or other == v.get("name")):
             raise ConfigError(f"variants.{v.get('name')}.paired_with: {other!r} is not another variant ({names})")
     return out
-
-
-def _build(cls, values: Mapping[str, Any], where: str):
-    """``cls(**values)`` with the nested configs (``mcl``, ``detector``, ``tracker`` and the
-    sections ``planning``, ``yielding``, ``safety``, ``goal``, ``recovery``: ``SECTIONS``) given as
-    mappings over their defaults; every failure is a ConfigError naming ``where``."""
-    fields = {f.name: f for f in dataclasses.fields(cls)}
-    unknown = set(values) - set(fields)
-    if unknown:
-        moved = [f"{k} -> {MOVED_FIELDS[k]}" for k in sorted(map(str, unknown)) if cls is NavigationConfig
-                 and k in MOVED_FIELDS]
-        hint = f" (moved into a section: {', '.join(moved)})" if moved else ""
-        raise ConfigError(f"{where}: unknown keys {sorted(map(str, unknown))}{hint}; known: {sorted(fields)}")
-    values = dict(values)
-    try:
-        for key in SECTIONS if cls is NavigationConfig else ():
-            if key in values:
-                nested = _section(values[key], f"{where}.{key}")
-                default = getattr(NavigationConfig(), key)
-                known = {f.name for f in dataclasses.fields(default)}
-                if set(nested) - known:
-                    raise ConfigError(f"{where}.{key}: unknown keys {sorted(map(str, set(nested) - known))}; "
-                                      f"known: {sorted(known)}")
-                values[key] = dataclasses.replace(default, **nested)
-        values = {k: tuple(tuple(x) if isinstance(x, list) else x for x in v)
-                  if isinstance(v, list) and isinstance(fields[k].default, tuple) else v
-                  for k, v in values.items()}
-        return cls(**values)
-    except ConfigError as exc:
-        raise (exc if str(exc).startswith(where) else ConfigError(f"{where}: {exc}")) from None
-    except (TypeError, ValueError, ArithmeticError) as exc:
-        raise ConfigError(f"{where}: {exc}") from None
 
 
 def willow_yaml(spec: str | None) -> str:
@@ -606,7 +577,7 @@ def run(config: Mapping[str, Any], folder: ResultsFolder, progress: StepProgress
         observer: PipelineObserver | None = None) -> PipelineOutput[list[Episode]]:
     """Pipeline ``navigation``: worlds x seeds x variants -> runs, summary, report, plots."""
     variants = _variants(config)
-    map_config = map_source_config(config.get("map"))
+    map_config = build(MapSourceConfig, config.get("map"), "map")
     scenarios = scenarios_of(config)
     advance = progress.task("navigation episodes", len(scenarios) * len(variants))
     watch = observer is not None and observer.wants_steps

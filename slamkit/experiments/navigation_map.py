@@ -95,21 +95,6 @@ class MapSourceConfig:
         slam_config_from(self.slam)  # unknown keys and bad values are errors now, not mid-run
 
 
-def map_source_config(values: Mapping[str, Any] | None) -> MapSourceConfig:
-    """``MapSourceConfig`` from the pipeline's ``map`` section (None: the true grid)."""
-    values = dict(values or {})
-    known = {f.name for f in dataclasses.fields(MapSourceConfig)}
-    unknown = set(values) - known
-    if unknown:
-        raise ConfigError(f"map: unknown keys {sorted(map(str, unknown))}; known: {sorted(known)}")
-    try:
-        return MapSourceConfig(**values)
-    except ConfigError:
-        raise
-    except (TypeError, ValueError) as exc:
-        raise ConfigError(f"map: {exc}") from None
-
-
 @dataclass(frozen=True)
 class RobotMap:
     """The stack's map and how it compares with the truth (empty for ``truth``).

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from slamkit.errors import ConfigError
-from slamkit.experiments.navigation_map import MapSourceConfig, RobotMap, map_source_config, robot_map
+from slamkit.config import build
+from slamkit.experiments.navigation_map import MapSourceConfig, RobotMap, robot_map
 from slamkit.maps.generators import OfficeConfig, office
 from slamkit.sim.moving_obstacles import MovingObstacles
 from slamkit.sim.navigation_world import NavigationScenario
@@ -20,15 +21,15 @@ def _scenario() -> NavigationScenario:
 
 
 def test_map_source_config_is_checked():
-    assert map_source_config(None).source == "truth"
-    with pytest.raises(ConfigError, match="unknown keys"):
-        map_source_config({"sorce": "slam_tour"})
+    assert build(MapSourceConfig, None, "map").source == "truth"
+    with pytest.raises(ConfigError, match=r"map: unknown parameter\(s\) \['sorce'\]"):
+        build(MapSourceConfig, {"sorce": "slam_tour"}, "map")
     with pytest.raises(ConfigError, match="source"):
-        map_source_config({"source": "gmapping"})
+        build(MapSourceConfig, {"source": "gmapping"}, "map")
     with pytest.raises(ConfigError, match="tour_goals"):
-        map_source_config({"source": "slam_tour", "tour_goals": 0})
+        build(MapSourceConfig, {"source": "slam_tour", "tour_goals": 0}, "map")
     with pytest.raises(ConfigError, match="lidar_slam.slam"):
-        map_source_config({"source": "slam_tour", "slam": {"loop_rounds_": 1}})
+        build(MapSourceConfig, {"source": "slam_tour", "slam": {"loop_rounds_": 1}}, "map")
 
 
 def test_a_pipeline_file_with_a_misspelt_map_key_names_its_line(tmp_path):
