@@ -35,6 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from slamkit.errors import ConfigError
+from slamkit.geometry.segments import point_segment_distance
 
 
 @dataclass(frozen=True)
@@ -205,13 +206,6 @@ class Tracks:
             object.__setattr__(self, "span_xy_m", np.stack([xy, xy], axis=1))
 
 
-def _segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
-    """Distance from the point p to the segment a-b."""
-    ab = b - a
-    u = float(np.clip((p - a) @ ab / max(float(ab @ ab), 1e-12), 0.0, 1.0))
-    return float(np.linalg.norm(p - (a + u * ab)))
-
-
 def cv_matrices(dt_s: float, accel_psd: float) -> tuple[np.ndarray, np.ndarray]:
     """F and Q of the constant-velocity model on (x, y, vx, vy) over ``dt_s``."""
     F = np.eye(4)
@@ -371,7 +365,7 @@ class ConstantVelocityTracker:
             younger = np.flatnonzero(self._ids > lane_id)
             if not len(younger):
                 continue
-            d = np.array([_segment_distance(self._x[i, :2], span[0], span[1]) for i in younger])
+            d = point_segment_distance(self._x[younger, :2], span[:1], span[1:])[:, 0]
             if d.min() > tol:
                 continue
             i = int(younger[np.argmin(d)])

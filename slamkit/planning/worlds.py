@@ -24,6 +24,7 @@ import numpy as np
 from scipy.spatial.distance import cdist
 
 from slamkit.geometry.angles import wrap_angle
+from slamkit.geometry.segments import point_segment_distance
 from slamkit.errors import PlanningError
 from slamkit.maps.occupancy_grid import OccupancyGrid
 
@@ -58,15 +59,6 @@ def _segments_cross_edges(A: np.ndarray, B: np.ndarray, P: np.ndarray, Q: np.nda
     d3 = _cross(b - a, p - a)
     d4 = _cross(b - a, q - a)
     return np.any((d1 * d2 <= 0) & (d3 * d4 <= 0), axis=1)
-
-
-def point_segment_distance(X: np.ndarray, P: np.ndarray, Q: np.ndarray) -> np.ndarray:
-    """(N, E) distance from points X (N, 2) to the segments P_e Q_e (E, 2)."""
-    d = Q - P
-    l2 = np.maximum(np.einsum("ij,ij->i", d, d), 1e-300)
-    t = np.clip(np.einsum("nej,ej->ne", X[:, None, :] - P[None], d) / l2, 0.0, 1.0)
-    closest = P[None] + t[..., None] * d[None]
-    return np.linalg.norm(X[:, None, :] - closest, axis=-1)
 
 
 class PointWorld:

@@ -27,7 +27,7 @@ from slamkit.control.path_following import point_at, project_on_path
 from slamkit.errors import ConfigError
 from slamkit.estimation.obstacle_tracker import Tracks
 from slamkit.geometry.angles import wrap_angle
-from slamkit.planning.worlds import point_segment_distance
+from slamkit.geometry.segments import point_segment_distance
 
 if TYPE_CHECKING:
     from slamkit.systems.navigation.stack import NavigationStack
