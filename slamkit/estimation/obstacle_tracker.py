@@ -170,9 +170,9 @@ class TrackerConfig:
             raise ConfigError("TrackerConfig: speed_smoothing in (0, 1], reverse_speed_mps and reverse_span_m > 0")
         if min(self.gate_m, self.accel_psd, self.sigma_detection_m, self.initial_speed_sigma_mps) <= 0:
             raise ConfigError("TrackerConfig: gate, noise densities and sigmas must be > 0")
-        if self.span_restart_m is not None and self.span_restart_m <= 0:
+        if self.span_restart_m is not None and not self.span_restart_m > 0:
             raise ConfigError("TrackerConfig: span_restart_m > 0 or None")
-        if self.lane_memory_s is not None and self.lane_memory_s <= 0:
+        if self.lane_memory_s is not None and not self.lane_memory_s > 0:
             raise ConfigError("TrackerConfig: lane_memory_s > 0 or None")
         if self.confirm_hits < 1 or self.max_misses < 0:
             raise ConfigError("TrackerConfig: confirm_hits >= 1 and max_misses >= 0 needed")

@@ -223,3 +223,16 @@ def test_a_track_lost_to_a_split_cluster_gives_its_lane_to_its_successor():
     # without the memory it knows only its own 0.9 s
     bare = run(TrackerConfig())
     assert bare.reversals.tolist() == [0] and np.ptp(bare.span_xy_m[0, :, 0]) < 0.45
+
+
+def test_lane_memory_and_span_restart_refuse_nan_and_non_positive_values():
+    import pytest
+
+    from slamkit.errors import ConfigError
+
+    for bad in (0.0, -1.0, float("nan")):
+        with pytest.raises(ConfigError):
+            TrackerConfig(lane_memory_s=bad)
+        with pytest.raises(ConfigError):
+            TrackerConfig(span_restart_m=bad)
+    assert TrackerConfig(lane_memory_s=None).lane_memory_s is None
