@@ -27,6 +27,7 @@ import dataclasses
 import difflib
 import functools
 import math
+import types
 import typing
 from pathlib import Path
 from typing import Annotated, Any, Literal, Mapping
@@ -362,7 +363,7 @@ def _dataclass_in(hint: Any) -> type | None:
     """The dataclass a field's type names (``X`` or ``X | None``), else None."""
     if dataclasses.is_dataclass(hint) and isinstance(hint, type):
         return hint
-    if typing.get_origin(hint) in (typing.Union, getattr(__import__("types"), "UnionType", None)):
+    if typing.get_origin(hint) in (typing.Union, types.UnionType):
         found = [a for a in typing.get_args(hint) if dataclasses.is_dataclass(a) and isinstance(a, type)]
         return found[0] if len(found) == 1 else None
     return None
