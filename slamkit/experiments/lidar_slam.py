@@ -30,7 +30,6 @@ and, from the runner, ``on_output`` with the ``PipelineOutput`` whose ``payload`
 
 from __future__ import annotations
 
-import dataclasses
 import resource
 import sys
 import time
@@ -43,18 +42,16 @@ import numpy as np
 from slamkit.data.pose_graph import PoseGraph
 from slamkit.data.sequence import Odometry, Scan, Sequence
 from slamkit.data.trajectory import Trajectory
+from slamkit.config import build
 from slamkit.errors import ConfigError
 from slamkit.experiments.observers import StepSnapshot
 from slamkit.data.perturb import perturb
 from slamkit.experiments.perturbation import (perturbation_config, perturbation_indices, twin_params, twin_suffix,
                                               unperturbed)
 from slamkit.experiments.results import RunRecord, markdown_table
-from slamkit.frontend.correlative import CorrelativeConfig
-from slamkit.frontend.icp import IcpConfig
-from slamkit.frontend.keyframes import KeyframeConfig
-from slamkit.frontend.loop_closure import LoopClosure, LoopClosureConfig
+from slamkit.frontend.loop_closure import LoopClosure
 from slamkit.geometry import se2
-from slamkit.maps.log_odds import LogOddsConfig, LogOddsMap, MapQuality, map_quality
+from slamkit.maps.log_odds import LogOddsMap, MapQuality, map_quality
 from slamkit.maps.occupancy_grid import OccupancyGrid
 from slamkit.metrics.alignment import align
 from slamkit.metrics.ate import ate
@@ -63,7 +60,6 @@ from slamkit.metrics.map_consistency import map_consistency
 from slamkit.metrics.relations import RelationErrors, read_relations, relation_errors
 from slamkit.models import diff_drive
 from slamkit.paths import file_in
-from slamkit.backend.isam2 import Isam2Params
 from slamkit.systems.lidar_slam import Keyframe, LidarSlam, LidarSlamConfig, occupancy_map
 
 #: mean +- std of the translational relation error (m) published by Kuemmerle et al., "On
@@ -343,37 +339,6 @@ def _peak_rss_mb() -> float:
 # pipeline
 
 
-def _dataclass_from(cls, values: Mapping[str, Any] | None, where: str):
-    values = dict(values or {})
-    names = {f.name: f for f in dataclasses.fields(cls)}
-    unknown = sorted(set(values) - set(names))
-    if unknown:
-        raise ConfigError(f"{where}: unknown key(s) {unknown}; known: {sorted(names)}")
-    return cls(**values)
-
-
-def slam_config_from(values: Mapping[str, Any] | None) -> LidarSlamConfig:
-    """``LidarSlamConfig`` from a plain mapping (nested ``keyframes``, ``icp``, ``loops``, ``map``,
-    ``isam2``; lists for the tuple fields)."""
-    values = dict(values or {})
-    nested = {"keyframes": KeyframeConfig, "icp": IcpConfig, "map": LogOddsConfig, "isam2": Isam2Params,
-              "correlative": CorrelativeConfig}
-    kwargs: dict[str, Any] = {}
-    for key, value in values.items():
-        if key in nested:
-            kwargs[key] = _dataclass_from(nested[key], value, f"lidar_slam.slam.{key}")
-        elif key == "loops":
-            v = dict(value or {})
-            icp_v = v.pop("icp", None)
-            loops = _dataclass_from(LoopClosureConfig, v, "lidar_slam.slam.loops")
-            kwargs[key] = replace(loops, icp=_dataclass_from(IcpConfig, icp_v, "lidar_slam.slam.loops.icp"))
-        elif key in ("body_xytheta_lidar", "fallback_sigmas"):
-            kwargs[key] = tuple(float(x) for x in value)
-        else:
-            kwargs[key] = value
-    return _dataclass_from(LidarSlamConfig, kwargs, "lidar_slam.slam")
-
-
 def _merged(base: Mapping[str, Any], override: Mapping[str, Any]) -> dict[str, Any]:
     """``base`` with ``override``'s keys replacing its own, nested mappings merged key by key."""
     out = dict(base)
@@ -552,14 +517,14 @@ def run(config: Mapping[str, Any], folder, progress, observer=None):
         raise ConfigError("lidar_slam: 'worlds' (grid scenario mappings) or 'logs' (laser logs) must "
                           "list at least one entry")
     seeds = seed_list(config.get("seeds", [0]))
-    slam_cfg = slam_config_from(config.get("slam"))
+    slam_cfg = build(LidarSlamConfig, config.get("slam"), "lidar_slam.slam")
     robusts = config.get("robust_variants") or [slam_cfg.robust]
     priors = config.get("motion_priors") or [slam_cfg.motion_prior]
     variants = [(r, p) for r in robusts for p in priors]
-    slam_by_prior = {p: slam_config_from(slam_section_for(config, p)) for p in priors}
+    slam_by_prior = {p: build(LidarSlamConfig, slam_section_for(config, p), "lidar_slam.slam") for p in priors}
     n_false, false_seed = int(config.get("false_loop_closures", 0)), int(config.get("false_loop_seed", 0))
-    mcl_cfg = None if not config.get("mcl") else _dataclass_from(
-        MclCheckConfig, config["mcl"] if isinstance(config["mcl"], Mapping) else {}, "lidar_slam.mcl")
+    mcl_cfg = None if not config.get("mcl") else build(
+        MclCheckConfig, config["mcl"] if isinstance(config["mcl"], Mapping) else None, "lidar_slam.mcl")
     twins = perturbation_config(config)
     indices = perturbation_indices(config)
     advance = progress.task("lidar_slam", (len(worlds) * len(seeds) + len(logs)) * len(variants) * len(indices))

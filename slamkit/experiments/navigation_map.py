@@ -40,15 +40,16 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from slamkit.config import build
 from slamkit.errors import ConfigError
-from slamkit.experiments.lidar_slam import ate_keyframes_m, run_slam, slam_config_from
+from slamkit.experiments.lidar_slam import ate_keyframes_m, run_slam
 from slamkit.geometry import se2
 from slamkit.maps.log_odds import map_quality, resample_to
 from slamkit.maps.occupancy_grid import OccupancyGrid
 from slamkit.paths import atomic_file
 from slamkit.sim.grid_world import GridScenario, simulate_grid_sequence
 from slamkit.sim.navigation_world import NavigationScenario
-from slamkit.systems.lidar_slam import occupancy_map
+from slamkit.systems.lidar_slam import LidarSlamConfig, occupancy_map
 
 MAP_SOURCES = ("truth", "slam_tour")
 
@@ -92,7 +93,7 @@ class MapSourceConfig:
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise ConfigError(f"map.{name} must be a finite number > 0, got {v!r}")
-        slam_config_from(self.slam)  # unknown keys and bad values are errors now, not mid-run
+        build(LidarSlamConfig, self.slam, "lidar_slam.slam")  # unknown keys and bad values are errors now, not mid-run
 
 
 @dataclass(frozen=True)
@@ -166,8 +167,9 @@ def slam_tour_map(truth: OccupancyGrid, config: MapSourceConfig, seed: int,
                         clearance_m=config.tour_clearance_m, duration_s=config.tour_duration_s,
                         speed_mps=config.tour_speed_mps, encoder=None, imu_rate_hz=None, gps=None)
     sequence, _ = simulate_grid_sequence(tour, np.random.default_rng(seed), grid=truth)
-    slam = slam_config_from({**dict(config.slam), "map": {**dict(config.slam.get("map", {})),
-                                                          "resolution_m": config.resolution_m}})
+    slam = build(LidarSlamConfig, {**dict(config.slam), "map": {**dict(config.slam.get("map", {})),
+                                                                "resolution_m": config.resolution_m}},
+                 "lidar_slam.slam")
     # truth=None: the map is built at SLAM's own poses, in the frame of the tour's known start
     result = run_slam(sequence, None, slam)
     log_odds = occupancy_map(result.sensor_poses(result.optimised_poses), result.keyframe_angles_rad,

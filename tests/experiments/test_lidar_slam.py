@@ -16,6 +16,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from slamkit.config import build
 from slamkit.errors import ConfigError
 from slamkit.experiments.lidar_slam import (
     MclCheckConfig,
@@ -23,7 +24,6 @@ from slamkit.experiments.lidar_slam import (
     _simulate,
     localize_on_map,
     run_slam,
-    slam_config_from,
     slam_section_for,
     trim_to_free_space,
 )
@@ -143,16 +143,21 @@ def test_pipeline_false_loop_closure_and_recording(tmp_path, verify_rrd):
 
 
 def test_config_errors():
-    with pytest.raises(ConfigError, match="unknown key"):
-        slam_config_from({"icp": {"methd": "point_to_line"}})
+    with pytest.raises(ConfigError, match=r"lidar_slam\.slam\.icp: unknown parameter\(s\) \['methd'\] for IcpConfig"):
+        build(LidarSlamConfig, {"icp": {"methd": "point_to_line"}}, "lidar_slam.slam")
     with pytest.raises(ConfigError):
-        slam_config_from({"robust": "tukey"})
+        build(LidarSlamConfig, {"robust": "tukey"})
     with pytest.raises(ConfigError, match="worlds"):
         run_pipeline({"pipeline": "lidar_slam", "name": "x"}, "/tmp/never_written", progress=False)
-    cfg = slam_config_from({"loops": {"search_radius_m": 2.0, "icp": {"trim_fraction": 0.8}},
-                            "map": {"resolution_m": 0.05}})
+    cfg = build(LidarSlamConfig, {"loops": {"search_radius_m": 2.0, "icp": {"trim_fraction": 0.8}},
+                                  "map": {"resolution_m": 0.05}})
     assert cfg.loops.search_radius_m == 2.0 and cfg.loops.icp.trim_fraction == 0.8
     assert cfg.map.resolution_m == 0.05
+    # a section overrides the system's default section, not its class's defaults (issue 30): the
+    # scan matcher's trimmed ICP (0.9, IcpConfig's own default is 1.0) survives a partial section
+    partial = build(LidarSlamConfig, {"icp": {"max_iterations": 20}, "loops": {"min_fitness": 0.7}})
+    assert (partial.icp.max_iterations, partial.icp.trim_fraction) == (20, 0.9)
+    assert (partial.loops.min_fitness, partial.loops.icp.trim_fraction) == (0.7, 0.9)
 
 
 def test_slam_by_motion_prior_is_merged_into_slam_key_by_key():
@@ -160,12 +165,12 @@ def test_slam_by_motion_prior_is_merged_into_slam_key_by_key():
                        "loops": {"min_fitness": 0.6, "icp": {"trim_fraction": 0.9}}},
               "slam_by_motion_prior": {"constant_velocity": {"icp": {"trim_fraction": 1.0, "target_voxel_m": 0.05},
                                                              "loops": {"icp": {"target_voxel_m": 0.05}}}}}
-    lidar_only = slam_config_from(slam_section_for(config, "constant_velocity"))
+    lidar_only = build(LidarSlamConfig, slam_section_for(config, "constant_velocity"))
     assert lidar_only.motion_prior == "constant_velocity" and lidar_only.submap_keyframes == 8
     assert (lidar_only.icp.trim_fraction, lidar_only.icp.max_iterations, lidar_only.icp.target_voxel_m) == (1.0, 30, 0.05)
     assert (lidar_only.loops.min_fitness, lidar_only.loops.icp.trim_fraction,
             lidar_only.loops.icp.target_voxel_m) == (0.6, 0.9, 0.05)
-    with_odometry = slam_config_from(slam_section_for(config, "odometry"))
+    with_odometry = build(LidarSlamConfig, slam_section_for(config, "odometry"))
     assert with_odometry.icp.trim_fraction == 0.9 and with_odometry.icp.target_voxel_m == 0.0
     from slamkit.experiments.config_models import check_pipeline
 

@@ -10,6 +10,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from slamkit.config import build
 from slamkit.data import registry
 from slamkit.data.sequence import Scan
 from slamkit.experiments.lidar_slam import (
@@ -19,11 +20,11 @@ from slamkit.experiments.lidar_slam import (
     first_seconds,
     log_map_figure,
     run_slam,
-    slam_config_from,
     slam_section_for,
 )
 from slamkit.experiments.pipeline import load_config
 from slamkit.metrics.relations import read_relations
+from slamkit.systems.lidar_slam import LidarSlamConfig
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -36,7 +37,7 @@ def intel_60s():
         pytest.skip("intel-log is not available locally")
     seq = replace(first_seconds(registry.load_recording(entry.name), 60.0), name="intel")
     relations = read_relations(registry.relations_of(entry.name))
-    cfg = slam_config_from(slam_section_for(load_config(ROOT / "pipelines" / "lidar_slam_logs.yaml"), "odometry"))
+    cfg = build(LidarSlamConfig, slam_section_for(load_config(ROOT / "pipelines" / "lidar_slam_logs.yaml"), "odometry"))
     return run_slam(seq, None, cfg, relations=relations, label="intel"), relations
 
 
@@ -134,7 +135,7 @@ def intel_whole_consistency_m():
     entry = registry.get("intel-log")
     if not registry.is_available(entry):
         pytest.skip("intel-log is not available locally")
-    cfg = slam_config_from(slam_section_for(load_config(ROOT / "pipelines" / "lidar_slam_logs.yaml"), "odometry"))
+    cfg = build(LidarSlamConfig, slam_section_for(load_config(ROOT / "pipelines" / "lidar_slam_logs.yaml"), "odometry"))
     return run_slam(registry.load_recording(entry.name), None, cfg).metrics["map_consistency_mean_m"]
 
 
@@ -149,7 +150,7 @@ def test_mit_csail_map_is_as_consistent_as_intel(prior, intel_whole_consistency_
     entry = registry.get("mit-csail-log")
     if not registry.is_available(entry):
         pytest.skip("mit-csail-log is not available locally")
-    cfg = slam_config_from(slam_section_for(load_config(ROOT / "pipelines" / "lidar_slam_logs.yaml"), prior))
+    cfg = build(LidarSlamConfig, slam_section_for(load_config(ROOT / "pipelines" / "lidar_slam_logs.yaml"), prior))
     m = run_slam(registry.load_recording(entry.name), None, cfg).metrics
     assert m["map_consistency_overlap"] > 0.6
     assert m["map_consistency_mean_m"] <= 1.5 * intel_whole_consistency_m

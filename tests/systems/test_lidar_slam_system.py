@@ -19,9 +19,10 @@ import pytest
 from slamkit.data import registry
 from slamkit.data.perturb import PerturbationConfig, perturb
 from slamkit.data.sequence import Scan
+from slamkit.config import build
 from slamkit.errors import ConfigError, DataError
 from slamkit.experiments.lidar_slam import (_sim_parts, _simulate, ate_keyframes_m, config_for, first_seconds,
-                                            run_slam, slam_config_from, slam_section_for)
+                                            run_slam, slam_section_for)
 from slamkit.experiments.pipeline import load_config
 from slamkit.geometry import se2
 from slamkit.metrics.relations import read_relations
@@ -138,7 +139,7 @@ def test_config_is_checked():
         LidarSlamConfig(body_xytheta_lidar=(0.0, 0.0))
     with pytest.raises(ConfigError, match="odometry_check"):
         LidarSlamConfig(odometry_check_deg=-1.0)
-    cfg = slam_config_from({"motion_prior": "identity", "body_xytheta_lidar": [-0.04, 0, 0],
+    cfg = build(LidarSlamConfig, {"motion_prior": "identity", "body_xytheta_lidar": [-0.04, 0, 0],
                             "isam2": {"relinearize_threshold": 0.05}})
     assert cfg.body_xytheta_lidar == (-0.04, 0.0, 0.0) and cfg.isam2.relinearize_threshold == 0.05
 
@@ -155,7 +156,7 @@ def _log(name: str):
 
 def logs_config(prior: str = "odometry") -> LidarSlamConfig:
     """The logs pipeline's slam config for one motion prior (its slam_by_motion_prior merged in)."""
-    return slam_config_from(slam_section_for(load_config(ROOT / "pipelines" / "lidar_slam_logs.yaml"), prior))
+    return build(LidarSlamConfig, slam_section_for(load_config(ROOT / "pipelines" / "lidar_slam_logs.yaml"), prior))
 
 
 @pytest.fixture(scope="module")
