@@ -370,15 +370,20 @@ def _dataclass_in(hint: Any) -> type | None:
 
 
 def build(cls: type[T], data: Mapping[str, Any] | None, where: str | None = None, base: T | None = None,
-          moved: Mapping[str, str] | None = None) -> T:
+          moved: Mapping[str, str] | None = None, null_is_none: bool = False) -> T:
     """The frozen config dataclass ``cls`` from a validated mapping: the one dict-to-dataclass
     builder (issue 30), so the pipelines restate neither defaults nor nesting.
 
     * a key that is absent or null keeps its default (``base``'s value when given, else the
-      field's default), as a null means everywhere in a config;
+      field's default), as a null means in a pipeline config; with ``null_is_none`` a null sets
+      the field to None instead (a scenario file's ``gps: null`` switches the GPS off), in nested
+      sections too;
     * a mapping for a field whose default is a dataclass overrides *that default's* fields,
       recursively (``orb: {fast_threshold: 12}`` keeps the system's other ORB settings); a
       mapping for a field typed as a dataclass without one builds it from its class defaults;
+    * for a field whose dataclass has named presets (a ``preset`` classmethod: ``ImuNoise``,
+      ``Gps``), a string is the preset's name (``imu_noise: consumer_mems``) and a mapping may
+      start from one (``gps: {preset: rtk, rate_hz: 5}``: the preset with its fields overridden);
     * lists become tuples (frozen configs hold tuples), recursively;
     * an unknown key is a :class:`~slamkit.errors.ConfigError` naming ``where`` and the known
       fields ("unknown parameter(s)"; ``moved``: a former key -> the dotted path it moved to,
@@ -405,6 +410,8 @@ def build(cls: type[T], data: Mapping[str, Any] | None, where: str | None = None
     kwargs: dict[str, Any] = {}
     for key, value in data.items():
         if value is None:
+            if null_is_none:
+                kwargs[key] = None
             continue
         f = fields[key]
         if base is not None:
@@ -413,17 +420,24 @@ def build(cls: type[T], data: Mapping[str, Any] | None, where: str | None = None
             default = f.default_factory()  # type: ignore[misc]
         else:
             default = f.default
+        here = f"{name}.{key}"
+        has_default = dataclasses.is_dataclass(default) and not isinstance(default, type)
+        nested = type(default) if has_default else _dataclass_in(hints.get(key))
+        presets = nested is not None and callable(getattr(nested, "preset", None))
         if isinstance(value, Mapping):
-            if dataclasses.is_dataclass(default) and not isinstance(default, type):
-                value = build(type(default), value, f"{name}.{key}", base=default)
-            elif (nested := _dataclass_in(hints.get(key))) is not None:
-                value = build(nested, value, f"{name}.{key}")
+            if presets and "preset" in value:
+                rest = {k: v for k, v in value.items() if k != "preset"}
+                value = build(nested, rest, here, base=_preset(nested, value["preset"], here),
+                              null_is_none=null_is_none)
+            elif has_default:
+                value = build(type(default), value, here, base=default, null_is_none=null_is_none)
+            elif nested is not None:
+                value = build(nested, value, here, null_is_none=null_is_none)
+        elif presets and isinstance(value, str):
+            value = _preset(nested, value, here)
         else:
-            nested = type(default) if dataclasses.is_dataclass(default) and not isinstance(default, type) \
-                else _dataclass_in(hints.get(key))
-            if (nested is not None and not isinstance(value, nested)
-                    and not (isinstance(value, str) and callable(getattr(nested, "preset", None)))):
-                raise ConfigError(f"{name}.{key}: expected a mapping of {nested.__name__} fields, got {value!r}")
+            if nested is not None and not isinstance(value, nested):
+                raise ConfigError(f"{here}: expected a mapping of {nested.__name__} fields, got {value!r}")
             value = _tupled(value)
         kwargs[key] = value
     try:
@@ -432,3 +446,13 @@ def build(cls: type[T], data: Mapping[str, Any] | None, where: str | None = None
         raise (exc if str(exc).startswith(name) else ConfigError(f"{name}: {exc}")) from None
     except (TypeError, ValueError, ArithmeticError) as exc:
         raise ConfigError(f"{name}: {exc}") from None
+
+
+def _preset(cls: type, name: Any, where: str) -> Any:
+    """``cls.preset(name)``, its refusal named by ``where``."""
+    try:
+        return cls.preset(name)
+    except ConfigError as exc:
+        raise ConfigError(f"{where}: {exc}") from None
+    except (TypeError, ValueError) as exc:
+        raise ConfigError(f"{where}: preset {name!r}: {exc}") from None

@@ -86,3 +86,44 @@ def test_a_value_error_of_the_dataclass_is_a_config_error_naming_where():
 
     with pytest.raises(ConfigError, match=r"picky: n at most 5"):
         build(Picky, {"n": 6}, "picky")
+
+
+@dataclass(frozen=True)
+class Noise:
+    """A config with named presets, as ImuNoise and Gps have."""
+
+    sigma: float = 1.0
+    rate_hz: float = 10.0
+
+    @classmethod
+    def preset(cls, name: str) -> "Noise":
+        if name not in ("quiet", "loud"):
+            raise ConfigError(f"unknown noise preset {name!r}")
+        return cls(sigma=0.1 if name == "quiet" else 5.0, rate_hz=2.0)
+
+
+@dataclass(frozen=True)
+class Rig:
+    noise: Noise = Noise(sigma=0.5)
+    extra: Noise | None = Noise(rate_hz=3.0)
+    inner: Inner | None = None
+
+
+def test_a_preset_name_or_a_preset_with_overrides():
+    assert build(Rig, {"noise": "quiet"}).noise == Noise(sigma=0.1, rate_hz=2.0)
+    out = build(Rig, {"noise": {"preset": "loud", "rate_hz": 7.0}, "extra": {"sigma": 2.0}})
+    assert out.noise == Noise(sigma=5.0, rate_hz=7.0)          # the preset's sigma, the given rate
+    assert out.extra == Noise(sigma=2.0, rate_hz=3.0)          # no preset: over the field's default
+    with pytest.raises(ConfigError, match=r"rig\.noise: unknown noise preset 'lukewarm'"):
+        build(Rig, {"noise": "lukewarm"}, "rig")
+    with pytest.raises(ConfigError, match=r"rig\.noise: unknown parameter\(s\) \['sigmaa'\] for Noise"):
+        build(Rig, {"noise": {"preset": "loud", "sigmaa": 1.0}}, "rig")
+
+
+def test_null_is_none_switches_an_optional_part_off():
+    # a pipeline config's null means "the default"; a scenario file's null switches a sensor off
+    assert build(Rig, {"extra": None}).extra == Noise(rate_hz=3.0)
+    off = build(Rig, {"extra": None, "noise": {"sigma": 2.0}}, null_is_none=True)
+    assert off.extra is None and off.noise == Noise(sigma=2.0)
+    nested = build(Outer, {"optional": {"names": None}}, null_is_none=True)
+    assert nested.optional == Inner(names=None)                # passed down to nested sections

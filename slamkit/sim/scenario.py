@@ -23,71 +23,13 @@ import yaml
 
 from slamkit.data.sequence import Sequence
 from slamkit.paths import path_component
-from slamkit.config import YamlDocument, load_yaml, model_of, validate
+from slamkit.config import YamlDocument, build, load_yaml, model_of, validate
 from slamkit.errors import ConfigError, SlamkitError
 from slamkit.maps.occupancy_grid import OccupancyGrid
-from slamkit.models.gps import Gps
-from slamkit.models.imu import ImuNoise
 from slamkit.sim.grid_world import GridScenario, simulate_grid_sequence
 from slamkit.sim.landmark_world import PRESETS, LandmarkScenario, simulate_landmark_sequence
 
 Scenario = LandmarkScenario | GridScenario
-#: nested configs whose default is None (so their class cannot be read off the default)
-_OPTIONAL_CONFIGS: dict[str, type] = {"gps": Gps}
-
-
-def _tupled(value: Any) -> Any:
-    if isinstance(value, list):
-        return tuple(_tupled(v) for v in value)
-    return value
-
-
-def _build(cls: type, values: Mapping[str, Any], where: str, base: Any = None) -> Any:
-    """Instantiate dataclass ``cls`` from a mapping, recursing into nested dataclass fields
-    (recognised by their default values). ``base`` supplies defaults (a preset)."""
-    if not isinstance(values, Mapping):
-        raise ConfigError(f"{where}: expected a mapping of {cls.__name__} fields, got {values!r}")
-    fields = {f.name: f for f in dataclasses.fields(cls)}
-    unknown = sorted(set(values) - set(fields))
-    if unknown:
-        raise ConfigError(f"{where}: unknown key(s) {unknown} for {cls.__name__}; "
-                          f"known: {sorted(fields)}")
-    kwargs: dict[str, Any] = {}
-    for name, value in values.items():
-        f = fields[name]
-        if base is not None:
-            default = getattr(base, name)
-        elif f.default_factory is not dataclasses.MISSING:  # type: ignore[misc]
-            default = f.default_factory()  # type: ignore[misc]
-        else:
-            default = f.default
-        key = f"{where}.{name}"
-        if value is None:
-            kwargs[name] = None
-        elif name == "imu_noise" and isinstance(value, str):
-            kwargs[name] = ImuNoise.preset(value)
-        elif name == "gps" and isinstance(value, Mapping) and "preset" in value:
-            overrides = {k: _tupled(v) for k, v in value.items() if k != "preset"}
-            try:
-                kwargs[name] = Gps.preset(value["preset"], **overrides)
-            except TypeError as exc:
-                raise ConfigError(f"{key}: {exc}") from None
-        elif dataclasses.is_dataclass(default) and not isinstance(default, type):
-            kwargs[name] = _build(type(default), value, key)
-        elif name in _OPTIONAL_CONFIGS:
-            kwargs[name] = _build(_OPTIONAL_CONFIGS[name], value, key)
-        else:
-            kwargs[name] = _tupled(value)
-    try:
-        if base is not None:
-            return dataclasses.replace(base, **kwargs)
-        return cls(**kwargs)
-    except ConfigError as exc:
-        raise ConfigError(f"{where}: {exc}") from None
-    except (TypeError, ValueError) as exc:
-        raise ConfigError(f"{where}: {exc}") from None
-
-
 def scenario_from_dict(data: Mapping[str, Any], source: str = "<scenario>", doc: YamlDocument | None = None
                        ) -> Scenario:
     if not isinstance(data, Mapping):
@@ -108,11 +50,11 @@ def scenario_from_dict(data: Mapping[str, Any], source: str = "<scenario>", doc:
             if preset not in PRESETS:
                 raise ConfigError(f"{source}: preset: unknown preset {preset!r}; known: {sorted(PRESETS)}")
             base = PRESETS[preset]()
-        return _build(LandmarkScenario, values, source, base=base)
+        return build(LandmarkScenario, values, source, base=base, null_is_none=True)
     if kind == "grid":
         if preset is not None:
             raise ConfigError(f"{source}: preset: grid scenarios have no presets")
-        return _build(GridScenario, values, source)
+        return build(GridScenario, values, source, null_is_none=True)
     raise ConfigError(f"{source}: kind: expected 'landmark' or 'grid', got {kind!r}")
 
 
