@@ -19,22 +19,17 @@ from pydantic import AfterValidator, BaseModel, ConfigDict, Field
 
 from slamkit.backend.robust import RobustSolveConfig
 from slamkit.backend.solvers import OptimizeConfig
-from slamkit.config import STRICT, YamlDocument, build, model_of, params_model_of, validate, write_back
+from slamkit.config import STRICT, YamlDocument, build, model_of, validate, write_back
 from slamkit.control.registry import CONTROLLERS
 from slamkit.data import registry
-from slamkit.data.noise import SENSOR_SIGMAS
 from slamkit.data.perturb import PerturbationConfig
 from slamkit.errors import ConfigError, SlamkitError
-from slamkit.experiments.estimators import REGISTRY, config_class
 from slamkit.experiments.navigation_benchmark import seed_blocks
 from slamkit.experiments.perturbation import perturbation_config
 from slamkit.naming import import_plugins, suggestion
 from slamkit.paths import path_component
 from slamkit.sim.grid_world import GridScenario
-from slamkit.sim.inertial_world import PRESETS as INERTIAL_PRESETS, InertialScenario
-from slamkit.sim.landmark_world import LandmarkScenario
 from slamkit.sim.outliers import OutlierConfig
-from slamkit.sim.scenario import load_scenario
 from slamkit.systems.lidar_slam import LidarSlamConfig
 from slamkit.systems.visual_odometry import VisualOdometryConfig
 
@@ -182,33 +177,6 @@ class PoseGraphOutliersPipeline(PipelineConfig):
 
 # --- filter_vs_smoother --------------------------------------------------------------------------
 
-class OutsideReference(BaseModel):
-    """A figure measured elsewhere on the same setting (a paper, another tool, an outside check),
-    shown in the report beside slamkit's mean of the same metric."""
-    model_config = STRICT
-    scenario: str
-    metric: str
-    value: Annotated[float, Field(allow_inf_nan=False)]
-    #: who measured it and what it is (e.g. "outside check: dead reckoning")
-    source: str
-    #: slamkit's estimators to put beside it (empty: every estimator of the scenario)
-    estimators: list[str] = []
-
-
-class ScenarioEntry(BaseModel):
-    model_config = STRICT
-    #: landmark-world presets (slamkit.sim.landmark_world) and inertial ones (slamkit.sim.inertial_world)
-    preset: Literal["mild", "strong", "car3d", "car3d_tactical"] | None = None
-    dataset: str | None = None
-    #: a scenario YAML (slamkit.sim.scenario), e.g. pipelines/scenarios/office_tour.yaml
-    scenario: str | None = None
-    name: str | None = None
-    params: dict[str, Any] = {}
-    #: estimator label -> params overriding the pipeline's for this scenario only, or false to
-    #: leave that estimator out on this scenario
-    estimators: dict[str, Union[dict[str, Any], Literal[False]]] = {}
-
-
 def _check_perturbations(values: Any, doc: YamlDocument | None, source: str) -> None:
     """``perturbations`` (the pipelines that rerun their data on seeded twins,
     slamkit.experiments.perturbation) against the fields of PerturbationConfig."""
@@ -222,22 +190,6 @@ def _check_perturbations(values: Any, doc: YamlDocument | None, source: str) -> 
     except ConfigError as exc:
         where = doc.where(("perturbations",)) if doc is not None else source
         raise ConfigError(f"{where}: {exc}") from None
-
-
-class FilterVsSmootherPipeline(PipelineConfig):
-    pipeline: Literal["filter_vs_smoother"]
-    seeds: Seeds = 1
-    #: seeded twins of every dataset (slamkit.experiments.perturbation)
-    perturbations: dict[str, Any] | None = None
-    workers: Annotated[int, Field(ge=1, le=256)] | None = None
-    scenarios: Annotated[list[Union[str, ScenarioEntry]], Field(min_length=1)]
-    estimators: Union[dict[str, Union[dict[str, Any], None]], Annotated[list[Union[str, dict[str, Any]]], Field(min_length=1)]]
-    outside_references: list[OutsideReference] = []
-
-    def check_options(self, config: dict[str, Any], doc: YamlDocument | None, source: str) -> None:
-        _check_estimators(config.get("estimators"), doc, source)
-        _check_scenarios(self, doc, source)
-        _check_perturbations(self.perturbations, doc, source)
 
 
 # --- local_planning ------------------------------------------------------------------------------
@@ -523,76 +475,3 @@ def _dumped(value: Any) -> Any:
     if isinstance(value, dict):
         return {k: _dumped(v) for k, v in value.items()}
     return value
-
-
-def _estimator_items(raw: Any) -> list[tuple[str, dict[str, Any]]]:
-    """(label, params) of a config's ``estimators`` (a mapping or a list of names / 1-key maps)."""
-    items = raw.items() if isinstance(raw, dict) else [
-        (e, {}) if isinstance(e, str) else next(iter(e.items())) for e in raw if isinstance(e, (str, dict)) and e]
-    return [(str(label), dict(params or {})) for label, params in items]
-
-
-def _check_estimators(raw: Any, doc: YamlDocument | None, source: str,
-                      path: tuple = ("estimators",)) -> None:
-    for label, params in _estimator_items(raw):
-        try:
-            kind = REGISTRY.canonical(str(params.pop("type", label)))
-        except ConfigError as exc:  # the registry's one message, with its suggestion
-            where = doc.where((*path, label)) if doc is not None else source
-            raise ConfigError(f"{where}: {'.'.join(map(str, path))}.{label}: {exc}") from None
-        cls = config_class(kind)
-        fields = model_of(cls).model_fields if cls is not None else {}
-        noise = {k: (Annotated[float, Field(gt=0, le=1e6)] | None, None) for k in SENSOR_SIGMAS}
-        model = pydantic.create_model(f"{kind}Params", __config__=STRICT,
-                                      **{k: (f.annotation, None) for k, f in fields.items()}, **noise)
-        validate(model, params, doc, source, (*path, label))
-
-
-def _check_dataset_params(entry: ScenarioEntry, k: int, doc: YamlDocument | None, source: str) -> None:
-    """A ``dataset:`` scenario's ``params`` against its reader's keyword parameters (names, types,
-    NaN/inf, suffix bounds: :func:`slamkit.config.params_model_of`)."""
-    from slamkit.experiments.filter_vs_smoother.monte_carlo import dataset_reader
-
-    where = doc.where(("scenarios", k, "dataset")) if doc is not None else source
-    try:
-        registry.get(entry.dataset)
-        reader, exclude = dataset_reader(entry.dataset)
-    except SlamkitError as exc:
-        raise ConfigError(f"{where}: scenarios.{k}.dataset: {exc}") from None
-    _nested(params_model_of(reader, exclude), entry.params, doc, source, ("scenarios", k, "params"))
-
-
-def _check_scenarios(model: FilterVsSmootherPipeline, doc: YamlDocument | None, source: str) -> None:
-    pipeline_estimators = dict(_estimator_items(model.estimators))
-    from slamkit.experiments.filter_vs_smoother.config import PRESETS
-
-    for k, entry in enumerate(model.scenarios):
-        if isinstance(entry, str) and entry not in PRESETS:
-            # a bare name that is not a preset is a dataset (filter_vs_smoother.config.parse_scenarios):
-            # a misspelt one fails here, naming file and line, not after the presets have run
-            _check_dataset_params(ScenarioEntry(dataset=entry), k, doc, source)
-        if isinstance(entry, ScenarioEntry):
-            if sum(v is not None for v in (entry.preset, entry.dataset, entry.scenario)) != 1:
-                where = doc.where(("scenarios", k)) if doc is not None else source
-                raise ConfigError(f"{where}: scenarios.{k}: needs exactly one of 'preset', 'dataset' or 'scenario'")
-            # per-scenario estimator overrides: labels of the pipeline's estimators, whose
-            # merged params must still be the estimator's
-            unknown = sorted(set(entry.estimators) - set(pipeline_estimators))
-            if unknown:
-                where = doc.where(("scenarios", k, "estimators")) if doc is not None else source
-                raise ConfigError(f"{where}: scenarios.{k}.estimators: {unknown} are not estimators of this "
-                                  f"pipeline ({', '.join(pipeline_estimators)})")
-            _check_estimators({label: {**pipeline_estimators[label], **params}
-                               for label, params in entry.estimators.items() if params is not False},
-                              doc, source, ("scenarios", k, "estimators"))
-            if entry.preset is not None:
-                scenario = InertialScenario if entry.preset in INERTIAL_PRESETS else LandmarkScenario
-                _nested(model_of(scenario), entry.params, doc, source, ("scenarios", k, "params"))
-            if entry.dataset is not None:
-                _check_dataset_params(entry, k, doc, source)
-            if entry.scenario is not None:
-                where = doc.where(("scenarios", k)) if doc is not None else source
-                try:  # the file exists and its fields with the overrides make a scenario
-                    load_scenario(entry.scenario, entry.params)
-                except ConfigError as exc:
-                    raise ConfigError(f"{where}: scenarios.{k}: {exc}") from None

@@ -75,7 +75,7 @@ def test_pipeline_writes_the_documented_folder_and_recording(tmp_path, verify_rr
 
 
 def test_config_errors_name_the_field() -> None:
-    with pytest.raises(ConfigError, match=r"scenarios\[0\] needs exactly one"):
+    with pytest.raises(ConfigError, match=r"scenarios\[0\]: needs exactly one of 'preset', 'dataset' or 'scenario'"):
         parse_scenarios({"scenarios": [{"preset": "mild", "dataset": "x"}]})
     with pytest.raises(ConfigError, match="preset must be one of mild, strong, car3d"):
         parse_scenarios({"scenarios": [{"preset": "wild"}]})

@@ -123,7 +123,7 @@ def test_scenario_names_and_estimator_labels_must_be_plain(tmp_path) -> None:
     from slamkit.experiments.filter_vs_smoother import parse_estimators, parse_scenarios
     from slamkit.sim.scenario import scenario_from_dict
 
-    with pytest.raises(ConfigError, match=r"scenarios\[0\] name '\.\./\.\./x/scen' cannot be used as a file name"):
+    with pytest.raises(ConfigError, match=r"scenarios\[0\]: name '\.\./\.\./x/scen' cannot be used as a file name"):
         parse_scenarios({"scenarios": [{"preset": "mild", "name": "../../x/scen"}]})
     with pytest.raises(ConfigError, match=r"estimator label '\.\./\.\./x/est' cannot be used as a file name"):
         parse_estimators({"estimators": {"../../x/est": {"type": "ekf"}}})

@@ -48,8 +48,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Mapping
 
-from slamkit.experiments.config_models import FilterVsSmootherPipeline
-from slamkit.experiments.filter_vs_smoother.config import (NAME, EstimatorChoice, ScenarioSpec,
+from slamkit.experiments.filter_vs_smoother.config import (NAME, EstimatorChoice, FilterVsSmootherPipeline,
+                                                            ScenarioSpec,
                                                             default_workers, parse_estimators,
                                                             parse_scenarios, parse_seeds,
                                                             parse_workers)

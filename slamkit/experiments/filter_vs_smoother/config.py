@@ -11,11 +11,25 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Annotated, Any, Literal, Mapping, Union
 
-from slamkit.errors import ConfigError
-from slamkit.experiments.estimators import REGISTRY
+import pydantic
+from pydantic import BaseModel, Field
+
+from slamkit.config import STRICT, YamlDocument, build, model_of, params_model_of, validate
+from slamkit.data import registry
+from slamkit.data.formats import landmark_datasets as lm
+from slamkit.data.formats.kitti_imu_gps import read_kitti_imu_gps
+from slamkit.data.formats.plaza import read_plaza_sequence
+from slamkit.data.noise import SENSOR_SIGMAS
+from slamkit.errors import ConfigError, SlamkitError
+from slamkit.experiments.config_models import (PipelineConfig, Seeds, _check_perturbations, _nested,
+                                               seed_list)
+from slamkit.experiments.estimators import REGISTRY, config_class
 from slamkit.paths import path_component
+from slamkit.sim.inertial_world import InertialScenario
+from slamkit.sim.landmark_world import LandmarkScenario
+from slamkit.sim.scenario import load_scenario
 
 #: the pipeline's registry name (``pipeline: filter_vs_smoother``)
 NAME = "filter_vs_smoother"
@@ -31,23 +45,46 @@ SOURCES = ("preset", "dataset", "scenario")
 @dataclass(frozen=True)
 class ScenarioSpec:
     """One of: a simulated ``preset`` (landmark world or inertial drive), a registry ``dataset``,
-    or a ``scenario`` file (a scenario YAML, e.g. a grid world; ``params`` override its fields)."""
+    or a ``scenario`` file (a scenario YAML, e.g. a grid world; ``params`` override its fields).
+    The fields are a ``scenarios`` entry's keys, built with :func:`slamkit.config.build`; the
+    rules of an entry (exactly one source, a known preset, a plain name) are checked here, once,
+    for the config check and the run alike."""
 
-    name: str
+    #: "" -> the preset's, the dataset's or the scenario file's name
+    name: str = ""
     preset: str | None = None
     dataset: str | None = None
     params: Mapping[str, Any] = field(default_factory=dict)
     scenario: str | None = None
-    #: estimator label -> params overriding the pipeline's on this scenario
-    estimator_params: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
-    #: labels of the pipeline's estimators not run on this scenario (``label: false`` in the config)
-    skipped_estimators: frozenset[str] = frozenset()
+    #: estimator label -> params overriding the pipeline's on this scenario, or False: the
+    #: pipeline's estimator is not run on this scenario
+    estimators: Mapping[str, Mapping[str, Any] | bool | None] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        sources = {key: getattr(self, key) for key in SOURCES if getattr(self, key) is not None}
+        if len(sources) != 1:
+            raise ConfigError(f"needs exactly one of 'preset', 'dataset' or 'scenario', got {sources or 'none'}")
+        if self.preset is not None and self.preset not in PRESETS:
+            raise ConfigError(f"preset must be one of {', '.join(PRESETS)}, got {self.preset!r}")
+        default = self.preset or self.dataset or Path(str(self.scenario)).stem
+        object.__setattr__(self, "name", path_component(str(self.name or default), "name"))
+
+    @property
+    def estimator_params(self) -> dict[str, dict[str, Any]]:
+        """Estimator label -> params overriding the pipeline's on this scenario."""
+        return {str(k): dict(v or {}) for k, v in self.estimators.items() if v is not False}
+
+    @property
+    def skipped_estimators(self) -> frozenset[str]:
+        """Labels of the pipeline's estimators not run on this scenario (``label: false``)."""
+        return frozenset(str(k) for k, v in self.estimators.items() if v is False)
 
     def estimator_choices(self, choices: list["EstimatorChoice"]) -> tuple["EstimatorChoice", ...]:
         """The pipeline's estimators with this scenario's overrides merged into their params,
         without the ones this scenario skips."""
-        return tuple(EstimatorChoice(c.label, c.type, {**c.params, **self.estimator_params.get(c.label, {})})
-                     for c in choices if c.label not in self.skipped_estimators)
+        overrides, skipped = self.estimator_params, self.skipped_estimators
+        return tuple(EstimatorChoice(c.label, c.type, {**c.params, **overrides.get(c.label, {})})
+                     for c in choices if c.label not in skipped)
 
     @property
     def simulated(self) -> bool:
@@ -56,73 +93,73 @@ class ScenarioSpec:
 
 @dataclass(frozen=True)
 class EstimatorChoice:
+    """An ``estimators`` entry: its label (a file name), its registry type (the label unless
+    ``type`` says otherwise; an old spelling becomes the registered one) and its params."""
+
     label: str
     type: str
     params: Mapping[str, Any] = field(default_factory=dict)
 
+    def __post_init__(self) -> None:
+        path_component(self.label, "estimator label")
+        # the registry's one message (with its suggestion); old spellings warn
+        object.__setattr__(self, "type", REGISTRY.canonical(str(self.type)))
+
+
+def scenario_entries(raw: Any) -> list[dict[str, Any]]:
+    """A config's ``scenarios`` as mappings of :class:`ScenarioSpec` fields: a bare name is a
+    preset if it is one, else a dataset."""
+    return [({"preset": item} if item in PRESETS else {"dataset": item}) if isinstance(item, str) else item
+            for item in raw or []]
+
 
 def parse_scenarios(config: Mapping[str, Any]) -> list[ScenarioSpec]:
+    """The ``scenarios`` of a config (:func:`scenario_entries`, each built by
+    :func:`slamkit.config.build`); their names are unique."""
     raw = config.get("scenarios")
     if not raw:
         raise ConfigError("filter_vs_smoother: 'scenarios' must list simulated presets or datasets")
-    out: list[ScenarioSpec] = []
-    for k, item in enumerate(raw):
-        if isinstance(item, str):
-            item = {"preset": item} if item in PRESETS else {"dataset": item}
-        if not isinstance(item, Mapping) or sum(key in item for key in SOURCES) != 1:
-            raise ConfigError(f"filter_vs_smoother: scenarios[{k}] needs exactly one of 'preset', "
-                              f"'dataset' or 'scenario', got {item!r}")
-        unknown = set(item) - {*SOURCES, "name", "params", "estimators"}
-        if unknown:
-            raise ConfigError(f"filter_vs_smoother: scenarios[{k}] has unknown key(s) {sorted(unknown)}")
-        if "preset" in item and item["preset"] not in PRESETS:
-            raise ConfigError(f"filter_vs_smoother: scenarios[{k}].preset must be one of {', '.join(PRESETS)}, "
-                              f"got {item['preset']!r}")
-        default_name = item.get("preset") or item.get("dataset") or Path(str(item.get("scenario"))).stem
-        name = path_component(str(item.get("name") or default_name), f"filter_vs_smoother: scenarios[{k}] name")
-        entries = item.get("estimators") or {}
-        overrides = {str(k): dict(v or {}) for k, v in entries.items() if v is not False}
-        skipped = frozenset(str(k) for k, v in entries.items() if v is False)
-        out.append(ScenarioSpec(name, item.get("preset"), item.get("dataset"), dict(item.get("params") or {}),
-                                item.get("scenario"), overrides, skipped))
+    out = [build(ScenarioSpec, item, f"filter_vs_smoother: scenarios[{k}]")
+           for k, item in enumerate(scenario_entries(raw))]
     names = [s.name for s in out]
     if len(set(names)) != len(names):
         raise ConfigError(f"filter_vs_smoother: scenario names must be unique, got {names} (set 'name')")
     return out
 
 
+def estimator_items(raw: Any) -> list[tuple[str, dict[str, Any]]]:
+    """(label, params) of a config's ``estimators`` (a mapping or a list of names / 1-key maps)."""
+    if isinstance(raw, Mapping):
+        return [(str(k), dict(v or {})) for k, v in raw.items()]
+    items = []
+    for entry in raw or []:
+        if isinstance(entry, str):
+            items.append((entry, {}))
+        elif isinstance(entry, Mapping) and len(entry) == 1:
+            (k, v), = entry.items()
+            items.append((str(k), dict(v or {})))
+        else:
+            raise ConfigError(f"filter_vs_smoother: bad estimators entry {entry!r}")
+    return items
+
+
 def parse_estimators(config: Mapping[str, Any]) -> list[EstimatorChoice]:
+    """The ``estimators`` of a config, each built by :func:`slamkit.config.build`."""
     raw = config.get("estimators")
     if not raw:
         raise ConfigError("filter_vs_smoother: 'estimators' must name registry estimators "
                           f"({', '.join(REGISTRY)})")
-    items: list[tuple[str, Mapping[str, Any]]] = []
-    if isinstance(raw, Mapping):
-        items = [(str(k), dict(v or {})) for k, v in raw.items()]
-    else:
-        for entry in raw:
-            if isinstance(entry, str):
-                items.append((entry, {}))
-            elif isinstance(entry, Mapping) and len(entry) == 1:
-                (k, v), = entry.items()
-                items.append((str(k), dict(v or {})))
-            else:
-                raise ConfigError(f"filter_vs_smoother: bad estimators entry {entry!r}")
     out = []
-    for label, params in items:
+    for label, params in estimator_items(raw):
         params = dict(params)
-        try:  # the registry's one message (with its suggestion); old spellings warn
-            kind = REGISTRY.canonical(str(params.pop("type", label)))
-        except ConfigError as exc:
-            raise ConfigError(f"filter_vs_smoother: estimators.{label}: {exc}") from None
-        out.append(EstimatorChoice(path_component(label, "filter_vs_smoother: estimator label"), kind, params))
+        kind = params.pop("type", label)
+        out.append(build(EstimatorChoice, {"label": label, "type": kind, "params": params},
+                         f"filter_vs_smoother: estimators.{label}"))
     return out
 
 
 def parse_seeds(config: Mapping[str, Any]) -> list[int]:
     """The run's seeds (one rule for every pipeline: :func:`config_models.seed_list`)."""
-    from slamkit.experiments.config_models import seed_list
-
     return seed_list(config.get("seeds", 1))
 
 
@@ -136,3 +173,131 @@ def parse_workers(config: Mapping[str, Any]) -> int:
     if workers < 1:
         raise ConfigError(f"filter_vs_smoother: workers must be >= 1, got {workers}")
     return workers
+
+
+# --- the config model (slamkit.experiments.config_models.PipelineConfig): checked before anything runs
+
+
+class OutsideReference(BaseModel):
+    """A figure measured elsewhere on the same setting (a paper, another tool, an outside check),
+    shown in the report beside slamkit's mean of the same metric."""
+    model_config = STRICT
+    scenario: str
+    metric: str
+    value: Annotated[float, Field(allow_inf_nan=False)]
+    #: who measured it and what it is (e.g. "outside check: dead reckoning")
+    source: str
+    #: slamkit's estimators to put beside it (empty: every estimator of the scenario)
+    estimators: list[str] = []
+
+
+class ScenarioEntry(BaseModel):
+    model_config = STRICT
+    #: landmark-world presets (slamkit.sim.landmark_world) and inertial ones (slamkit.sim.inertial_world)
+    preset: Literal["mild", "strong", "car3d", "car3d_tactical"] | None = None
+    dataset: str | None = None
+    #: a scenario YAML (slamkit.sim.scenario), e.g. pipelines/scenarios/office_tour.yaml
+    scenario: str | None = None
+    name: str | None = None
+    params: dict[str, Any] = {}
+    #: estimator label -> params overriding the pipeline's for this scenario only, or false to
+    #: leave that estimator out on this scenario
+    estimators: dict[str, Union[dict[str, Any], Literal[False]]] = {}
+
+
+class FilterVsSmootherPipeline(PipelineConfig):
+    pipeline: Literal["filter_vs_smoother"]
+    seeds: Seeds = 1
+    #: seeded twins of every dataset (slamkit.experiments.perturbation)
+    perturbations: dict[str, Any] | None = None
+    workers: Annotated[int, Field(ge=1, le=256)] | None = None
+    scenarios: Annotated[list[Union[str, ScenarioEntry]], Field(min_length=1)]
+    estimators: Union[dict[str, Union[dict[str, Any], None]], Annotated[list[Union[str, dict[str, Any]]], Field(min_length=1)]]
+    outside_references: list[OutsideReference] = []
+
+    def check_options(self, config: dict[str, Any], doc: YamlDocument | None, source: str) -> None:
+        _check_estimators(config.get("estimators"), doc, source)
+        _check_scenarios(self, doc, source)
+        _check_perturbations(self.perturbations, doc, source)
+
+
+def _check_estimators(raw: Any, doc: YamlDocument | None, source: str,
+                      path: tuple = ("estimators",)) -> None:
+    for label, params in estimator_items(raw):
+        try:
+            kind = REGISTRY.canonical(str(params.pop("type", label)))
+        except ConfigError as exc:  # the registry's one message, with its suggestion
+            where = doc.where((*path, label)) if doc is not None else source
+            raise ConfigError(f"{where}: {'.'.join(map(str, path))}.{label}: {exc}") from None
+        cls = config_class(kind)
+        fields = model_of(cls).model_fields if cls is not None else {}
+        noise = {k: (Annotated[float, Field(gt=0, le=1e6)] | None, None) for k in SENSOR_SIGMAS}
+        model = pydantic.create_model(f"{kind}Params", __config__=STRICT,
+                                      **{k: (f.annotation, None) for k, f in fields.items()}, **noise)
+        validate(model, params, doc, source, (*path, label))
+
+
+def dataset_reader(dataset: str) -> tuple[Any, tuple[str, ...]]:
+    """The reader whose keyword parameters a ``dataset:`` scenario's ``params`` are (as
+    :func:`~slamkit.experiments.filter_vs_smoother.monte_carlo.build_sequence` reaches it through
+    the registry loaders) and the parameters the loader sets itself; the config check validates
+    ``params`` against them (one place for names and bounds: the reader's signature)."""
+    entry = registry.get(dataset)
+    if entry.kind == "inertial":
+        return read_kitti_imu_gps, ("name",)
+    if entry.format == "plaza":
+        return read_plaza_sequence, ("name",)
+    if entry.name in ("citytrees10000", "victoria-park"):
+        return lm.read_isam_landmark_sequence, ("name", "ground_truth_path", "covariance_entries")
+    if entry.name == "mrclam5a":
+        return lm.read_pyfg_landmark_sequence, ("name",)
+    if entry.name == "mrclam1":
+        return lm.read_mrclam_sequence, ("name",)
+    raise ConfigError(f"dataset {dataset!r} is not a dataset filter_vs_smoother reads as a sequence; use one "
+                      f"of {', '.join(lm.LANDMARK_DATASETS)}, the Plaza runs or kitti-imu-gps")
+
+
+def _check_dataset_params(entry: ScenarioEntry, k: int, doc: YamlDocument | None, source: str) -> None:
+    """A ``dataset:`` scenario's ``params`` against its reader's keyword parameters (names, types,
+    NaN/inf, suffix bounds: :func:`slamkit.config.params_model_of`)."""
+    where = doc.where(("scenarios", k, "dataset")) if doc is not None else source
+    try:
+        registry.get(entry.dataset)
+        reader, exclude = dataset_reader(entry.dataset)
+    except SlamkitError as exc:
+        raise ConfigError(f"{where}: scenarios.{k}.dataset: {exc}") from None
+    _nested(params_model_of(reader, exclude), entry.params, doc, source, ("scenarios", k, "params"))
+
+
+def _check_scenarios(model: FilterVsSmootherPipeline, doc: YamlDocument | None, source: str) -> None:
+    pipeline_estimators = dict(estimator_items(model.estimators))
+
+    for k, entry in enumerate(model.scenarios):
+        if isinstance(entry, str) and entry not in PRESETS:
+            # a bare name that is not a preset is a dataset (scenario_entries):
+            # a misspelt one fails here, naming file and line, not after the presets have run
+            _check_dataset_params(ScenarioEntry(dataset=entry), k, doc, source)
+        if isinstance(entry, ScenarioEntry):
+            where = doc.where(("scenarios", k)) if doc is not None else source
+            build(ScenarioSpec, entry.model_dump(exclude_none=True), f"{where}: scenarios.{k}")
+            # per-scenario estimator overrides: labels of the pipeline's estimators, whose
+            # merged params must still be the estimator's
+            unknown = sorted(set(entry.estimators) - set(pipeline_estimators))
+            if unknown:
+                where = doc.where(("scenarios", k, "estimators")) if doc is not None else source
+                raise ConfigError(f"{where}: scenarios.{k}.estimators: {unknown} are not estimators of this "
+                                  f"pipeline ({', '.join(pipeline_estimators)})")
+            _check_estimators({label: {**pipeline_estimators[label], **params}
+                               for label, params in entry.estimators.items() if params is not False},
+                              doc, source, ("scenarios", k, "estimators"))
+            if entry.preset is not None:
+                scenario = InertialScenario if entry.preset in INERTIAL_PRESETS else LandmarkScenario
+                _nested(model_of(scenario), entry.params, doc, source, ("scenarios", k, "params"))
+            if entry.dataset is not None:
+                _check_dataset_params(entry, k, doc, source)
+            if entry.scenario is not None:
+                where = doc.where(("scenarios", k)) if doc is not None else source
+                try:  # the file exists and its fields with the overrides make a scenario
+                    load_scenario(entry.scenario, entry.params)
+                except ConfigError as exc:
+                    raise ConfigError(f"{where}: scenarios.{k}: {exc}") from None

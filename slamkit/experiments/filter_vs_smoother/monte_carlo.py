@@ -12,89 +12,50 @@ step.
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
 
+from slamkit.config import build
+from slamkit.data import registry
+from slamkit.data.formats.kitti_imu_gps import load_kitti_imu_gps
+from slamkit.data.formats.landmark_datasets import load_landmark_sequence
+from slamkit.data.formats.plaza import load_plaza_sequence
+from slamkit.data.formats.tum import write_tum
 from slamkit.data.inertial import is_inertial
 from slamkit.data.perturb import PerturbationConfig, perturb
 from slamkit.data.sequence import Sequence
 from slamkit.errors import ConfigError, EstimationError
-from slamkit.experiments.estimators import factory
+from slamkit.experiments.estimators import factory, spec
 from slamkit.experiments.executors import LocalExecutor, TaskFailure
 from slamkit.experiments.filter_vs_smoother.config import (INERTIAL_PRESETS, NAME, EstimatorChoice,
-                                                            ScenarioSpec, parse_estimators, parse_scenarios,
-                                                            parse_seeds, parse_workers)
+                                                            ScenarioSpec, parse_estimators,
+                                                            parse_scenarios, parse_seeds, parse_workers)
 from slamkit.experiments.observers import PipelineObserver
 from slamkit.experiments.perturbation import perturbation_config, twin_params, twin_suffix
 from slamkit.experiments.results import RunRecord
 from slamkit.experiments.runner import EstimatorRun, ErrorSeries, run_estimators, score
 from slamkit.metrics.inertial import inertial_metrics
 from slamkit.paths import file_in
-
-
-def dataset_reader(dataset: str) -> tuple[Any, tuple[str, ...]]:
-    """The reader whose keyword parameters a ``dataset:`` scenario's ``params`` are (as
-    :func:`build_sequence` reaches it through the registry loaders) and the parameters the loader
-    sets itself; the config check validates ``params`` against them (one place for names and
-    bounds: the reader's signature)."""
-    from slamkit.data import registry
-
-    entry = registry.get(dataset)
-    if entry.kind == "inertial":
-        from slamkit.data.formats.kitti_imu_gps import read_kitti_imu_gps
-
-        return read_kitti_imu_gps, ("name",)
-    if entry.format == "plaza":
-        from slamkit.data.formats.plaza import read_plaza_sequence
-
-        return read_plaza_sequence, ("name",)
-    from slamkit.data.formats import landmark_datasets as lm
-
-    if entry.name in ("citytrees10000", "victoria-park"):
-        return lm.read_isam_landmark_sequence, ("name", "ground_truth_path", "covariance_entries")
-    if entry.name == "mrclam5a":
-        return lm.read_pyfg_landmark_sequence, ("name",)
-    if entry.name == "mrclam1":
-        return lm.read_mrclam_sequence, ("name",)
-    raise ConfigError(f"dataset {dataset!r} is not a dataset filter_vs_smoother reads as a sequence; use one "
-                      f"of {', '.join(lm.LANDMARK_DATASETS)}, the Plaza runs or kitti-imu-gps")
+from slamkit.sim.inertial_world import PRESETS as INERTIAL_SCENARIOS, InertialScenario, simulate_inertial_sequence
+from slamkit.sim.landmark_world import PRESETS as LANDMARK_SCENARIOS, LandmarkScenario, simulate_landmark_sequence
+from slamkit.sim.scenario import load_scenario, simulate
 
 
 def build_sequence(scenario: ScenarioSpec, seed: int) -> Sequence:
     """The sequence of one scenario and seed (datasets ignore the seed)."""
     if scenario.scenario is not None:
-        from slamkit.sim.scenario import load_scenario, simulate
-
         return simulate(load_scenario(scenario.scenario, {"name": scenario.name, **scenario.params}), seed).sequence
     if scenario.preset in INERTIAL_PRESETS:
-        from slamkit.sim.inertial_world import PRESETS as INERTIAL, simulate_inertial_sequence
-
-        params = {k: tuple(v) if isinstance(v, list) else v for k, v in scenario.params.items()}
-        try:
-            config = INERTIAL[scenario.preset](**{**params, "name": scenario.name})
-        except TypeError as exc:
-            raise ConfigError(f"filter_vs_smoother: scenario {scenario.name!r}: {exc}") from None
+        config = build(InertialScenario, {**scenario.params, "name": scenario.name},
+                       f"filter_vs_smoother: scenario {scenario.name!r}", base=INERTIAL_SCENARIOS[scenario.preset]())
         return simulate_inertial_sequence(config, np.random.default_rng(seed))
     if scenario.simulated:
-        from slamkit.sim.landmark_world import PRESETS, simulate_landmark_sequence
-
-        params = dict(scenario.params)
-        if "sensor" in params and isinstance(params["sensor"], Mapping):
-            base = PRESETS[scenario.preset]().sensor
-            params["sensor"] = dataclasses.replace(base, **params["sensor"])
-        for key in ("path_size_m", "initial_pose_sigma"):
-            if key in params:
-                params[key] = tuple(params[key])
-        if "profile" in params:
-            params["profile"] = tuple(tuple(p) for p in params["profile"])
-        try:
-            config = PRESETS[scenario.preset](**{"name": scenario.name, **params})
-        except TypeError as exc:
-            raise ConfigError(f"filter_vs_smoother: scenario {scenario.name!r}: {exc}") from None
+        # the preset with the params over it (a sensor section over the preset's sensor)
+        config = build(LandmarkScenario, {**scenario.params, "name": scenario.name},
+                       f"filter_vs_smoother: scenario {scenario.name!r}", base=LANDMARK_SCENARIOS[scenario.preset]())
         return simulate_landmark_sequence(config, np.random.default_rng(seed))
     try:
         return _load_dataset(scenario)
@@ -103,18 +64,10 @@ def build_sequence(scenario: ScenarioSpec, seed: int) -> Sequence:
 
 
 def _load_dataset(scenario: ScenarioSpec) -> Sequence:
-    from slamkit.data import registry
-
     if registry.get(scenario.dataset).kind == "inertial":
-        from slamkit.data.formats.kitti_imu_gps import load_kitti_imu_gps
-
         return load_kitti_imu_gps(scenario.dataset, label=scenario.name, **dict(scenario.params))
     if registry.get(scenario.dataset).format == "plaza":
-        from slamkit.data.formats.plaza import load_plaza_sequence
-
         return load_plaza_sequence(scenario.dataset, **dict(scenario.params))
-    from slamkit.data.formats.landmark_datasets import load_landmark_sequence
-
     return load_landmark_sequence(scenario.dataset, **dict(scenario.params))
 
 
@@ -156,8 +109,6 @@ def setting_of(estimator_type: str, sequence: Sequence) -> str | None:
     None on sequences without landmarks (inertial, grid worlds)."""
     if not sequence.world_p_landmarks:
         return None
-    from slamkit.experiments.estimators import spec
-
     s = spec(estimator_type)
     if s.needs_landmark_map:
         return "localisation"
@@ -196,8 +147,6 @@ def run_task(task: Task, observer: PipelineObserver | None = None) -> TaskResult
         if scored.series is not None:
             series[choice.label] = scored.series
         if task.trajectories_dir is not None and run.estimate is not None:
-            from slamkit.data.formats.tum import write_tum
-
             twin = twin_suffix(task.perturbation)
             write_tum(file_in(task.trajectories_dir, f"{task.scenario.name}_{choice.label}_seed{task.seed}{twin}", ".tum",
                               "scenario name / estimator label"),
