@@ -124,7 +124,8 @@ def test_pipeline_contract_holds_for_the_plugin_pipeline(site, tmp_path):
     """The pipeline registry's contract (name, config model, payload type) and a run through
     ``run_pipeline`` whose number is the closed form: a heading bias b over L metres ends
     (sin(bL)/b, (1 - cos(bL))/b) away from (L, 0)."""
-    from slamkit.experiments.config_models import PipelineConfig, check_pipeline
+    from slamkit.experiments.config_models import PipelineConfig
+    from slamkit.experiments.pipeline import check_pipeline
     from slamkit.experiments.pipeline import pipeline_of, run_pipeline
 
     p = pipeline_of("odometry_drift")

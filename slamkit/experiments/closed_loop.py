@@ -33,18 +33,22 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterable, Mapping, Protocol
+from typing import Annotated, Any, Callable, Iterable, Literal, Mapping, Protocol
 
 import numpy as np
+import pydantic
+from pydantic import BaseModel, Field
 
 from slamkit.control.protocols import (ControlOutput, ControlStatus, Controller, DistanceGrid,
                                        LocalWorld, Reference, RobotState)
 from slamkit.control.registry import CONTROLLERS, make_controller
-from slamkit.config import build
+from slamkit.config import STRICT, YamlDocument, build, model_of, validate
 from slamkit.errors import ConfigError
-from slamkit.experiments.config_models import LocalPlanningPipeline
-from slamkit.experiments.observers import PipelineObserver
+from slamkit.naming import suggestion
+from slamkit.experiments.config_models import PipelineConfig, Seeds, _nested, seed_list
+from slamkit.experiments.observers import PipelineObserver, StepSnapshot
 from slamkit.experiments.pipeline import Pipeline, PipelineOutput, StepProgress
+from slamkit.experiments.pipeline import run_pipeline as _run
 from slamkit.experiments.results import ResultsFolder, RunRecord, markdown_table, summarise, summary_markdown
 from slamkit.maps.distance_field import distance_field_m
 from slamkit.maps.generators import random_free_poses
@@ -285,8 +289,6 @@ def episode_metrics(ep: Episode, dt_s: float) -> dict[str, float]:
 
 
 def _seeds(spec: Any) -> list[int]:
-    from slamkit.experiments.config_models import seed_list
-
     return seed_list(spec)
 
 
@@ -330,8 +332,6 @@ class _PipelineStepAdapter:
         pass
 
     def on_step(self, snap: ControlStep) -> None:
-        from slamkit.experiments.observers import StepSnapshot
-
         self.observer.on_step(StepSnapshot("local_planning", f"{self.controller}/{self.scenario.name}",
                                            snap.step, snap.t_s,
                                            LocalPlanningSnapshot(self.scenario, self.controller, snap)))
@@ -439,12 +439,45 @@ def run(config: Mapping[str, Any], folder: ResultsFolder, progress: StepProgress
     return PipelineOutput(runs, report_markdown(config, episodes, summary), summary, payload=episodes)
 
 
+# --- the config model (slamkit.experiments.config_models): checked before anything runs ---------
+
+class LocalPlanningScenarios(BaseModel):
+    model_config = STRICT
+    kinds: Annotated[list[Literal["office", "warehouse", "open"]], Field(min_length=1)] = ["office"]
+    seeds: Seeds = 5
+    n_obstacles: Annotated[int, Field(ge=0, le=100)] = 3
+    obstacle_speed_mps: tuple[Annotated[float, Field(ge=0, le=10)], Annotated[float, Field(ge=0, le=10)]] = (0.2, 0.5)
+    obstacle_min_side_m: Annotated[float, Field(ge=0, le=100)] = 0.5
+
+
+class LocalPlanningPipeline(PipelineConfig):
+    pipeline: Literal["local_planning"]
+    #: names in ``slamkit.control.registry.CONTROLLERS`` (checked in ``check_options``)
+    controllers: Annotated[list[str], Field(min_length=1)] = ["dwa", "mpc"]
+    scenarios: LocalPlanningScenarios = LocalPlanningScenarios()
+    closed_loop: dict[str, Any] = {}
+    controller_params: dict[str, dict[str, Any]] = {}
+    record_scenarios: Annotated[int, Field(ge=0, le=1000)] = 1
+
+    def check_options(self, config: dict[str, Any], doc: YamlDocument | None, source: str) -> None:
+        _nested(model_of(ClosedLoopConfig), self.closed_loop, doc, source, ("closed_loop",))
+        for i, name in enumerate(self.controllers):
+            if name not in CONTROLLERS:
+                where = doc.where(("controllers", i)) if doc is not None else source
+                raise ConfigError(f"{where}: controllers.{i}: unknown controller {name!r}"
+                                  + suggestion(name, CONTROLLERS) + f"; known: {', '.join(CONTROLLERS)}")
+        for name, params in self.controller_params.items():
+            if name not in CONTROLLERS:
+                validate(pydantic.create_model("ControllerParams", __config__=STRICT,
+                                               **{k: (dict, None) for k in CONTROLLERS}),
+                         {name: params}, doc, source, ("controller_params",))
+            _nested(model_of(CONTROLLERS.get(name).config), params, doc, source, ("controller_params", name))
+
+
 def run_pipeline(config: Mapping[str, Any], out_dir: str | Path, observer_factory=None) -> dict[str, Any]:
     """Run the comparison and write the results folder; returns the results.json dict.
     ``observer_factory`` as in ``slamkit.experiments.pipeline.run_pipeline`` (e.g.
     ``slamkit.viz.pipelines.observer_for``) adds ``recording.rrd``."""
-    from slamkit.experiments.pipeline import run_pipeline as _run
-
     cfg = dict(config)
     cfg.setdefault("pipeline", "local_planning")
     return _run(cfg, out_dir, progress=False, observer_factory=observer_factory).results

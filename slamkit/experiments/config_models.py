@@ -1,9 +1,18 @@
-"""The typed shape of every pipeline config (pydantic models), checked before anything runs.
+"""The typed shape of pipeline configs (pydantic models), checked before anything runs.
 
 One model per pipeline kind, named by the pipeline that uses it (``Pipeline.config_model`` in
 :mod:`slamkit.experiments.pipeline`); each model's ``check_options`` validates the algorithm
 options it nests against the models that :func:`slamkit.config.model_of` derives from the
 algorithms' own config dataclasses, so a field exists, has a type and a bound in one place only.
+
+This module holds what every model shares (:class:`PipelineConfig`, ``Seeds``, the nested-section
+check and write-back, :func:`check_with`, :func:`with_defaults`) and the models of the pipelines
+without a config of their own (pose_graph, pose_graph_outliers, visual_odometry). The others live
+with their pipeline (issue 30): ``FilterVsSmootherPipeline`` in ``filter_vs_smoother.config``,
+``LidarSlamPipeline`` in ``lidar_slam``, ``NavigationPipeline`` in ``navigation``,
+``LocalPlanningPipeline`` in ``closed_loop``. This module imports no pipeline and the pipelines
+import it, so there is no circle; the registry's :func:`slamkit.experiments.pipeline.check_pipeline`
+finds a config's model and calls :func:`check_with`.
 ``seeds`` has one meaning in every pipeline: a count (``seeds: 6`` -> 0..5), a list of seeds, or
 ``{start, count}``; :func:`seed_list` turns it into the list.
 """
@@ -19,18 +28,14 @@ from pydantic import AfterValidator, BaseModel, ConfigDict, Field
 
 from slamkit.backend.robust import RobustSolveConfig
 from slamkit.backend.solvers import OptimizeConfig
-from slamkit.config import STRICT, YamlDocument, build, model_of, validate, write_back
-from slamkit.control.registry import CONTROLLERS
+from slamkit.config import STRICT, YamlDocument, model_of, validate, write_back
 from slamkit.data import registry
 from slamkit.data.perturb import PerturbationConfig
 from slamkit.errors import ConfigError, SlamkitError
-from slamkit.experiments.navigation_benchmark import seed_blocks
 from slamkit.experiments.perturbation import perturbation_config
-from slamkit.naming import import_plugins, suggestion
+from slamkit.naming import import_plugins
 from slamkit.paths import path_component
-from slamkit.sim.grid_world import GridScenario
 from slamkit.sim.outliers import OutlierConfig
-from slamkit.systems.lidar_slam import LidarSlamConfig
 from slamkit.systems.visual_odometry import VisualOdometryConfig
 
 def _plain_name(v: str) -> str:
@@ -175,7 +180,7 @@ class PoseGraphOutliersPipeline(PipelineConfig):
         _nested(model_of(RobustSolveConfig), self.solver, doc, source, ("solver",))
 
 
-# --- filter_vs_smoother --------------------------------------------------------------------------
+# --- checks pipelines share -------------------------------------------------------------------
 
 def _check_perturbations(values: Any, doc: YamlDocument | None, source: str) -> None:
     """``perturbations`` (the pipelines that rerun their data on seeded twins,
@@ -190,172 +195,6 @@ def _check_perturbations(values: Any, doc: YamlDocument | None, source: str) -> 
     except ConfigError as exc:
         where = doc.where(("perturbations",)) if doc is not None else source
         raise ConfigError(f"{where}: {exc}") from None
-
-
-# --- local_planning ------------------------------------------------------------------------------
-
-class LocalPlanningScenarios(BaseModel):
-    model_config = STRICT
-    kinds: Annotated[list[Literal["office", "warehouse", "open"]], Field(min_length=1)] = ["office"]
-    seeds: Seeds = 5
-    n_obstacles: Annotated[int, Field(ge=0, le=100)] = 3
-    obstacle_speed_mps: tuple[Annotated[float, Field(ge=0, le=10)], Annotated[float, Field(ge=0, le=10)]] = (0.2, 0.5)
-    obstacle_min_side_m: Annotated[float, Field(ge=0, le=100)] = 0.5
-
-
-class LocalPlanningPipeline(PipelineConfig):
-    pipeline: Literal["local_planning"]
-    #: names in ``slamkit.control.registry.CONTROLLERS`` (checked in ``check_options``)
-    controllers: Annotated[list[str], Field(min_length=1)] = ["dwa", "mpc"]
-    scenarios: LocalPlanningScenarios = LocalPlanningScenarios()
-    closed_loop: dict[str, Any] = {}
-    controller_params: dict[str, dict[str, Any]] = {}
-    record_scenarios: Annotated[int, Field(ge=0, le=1000)] = 1
-
-    def check_options(self, config: dict[str, Any], doc: YamlDocument | None, source: str) -> None:
-        from slamkit.experiments.closed_loop import ClosedLoopConfig
-
-        _nested(model_of(ClosedLoopConfig), self.closed_loop, doc, source, ("closed_loop",))
-        for i, name in enumerate(self.controllers):
-            if name not in CONTROLLERS:
-                where = doc.where(("controllers", i)) if doc is not None else source
-                raise ConfigError(f"{where}: controllers.{i}: unknown controller {name!r}"
-                                  + suggestion(name, CONTROLLERS) + f"; known: {', '.join(CONTROLLERS)}")
-        for name, params in self.controller_params.items():
-            if name not in CONTROLLERS:
-                validate(pydantic.create_model("ControllerParams", __config__=STRICT,
-                                               **{k: (dict, None) for k in CONTROLLERS}),
-                         {name: params}, doc, source, ("controller_params",))
-            _nested(model_of(CONTROLLERS.get(name).config), params, doc, source, ("controller_params", name))
-
-
-# --- navigation ---------------------------------------------------------------------------------
-
-class NavigationEvaluation(BaseModel):
-    """``blocks`` disjoint blocks of ``block_size`` consecutive seeds from ``start`` on: the
-    seeds a claimed rate is measured on (slamkit.experiments.navigation_benchmark)."""
-
-    model_config = STRICT
-    start: Seed
-    blocks: Annotated[int, Field(ge=1, le=100)] = 3
-    block_size: Annotated[int, Field(ge=1, le=10_000)] = 30
-
-
-class NavigationScenarios(BaseModel):
-    model_config = STRICT
-    worlds: Annotated[list[Literal["office", "warehouse", "willow", "passage"]], Field(min_length=1)] = ["office"]
-    #: the development seeds (the ones failures are looked at and fixed on)
-    seeds: Seeds = 3
-    #: the evaluation blocks, disjoint from ``seeds`` (None: development seeds only)
-    evaluation: NavigationEvaluation | None = None
-    n_obstacles: Annotated[int, Field(ge=0, le=20)] = 2
-    #: the crossing traffic: constant-velocity shuttles or social-force people and forklifts
-    #: (slamkit.sim.social_force.crossing_traffic)
-    agents: Literal["constant_velocity", "social_force"] = "constant_velocity"
-    #: world 'willow': the dataset registry's ``willow`` (default) or a map_server YAML path
-    willow_map: str | None = None
-
-    @pydantic.model_validator(mode="after")
-    def _evaluation_is_fresh(self) -> "NavigationScenarios":
-        if self.evaluation is not None:
-            try:
-                seed_blocks(seed_list(self.seeds), self.evaluation.model_dump())
-            except ConfigError as exc:
-                raise ValueError(str(exc)) from None
-        return self
-
-
-class NavigationVariant(BaseModel):
-    model_config = STRICT
-    name: PlainName
-    #: another variant's name: the report adds this one's differences to it, paired by seed
-    paired_with: PlainName | None = None
-    navigation: dict[str, Any] = {}
-    episode: dict[str, Any] = {}
-
-
-class NavigationPipeline(PipelineConfig):
-    pipeline: Literal["navigation"]
-    scenarios: NavigationScenarios = NavigationScenarios()
-    #: NavigationConfig fields (slamkit.systems.navigation) shared by every variant
-    navigation: dict[str, Any] = {}
-    #: EpisodeConfig fields (slamkit.experiments.navigation) shared by every variant
-    episode: dict[str, Any] = {}
-    variants: Annotated[list[NavigationVariant], Field(min_length=1)] = [NavigationVariant(name="nominal")]
-    record_scenarios: Annotated[int, Field(ge=0, le=1000)] = 1
-    #: the robot's map: MapSourceConfig fields (slamkit.experiments.navigation_map)
-    map: dict[str, Any] = {}
-
-    def check_options(self, config: dict[str, Any], doc: YamlDocument | None, source: str) -> None:
-        # (slamkit.systems.navigation's names through the pipeline module: the circle's side)
-        from slamkit.experiments.navigation import MOVED_FIELDS, EpisodeConfig, NavigationConfig, _variants
-        from slamkit.experiments.navigation_map import MapSourceConfig
-
-        # the base sections and every variant's overrides against the models of NavigationConfig
-        # (its nested sections included) and EpisodeConfig, each error with its YAML line; a key
-        # of the former flat NavigationConfig names the section it moved into (MOVED_FIELDS)
-        sections: list[tuple[tuple, dict[str, Any], type]] = [
-            (("navigation",), self.navigation, NavigationConfig), (("episode",), self.episode, EpisodeConfig)]
-        for i, variant in enumerate(self.variants):
-            sections += [(("variants", i, "navigation"), variant.navigation, NavigationConfig),
-                         (("variants", i, "episode"), variant.episode, EpisodeConfig)]
-        for prefix, values, cls in sections:
-            if cls is NavigationConfig:
-                _refuse_moved_keys(values, prefix, MOVED_FIELDS, doc, source)
-            _nested(model_of(cls), values, doc, source, prefix)
-        _variants(config)  # builds every variant's configs: the dataclasses' own checks
-        # the map section's fields checked with their YAML line, then the config built (its
-        # own checks: source, unknown, the nested lidar-SLAM config)
-        _nested(model_of(MapSourceConfig), self.map, doc, source, ("map",))
-        build(MapSourceConfig, config.get("map"), "map")
-
-
-# --- lidar_slam ----------------------------------------------------------------------------------
-
-class LogEntryModel(BaseModel):
-    model_config = STRICT
-    name: str | None = None
-    path: str
-    relations: str | None = None
-    duration_s: Annotated[float, Field(gt=0, le=1e6)] | None = None
-    #: a ROS bag's LaserScan / Odometry topic (needed only when it has several of a type)
-    scan_topic: str | None = None
-    odom_topic: str | None = None
-
-
-class LidarSlamPipeline(PipelineConfig):
-    pipeline: Literal["lidar_slam"]
-    seeds: Seeds = [0]
-    #: simulated grid worlds and/or recorded laser logs (a registry name or {name, path, relations})
-    worlds: list[dict[str, Any]] = []
-    logs: list[Union[str, LogEntryModel]] = []
-    slam: dict[str, Any] = {}
-    #: per motion prior, fields of ``slam`` that replace it for that prior (merged key by key)
-    slam_by_motion_prior: dict[Literal["odometry", "constant_velocity", "identity"], dict[str, Any]] = {}
-    robust_variants: Annotated[list[Literal["none", "huber", "cauchy"]], Field(min_length=1)] | None = None
-    motion_priors: Annotated[list[Literal["odometry", "constant_velocity", "identity"]],
-                             Field(min_length=1)] | None = None
-    false_loop_closures: Annotated[int, Field(ge=0, le=1000)] = 0
-    false_loop_seed: int = 0
-    mcl: Union[bool, dict[str, Any], None] = None
-    #: seeded twins of every world and log (slamkit.experiments.perturbation)
-    perturbations: dict[str, Any] | None = None
-
-    def check_options(self, config: dict[str, Any], doc: YamlDocument | None, source: str) -> None:
-        from slamkit.experiments.lidar_slam import MclCheckConfig
-
-        if not self.worlds and not self.logs:
-            where = doc.where(()) if doc is not None else source
-            raise ConfigError(f"{where}: lidar_slam needs 'worlds' (grid scenarios) or 'logs' (laser logs)")
-        _nested(model_of(LidarSlamConfig), self.slam, doc, source, ("slam",))
-        for prior, values in self.slam_by_motion_prior.items():
-            _nested(model_of(LidarSlamConfig), values, doc, source, ("slam_by_motion_prior", prior))
-        if isinstance(self.mcl, dict):
-            _nested(model_of(MclCheckConfig), self.mcl, doc, source, ("mcl",))
-        _check_perturbations(self.perturbations, doc, source)
-        for k, world in enumerate(self.worlds):
-            _nested(model_of(GridScenario), {key: v for key, v in world.items() if key != "kind"},
-                    doc, source, ("worlds", k))
 
 
 # --- visual_odometry -----------------------------------------------------------------------------
@@ -409,32 +248,13 @@ def _write_back(config: dict[str, Any], checked: list[tuple[tuple, Any]]) -> Non
         write_back(node, validated)
 
 
-def check_pipeline(config: dict[str, Any], doc: YamlDocument | None = None, source: str = "<config>"
-                   ) -> PipelineConfig:
-    """Validate a pipeline config with the model its pipeline declares (top level, then the
-    algorithm options it nests); returns the model. ``config['pipeline']`` is set to the
-    registered spelling (an old one is accepted with a deprecation warning). Raises ConfigError
-    naming file, line and field."""
-    if not isinstance(config, dict):
-        raise ConfigError(f"{source}: a pipeline config is a mapping with a 'pipeline' key, got "
-                          f"{type(config).__name__}")
-    from slamkit.experiments.pipeline import PIPELINES, pipeline_of
-
-    plugins = config.get("plugins")
-    if plugins is not None:  # first: a plug-in may register the very pipeline this config names
-        where = doc.where(("plugins",)) if doc is not None else source
-        if not isinstance(plugins, list):
-            raise ConfigError(f"{where}: plugins: a list of module names, got {plugins!r}")
-        # a plug-in module may sit beside the config file
-        config_dir = [os.path.dirname(os.path.abspath(source))] if os.path.isfile(source) else []
-        import_plugins(plugins, f"{where}: plugins", config_dir)
-    try:
-        config["pipeline"] = PIPELINES.canonical(config.get("pipeline"))
-    except ConfigError as exc:
-        where = doc.where(("pipeline",)) if doc is not None else source
-        raise ConfigError(f"{where}: pipeline: {exc}") from None
-    # a pipeline registered without a model (a user's own kind) gets the common fields checked
-    model = validate(pipeline_of(config["pipeline"]).config_model or _OpenPipeline, config, doc, source)
+def check_with(model_cls: type[PipelineConfig] | None, config: dict[str, Any], doc: YamlDocument | None = None,
+               source: str = "<config>") -> PipelineConfig:
+    """Validate ``config`` with its pipeline's model ``model_cls`` (None: a pipeline registered
+    without one, whose config gets the common fields checked), then the algorithm options it
+    nests, and write back what validation understood; returns the model. The pipeline registry's
+    :func:`slamkit.experiments.pipeline.check_pipeline` finds the model and calls this."""
+    model = validate(model_cls or _OpenPipeline, config, doc, source)
     start = len(_VALIDATED)
     try:
         model.check_options(config, doc, source)
@@ -442,6 +262,19 @@ def check_pipeline(config: dict[str, Any], doc: YamlDocument | None = None, sour
     finally:
         del _VALIDATED[start:]
     return model
+
+
+def import_config_plugins(config: dict[str, Any], doc: YamlDocument | None = None, source: str = "<config>") -> None:
+    """Import the modules a config's ``plugins`` names (first: a plug-in may register the very
+    pipeline the config names); a module may sit beside the config file."""
+    plugins = config.get("plugins")
+    if plugins is None:
+        return
+    where = doc.where(("plugins",)) if doc is not None else source
+    if not isinstance(plugins, list):
+        raise ConfigError(f"{where}: plugins: a list of module names, got {plugins!r}")
+    config_dir = [os.path.dirname(os.path.abspath(source))] if os.path.isfile(source) else []
+    import_plugins(plugins, f"{where}: plugins", config_dir)
 
 
 def with_defaults(config: Mapping[str, Any], model: pydantic.BaseModel) -> dict[str, Any]:

@@ -33,6 +33,7 @@ from dataclasses import dataclass
 from typing import Any, Callable, Iterator, Protocol
 
 from slamkit.errors import ConfigError
+from slamkit.naming import PLUGINS_ENV, plugin_env
 
 #: the thread-count variables of OpenBLAS, MKL, OpenMP, BLIS, Apple Accelerate and numexpr
 ONE_THREAD_ENV = {name: "1" for name in (
@@ -117,9 +118,7 @@ class LocalExecutor(_Backlogged):
         import multiprocessing
 
         # the workers inherit the environment when they start (lazily, on submit): keep the
-        # variables set for the executor's life and restore the caller's values on close
-        from slamkit.naming import PLUGINS_ENV, plugin_env
-
+        # variables set for the executor's life and restore the caller's values on close,
         # and the plug-in modules this process imported (config plugins:, --plugin): the workers
         # import them before their first registry lookup
         self._saved_env = {k: os.environ.get(k) for k in (*ONE_THREAD_ENV, PLUGINS_ENV, "PYTHONPATH")}
@@ -185,8 +184,6 @@ class RayExecutor(_Backlogged):
     def _start(self, fn: Callable[[Any], Any], arg: Any) -> Any:
         if fn not in self._remote:
             # env_vars merge into the job's runtime environment (a user's PYTHONPATH stays)
-            from slamkit.naming import plugin_env
-
             self._remote[fn] = self._ray.remote(num_cpus=1, max_retries=0,
                                                 runtime_env={"env_vars": {**ONE_THREAD_ENV, **plugin_env()}})(fn)
         return self._remote[fn].remote(arg)

@@ -35,19 +35,27 @@ import sys
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Annotated, Any, Literal, Mapping, Union
 
 import numpy as np
+from pydantic import BaseModel, Field
 
+from slamkit.config import STRICT, YamlDocument, build, model_of
+from slamkit.data import registry
+from slamkit.data.estimate import Prior
+from slamkit.data.formats.tum import write_tum
+from slamkit.data.perturb import perturb
 from slamkit.data.pose_graph import PoseGraph
 from slamkit.data.sequence import Odometry, Scan, Sequence
 from slamkit.data.trajectory import Trajectory
-from slamkit.config import build
 from slamkit.errors import ConfigError
+from slamkit.estimation._common import NoiseParams
+from slamkit.estimation.lidar_mcl import LidarMCL
+from slamkit.experiments.config_models import PipelineConfig, Seeds, _check_perturbations, _nested, seed_list
 from slamkit.experiments.observers import StepSnapshot
-from slamkit.data.perturb import perturb
 from slamkit.experiments.perturbation import (perturbation_config, perturbation_indices, twin_params, twin_suffix,
                                               unperturbed)
+from slamkit.experiments.pipeline import Pipeline, PipelineOutput
 from slamkit.experiments.results import RunRecord, markdown_table
 from slamkit.frontend.loop_closure import LoopClosure
 from slamkit.geometry import se2
@@ -60,6 +68,8 @@ from slamkit.metrics.map_consistency import map_consistency
 from slamkit.metrics.relations import RelationErrors, read_relations, relation_errors
 from slamkit.models import diff_drive
 from slamkit.paths import file_in
+from slamkit.sim.grid_world import GridScenario, simulate_grid_sequence
+from slamkit.sim.scenario import scenario_from_dict, simulate
 from slamkit.systems.lidar_slam import Keyframe, LidarSlam, LidarSlamConfig, occupancy_map
 
 #: mean +- std of the translational relation error (m) published by Kuemmerle et al., "On
@@ -357,8 +367,6 @@ def slam_section_for(config: Mapping[str, Any], motion_prior: str) -> dict[str, 
 
 
 def _simulate(world: Mapping[str, Any], seed: int):
-    from slamkit.sim.scenario import scenario_from_dict, simulate
-
     data = {"kind": "grid", "encoder": None, "imu_rate_hz": None, "gps": None, **dict(world)}
     sim = simulate(scenario_from_dict(data, "lidar_slam.worlds"), seed)
     return sim
@@ -416,10 +424,6 @@ def localize_on_map(result: LidarSlamResult, sequence: Sequence, config: MclChec
 def _localize_once(result: LidarSlamResult, sequence: Sequence, config: MclCheckConfig, filter_seed: int
                    ) -> tuple[float, float, float]:
     """One MCL run: (updates until it stays localized or NaN, final position error (m), updates)."""
-    from slamkit.data.estimate import Prior
-    from slamkit.estimation._common import NoiseParams
-    from slamkit.estimation.lidar_mcl import LidarMCL
-
     mcl = LidarMCL(result.map.occupancy_grid(), NoiseParams.from_metadata(sequence.metadata),
                    rng=np.random.default_rng(filter_seed), free_mask=result.map.observed)
     mcl.reset(Prior(np.zeros(3), np.eye(3)))
@@ -470,8 +474,6 @@ def log_entry(raw: str | Mapping[str, Any]) -> LogEntry:
     ``{name, path, relations, duration_s, scan_topic, odom_topic}`` (``path`` a CARMEN log, a
     .slamseq file, a ROS 1 .bag, a ROS 2 bag folder or a registry name; the topics choose a
     bag's scans and odometry when it has several of a type)."""
-    from slamkit.data import registry
-
     if isinstance(raw, str):
         raw = {"path": raw}
     raw = dict(raw)
@@ -509,9 +511,6 @@ def run(config: Mapping[str, Any], folder, progress, observer=None):
     once per robust kernel (``robust_variants``) and motion prior (``motion_priors``); with an
     ``mcl`` mapping (fields of :class:`MclCheckConfig`) also global localization on each map
     built in a simulated world."""
-    from slamkit.experiments.config_models import seed_list
-    from slamkit.experiments.pipeline import PipelineOutput
-
     worlds, logs = config.get("worlds") or [], [log_entry(x) for x in config.get("logs") or []]
     if not worlds and not logs:
         raise ConfigError("lidar_slam: 'worlds' (grid scenario mappings) or 'logs' (laser logs) must "
@@ -536,8 +535,6 @@ def run(config: Mapping[str, Any], folder, progress, observer=None):
             seq, grid = _sim_parts(sim)
             second = None
             if mcl_cfg is not None:
-                from slamkit.sim.grid_world import simulate_grid_sequence
-
                 second, _ = simulate_grid_sequence(sim.scenario,
                                                    np.random.default_rng(int(seed) + mcl_cfg.seed_offset), grid=grid)
                 second = trim_to_free_space(second, grid)
@@ -559,7 +556,6 @@ def run(config: Mapping[str, Any], folder, progress, observer=None):
                 _write_trajectory(folder, res.stamps_s, res.optimised_poses, stem)
                 _write_trajectory(folder, res.stamps_s, res.frontend_poses, f"{stem}_frontend")
                 advance()
-    from slamkit.data import registry
 
     for entry in logs:
         seq = replace(registry.load_recording(entry.source, scan_topic=entry.scan_topic,
@@ -617,8 +613,6 @@ def trim_to_free_space(sequence: Sequence, grid: OccupancyGrid | None) -> Sequen
 def _write_trajectory(folder, stamps_s: np.ndarray, poses: np.ndarray, stem: str) -> None:
     """``poses`` at ``stamps_s`` as a TUM file, in stamp order (a log processed in the order it
     was taken has late stamps: slamkit.data.formats.carmen)."""
-    from slamkit.data.formats.tum import write_tum
-
     order = np.argsort(stamps_s, kind="stable")
     write_tum(file_in(folder.trajectories, stem, ".tum", "run name"),
               Trajectory.from_se2(np.asarray(stamps_s)[order], np.asarray(poses)[order]))
@@ -862,14 +856,53 @@ def _plot_log(plt, plots, res: LidarSlamResult) -> None:
     plt.close(fig)
 
 
-def _pipeline():
-    from slamkit.experiments.config_models import LidarSlamPipeline
-    from slamkit.experiments.pipeline import Pipeline
+# --- the config model (slamkit.experiments.config_models): checked before anything runs ---------
 
-    return Pipeline("lidar_slam", run, LidarSlamPipeline, list[LidarSlamResult],
-                    "lidar SLAM on simulated grid worlds x seeds and on recorded laser logs, x robust "
-                    "kernels x motion priors")
+class LogEntryModel(BaseModel):
+    model_config = STRICT
+    name: str | None = None
+    path: str
+    relations: str | None = None
+    duration_s: Annotated[float, Field(gt=0, le=1e6)] | None = None
+    #: a ROS bag's LaserScan / Odometry topic (needed only when it has several of a type)
+    scan_topic: str | None = None
+    odom_topic: str | None = None
+
+
+class LidarSlamPipeline(PipelineConfig):
+    pipeline: Literal["lidar_slam"]
+    seeds: Seeds = [0]
+    #: simulated grid worlds and/or recorded laser logs (a registry name or {name, path, relations})
+    worlds: list[dict[str, Any]] = []
+    logs: list[Union[str, LogEntryModel]] = []
+    slam: dict[str, Any] = {}
+    #: per motion prior, fields of ``slam`` that replace it for that prior (merged key by key)
+    slam_by_motion_prior: dict[Literal["odometry", "constant_velocity", "identity"], dict[str, Any]] = {}
+    robust_variants: Annotated[list[Literal["none", "huber", "cauchy"]], Field(min_length=1)] | None = None
+    motion_priors: Annotated[list[Literal["odometry", "constant_velocity", "identity"]],
+                             Field(min_length=1)] | None = None
+    false_loop_closures: Annotated[int, Field(ge=0, le=1000)] = 0
+    false_loop_seed: int = 0
+    mcl: Union[bool, dict[str, Any], None] = None
+    #: seeded twins of every world and log (slamkit.experiments.perturbation)
+    perturbations: dict[str, Any] | None = None
+
+    def check_options(self, config: dict[str, Any], doc: YamlDocument | None, source: str) -> None:
+        if not self.worlds and not self.logs:
+            where = doc.where(()) if doc is not None else source
+            raise ConfigError(f"{where}: lidar_slam needs 'worlds' (grid scenarios) or 'logs' (laser logs)")
+        _nested(model_of(LidarSlamConfig), self.slam, doc, source, ("slam",))
+        for prior, values in self.slam_by_motion_prior.items():
+            _nested(model_of(LidarSlamConfig), values, doc, source, ("slam_by_motion_prior", prior))
+        if isinstance(self.mcl, dict):
+            _nested(model_of(MclCheckConfig), self.mcl, doc, source, ("mcl",))
+        _check_perturbations(self.perturbations, doc, source)
+        for k, world in enumerate(self.worlds):
+            _nested(model_of(GridScenario), {key: v for key, v in world.items() if key != "kind"},
+                    doc, source, ("worlds", k))
 
 
 #: the ``lidar_slam`` pipeline kind (slamkit.experiments.pipeline)
-PIPELINE = _pipeline()
+PIPELINE: Pipeline[list[LidarSlamResult]] = Pipeline(
+    "lidar_slam", run, LidarSlamPipeline, list[LidarSlamResult],
+    "lidar SLAM on simulated grid worlds x seeds and on recorded laser logs, x robust kernels x motion priors")

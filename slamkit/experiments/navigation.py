@@ -38,19 +38,23 @@ import dataclasses
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Mapping
+from typing import Annotated, Any, Callable, Literal, Mapping
 
 import numpy as np
+import pydantic
+from pydantic import BaseModel, Field
 
-from slamkit.config import build
+from slamkit.config import STRICT, YamlDocument, build, model_of
+from slamkit.data.registry import path_of
 from slamkit.errors import ConfigError
 from slamkit.experiments.closed_loop import start_goal_draws
-from slamkit.experiments.config_models import NavigationPipeline, seed_list
+from slamkit.experiments.config_models import (PipelineConfig, PlainName, Seed, Seeds, _nested, _refuse_moved_keys,
+                                               seed_list)
 from slamkit.experiments.navigation_benchmark import (DEV_BLOCK, benchmark_markdown, block_of, benchmark_rows, difficulty_rows,
                                                      episode_benchmark_metrics, plot_benchmark, scenario_difficulty,
                                                      seed_blocks)
 from slamkit.experiments.navigation_map import MapSourceConfig, RobotMap, robot_map
-from slamkit.experiments.observers import PipelineObserver
+from slamkit.experiments.observers import PipelineObserver, StepSnapshot
 from slamkit.experiments.pipeline import Pipeline, PipelineOutput, StepProgress
 from slamkit.experiments.results import (ResultsFolder, RunRecord, markdown_table, paired_difference, summarise,
                                          summary_markdown)
@@ -333,8 +337,6 @@ def _variants(config: Mapping[str, Any]) -> list[tuple[str, NavigationConfig, Ep
 def willow_yaml(spec: str | None) -> str:
     """The Willow map YAML: a path, or the dataset registry's ``willow`` entry (None)."""
     if spec is None or spec == "willow":
-        from slamkit.data.registry import path_of
-
         return str(path_of("willow", "maps_ros/willow-2010-02-18-0.10.yaml"))
     return str(spec)
 
@@ -560,8 +562,6 @@ def navigation_snapshot(scene: NavigationScene, scenario: NavigationScenario, st
 def _snapshots(observer: PipelineObserver, run_name: str, scenario: NavigationScenario):
     """An ``on_step`` that hands each cycle to a pipeline observer as a ``StepSnapshot`` whose
     state is a :class:`NavigationSnapshot` (its :class:`NavigationScene` built at the first cycle)."""
-    from slamkit.experiments.observers import StepSnapshot
-
     counter = iter(range(10**9))
     scene: list[NavigationScene] = []
 
@@ -605,6 +605,83 @@ def run(config: Mapping[str, Any], folder: ResultsFolder, progress: StepProgress
     return PipelineOutput(runs, report_markdown(config, episodes, summary, maps, text), summary,
                           extra={"benchmark": {"protocol": protocol, "rows": rows, "by_difficulty": by_difficulty}},
                           payload=episodes)
+
+
+# --- the config model (slamkit.experiments.config_models): checked before anything runs ---------
+
+class NavigationEvaluation(BaseModel):
+    """``blocks`` disjoint blocks of ``block_size`` consecutive seeds from ``start`` on: the
+    seeds a claimed rate is measured on (slamkit.experiments.navigation_benchmark)."""
+
+    model_config = STRICT
+    start: Seed
+    blocks: Annotated[int, Field(ge=1, le=100)] = 3
+    block_size: Annotated[int, Field(ge=1, le=10_000)] = 30
+
+
+class NavigationScenarios(BaseModel):
+    model_config = STRICT
+    worlds: Annotated[list[Literal["office", "warehouse", "willow", "passage"]], Field(min_length=1)] = ["office"]
+    #: the development seeds (the ones failures are looked at and fixed on)
+    seeds: Seeds = 3
+    #: the evaluation blocks, disjoint from ``seeds`` (None: development seeds only)
+    evaluation: NavigationEvaluation | None = None
+    n_obstacles: Annotated[int, Field(ge=0, le=20)] = 2
+    #: the crossing traffic: constant-velocity shuttles or social-force people and forklifts
+    #: (slamkit.sim.social_force.crossing_traffic)
+    agents: Literal["constant_velocity", "social_force"] = "constant_velocity"
+    #: world 'willow': the dataset registry's ``willow`` (default) or a map_server YAML path
+    willow_map: str | None = None
+
+    @pydantic.model_validator(mode="after")
+    def _evaluation_is_fresh(self) -> "NavigationScenarios":
+        if self.evaluation is not None:
+            try:
+                seed_blocks(seed_list(self.seeds), self.evaluation.model_dump())
+            except ConfigError as exc:
+                raise ValueError(str(exc)) from None
+        return self
+
+
+class NavigationVariant(BaseModel):
+    model_config = STRICT
+    name: PlainName
+    #: another variant's name: the report adds this one's differences to it, paired by seed
+    paired_with: PlainName | None = None
+    navigation: dict[str, Any] = {}
+    episode: dict[str, Any] = {}
+
+
+class NavigationPipeline(PipelineConfig):
+    pipeline: Literal["navigation"]
+    scenarios: NavigationScenarios = NavigationScenarios()
+    #: NavigationConfig fields (slamkit.systems.navigation) shared by every variant
+    navigation: dict[str, Any] = {}
+    #: EpisodeConfig fields (slamkit.experiments.navigation) shared by every variant
+    episode: dict[str, Any] = {}
+    variants: Annotated[list[NavigationVariant], Field(min_length=1)] = [NavigationVariant(name="nominal")]
+    record_scenarios: Annotated[int, Field(ge=0, le=1000)] = 1
+    #: the robot's map: MapSourceConfig fields (slamkit.experiments.navigation_map)
+    map: dict[str, Any] = {}
+
+    def check_options(self, config: dict[str, Any], doc: YamlDocument | None, source: str) -> None:
+        # the base sections and every variant's overrides against the models of NavigationConfig
+        # (its nested sections included) and EpisodeConfig, each error with its YAML line; a key
+        # of the former flat NavigationConfig names the section it moved into (MOVED_FIELDS)
+        sections: list[tuple[tuple, dict[str, Any], type]] = [
+            (("navigation",), self.navigation, NavigationConfig), (("episode",), self.episode, EpisodeConfig)]
+        for i, variant in enumerate(self.variants):
+            sections += [(("variants", i, "navigation"), variant.navigation, NavigationConfig),
+                         (("variants", i, "episode"), variant.episode, EpisodeConfig)]
+        for prefix, values, cls in sections:
+            if cls is NavigationConfig:
+                _refuse_moved_keys(values, prefix, MOVED_FIELDS, doc, source)
+            _nested(model_of(cls), values, doc, source, prefix)
+        _variants(config)  # builds every variant's configs: the dataclasses' own checks
+        # the map section's fields checked with their YAML line, then the config built (its
+        # own checks: source, unknown, the nested lidar-SLAM config)
+        _nested(model_of(MapSourceConfig), self.map, doc, source, ("map",))
+        build(MapSourceConfig, config.get("map"), "map")
 
 
 PIPELINE: Pipeline[list[Episode]] = Pipeline(

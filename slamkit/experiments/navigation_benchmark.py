@@ -26,8 +26,9 @@ from typing import Any, Mapping
 import numpy as np
 
 from slamkit.errors import ConfigError
+from slamkit.experiments.results import markdown_table
 from slamkit.metrics.navigation import (OUTCOMES, bin_label, clearance_percentile_m, narrowest_passage_m,
-                                        optimal_time_s, polyline_length_m, ratio_to_optimal)
+                                        optimal_time_s, outcome, polyline_length_m, ratio_to_optimal)
 from slamkit.metrics.stats import RateInterval, rate_of
 from slamkit.planning.astar import AStarPlanner
 from slamkit.planning.protocols import PlanningProblem
@@ -119,8 +120,6 @@ def episode_benchmark_metrics(*, success: bool, collision_static: bool, collisio
                               max_speed_mps: float) -> dict[str, float]:
     """The benchmark's per-episode metrics (module docstring) from the run's outcome, its
     clearance series and the scenario's :func:`scenario_difficulty`."""
-    from slamkit.metrics.navigation import outcome
-
     what = outcome(success, collision_static, collision_moving, reached_by_belief)
     opt_len = float(difficulty["optimal_path_length_m"])
     arrived = what == "success"
@@ -275,8 +274,6 @@ def benchmark_markdown(rows: list[dict[str, Any]], difficulty: list[dict[str, An
                        protocol: Mapping[str, Any]) -> str:
     """The benchmark's report: the headline table (per world over all evaluation blocks), the
     goals, per block, the development seeds apart, by difficulty."""
-    from slamkit.experiments.results import markdown_table
-
     multi = len({r["variant"] for r in rows}) > 1
     lead = (lambda r: [r["world"], r["variant"]]) if multi else (lambda r: [r["world"]])
     head = ["world", "variant"] if multi else ["world"]

@@ -32,9 +32,9 @@ from typing import Any, Callable, Generic, Mapping, Protocol, TypeVar
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-from slamkit.config import load_yaml
+from slamkit.config import YamlDocument, load_yaml
 from slamkit.errors import ConfigError
-from slamkit.experiments.config_models import PipelineConfig, check_pipeline, with_defaults
+from slamkit.experiments.config_models import PipelineConfig, check_with, import_config_plugins, with_defaults
 from slamkit.experiments.observers import NullObserver, PipelineObserver
 from slamkit.experiments.perturbation import with_perturbation_report
 from slamkit.experiments.results import ResultsFolder, RunRecord
@@ -137,6 +137,24 @@ def pipeline_of(kind: str) -> Pipeline:
     """The :class:`Pipeline` registered as ``kind`` (imported on first use)."""
     name = PIPELINES.canonical(kind)
     return PIPELINES[name].pipeline(name)
+
+
+def check_pipeline(config: dict[str, Any], doc: YamlDocument | None = None, source: str = "<config>"
+                   ) -> PipelineConfig:
+    """Validate a pipeline config with the model its pipeline declares (top level, then the
+    algorithm options it nests: :func:`~slamkit.experiments.config_models.check_with`); returns
+    the model. ``config['pipeline']`` is set to the registered spelling (an old one is accepted
+    with a deprecation warning). Raises ConfigError naming file, line and field."""
+    if not isinstance(config, dict):
+        raise ConfigError(f"{source}: a pipeline config is a mapping with a 'pipeline' key, got "
+                          f"{type(config).__name__}")
+    import_config_plugins(config, doc, source)
+    try:
+        config["pipeline"] = PIPELINES.canonical(config.get("pipeline"))
+    except ConfigError as exc:
+        where = doc.where(("pipeline",)) if doc is not None else source
+        raise ConfigError(f"{where}: pipeline: {exc}") from None
+    return check_with(pipeline_of(config["pipeline"]).config_model, config, doc, source)
 
 
 def has_config_field(kind: str, field_name: str) -> bool:

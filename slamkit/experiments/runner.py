@@ -55,6 +55,7 @@ from slamkit.geometry.angles import wrap_angle
 from slamkit.metrics.alignment import associate, umeyama
 from slamkit.metrics.consistency import chi2_band, nees_or_nan
 from slamkit.metrics.trajectory_score import score_trajectory
+from slamkit.experiments.estimators import EstimatorFactory, prior_of
 
 #: RPE segment length (m of travelled path)
 RPE_DELTA_M = 1.0
@@ -84,8 +85,6 @@ class EstimatorRun:
 def _kind_of(factory: Callable, estimator: Any) -> str:
     """A registry factory says what it builds; a plain callable (a notebook's lambda) is judged
     by the protocol its estimator satisfies."""
-    from slamkit.experiments.estimators import EstimatorFactory
-
     if isinstance(factory, EstimatorFactory):
         return factory.kind
     return "batch" if isinstance(estimator, BatchEstimator) and not isinstance(estimator, Estimator) else "filter"
@@ -126,8 +125,6 @@ def run_estimators(sequence: Sequence, estimators: Mapping[str, Callable[[Sequen
     when ``observer.wants_steps`` is true, every ``observer.step_every`` events (and after the
     last), with ``StepSnapshot(kind, "<run_label>/<name>", k, stamp, BeliefSnapshot)``; ``kind``
     is the calling pipeline's name (``"estimators"`` when called directly)."""
-    from slamkit.experiments.estimators import prior_of
-
     prior = prior_of(sequence) if prior is None else prior
     wants = observer is not None and observer.wants_steps
     every = max(1, observer.step_every) if wants else 0

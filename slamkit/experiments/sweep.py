@@ -60,8 +60,9 @@ from pydantic import BaseModel, Field, StringConstraints, field_validator
 import slamkit
 from slamkit.config import STRICT, YamlDocument, load_yaml, validate
 from slamkit.errors import ConfigError, OutputError
-from slamkit.experiments.config_models import PlainName, Seeds, check_pipeline, seed_list, with_defaults
+from slamkit.experiments.config_models import PlainName, Seeds, seed_list, with_defaults
 from slamkit.experiments.executors import Executor, TaskFailure, make_executor
+from slamkit.experiments.pipeline import PIPELINES, check_pipeline, load_config, run_pipeline
 from slamkit.experiments.results import (MARKER, SWEEP_KIND, ResultsFolder, RunRecord, _jsonable,
                                          acquire_folder_lock, check_output_folder, is_results_folder, markdown_table,
                                          paired_comparisons, paired_markdown, release_folder_lock, summarise,
@@ -217,8 +218,6 @@ def load_sweep(path: str | Path) -> Sweep:
 
 
 def _base_config(model: SweepModel, doc: YamlDocument, path: Path) -> dict[str, Any]:
-    from slamkit.experiments.pipeline import load_config
-
     if isinstance(model.pipeline, str):
         config_path = Path(model.pipeline)
         if not config_path.is_absolute():
@@ -272,8 +271,6 @@ def run_cell(task: CellTask) -> CellOutcome:
     failure (the folder with ``config.yaml`` and ``error.json``) and a ``failed`` outcome."""
     import resource
 
-    from slamkit.experiments.pipeline import run_pipeline
-
     t0 = time.perf_counter()
     try:
         _import_plugins(task.plugins)
@@ -292,8 +289,6 @@ def _cell_kind(config: Mapping[str, Any]) -> str:
     """The canonical pipeline name a cell folder records (what run_pipeline writes), so that a
     retried cell is a result of the same kind."""
     import warnings
-
-    from slamkit.experiments.pipeline import PIPELINES
 
     name = str(config.get("pipeline", ""))
     try:

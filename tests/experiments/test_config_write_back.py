@@ -11,7 +11,7 @@ from typer.testing import CliRunner
 
 from slamkit.cli import app
 from slamkit.errors import ConfigError
-from slamkit.experiments.config_models import check_pipeline
+from slamkit.experiments.pipeline import check_pipeline
 
 POSE_GRAPH = {"pipeline": "pose_graph", "name": "x", "datasets": ["intel"], "solvers": ["lm"], "inits": ["file"],
               "record": False}

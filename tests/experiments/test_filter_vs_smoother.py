@@ -81,7 +81,7 @@ def test_config_errors_name_the_field() -> None:
         parse_scenarios({"scenarios": [{"preset": "wild"}]})
     with pytest.raises(ConfigError, match="unknown estimator 'kalmann'"):
         parse_estimators({"estimators": ["kalmann"]})
-    from slamkit.experiments.config_models import check_pipeline
+    from slamkit.experiments.pipeline import check_pipeline
 
     with pytest.raises(ConfigError, match=r"seeds: Input should be greater than or equal to 1 \(got 0\)"):
         check_pipeline({"pipeline": "filter_vs_smoother", "seeds": 0, "scenarios": ["mild"], "estimators": ["ekf"]})
@@ -90,7 +90,7 @@ def test_config_errors_name_the_field() -> None:
 
 
 def test_a_scenario_may_leave_out_an_estimator_and_override_another() -> None:
-    from slamkit.experiments.config_models import check_pipeline
+    from slamkit.experiments.pipeline import check_pipeline
 
     config = {"pipeline": "filter_vs_smoother", "estimators": {"ekf": {}, "batch": {}, "isam2": {}},
               "scenarios": ["mild", {"preset": "strong", "estimators": {"batch": False, "isam2": {"update_every": 5}}}]}
@@ -106,7 +106,7 @@ def test_a_scenario_may_leave_out_an_estimator_and_override_another() -> None:
 
 
 def test_scenario_files_with_overrides_are_checked_before_running() -> None:
-    from slamkit.experiments.config_models import check_pipeline
+    from slamkit.experiments.pipeline import check_pipeline
 
     office = str(ROOT / "pipelines" / "scenarios" / "office_tour.yaml")
     base = {"pipeline": "filter_vs_smoother", "estimators": {"fusion_ekf": {"ekf": {"lidar_noise": "measured"}}}}
@@ -192,7 +192,7 @@ def test_smoothers_beat_ekf_slam_over_twenty_seeds() -> None:
 
 
 def test_outside_references_stand_beside_the_matching_means() -> None:
-    from slamkit.experiments.config_models import check_pipeline
+    from slamkit.experiments.pipeline import check_pipeline
     from slamkit.experiments.filter_vs_smoother.report import outside_references_markdown
 
     summary = [{"dataset": "w", "estimator": "ekf", "metric": "final_position_error_m", "mean": 0.006,

@@ -52,7 +52,7 @@ def test_short_inertial_run_writes_tables_and_recording(tmp_path, verify_rrd) ->
 
 
 def test_shipped_inertial_pipeline_is_valid() -> None:
-    from slamkit.experiments.config_models import check_pipeline
+    from slamkit.experiments.pipeline import check_pipeline
 
     config = yaml.safe_load((ROOT / "pipelines" / "filter_vs_smoother_inertial.yaml").read_text())
     check_pipeline(config)

@@ -172,7 +172,7 @@ def test_slam_by_motion_prior_is_merged_into_slam_key_by_key():
             lidar_only.loops.icp.target_voxel_m) == (0.6, 0.9, 0.05)
     with_odometry = build(LidarSlamConfig, slam_section_for(config, "odometry"))
     assert with_odometry.icp.trim_fraction == 0.9 and with_odometry.icp.target_voxel_m == 0.0
-    from slamkit.experiments.config_models import check_pipeline
+    from slamkit.experiments.pipeline import check_pipeline
 
     with pytest.raises(ConfigError, match="slam_by_motion_prior"):
         check_pipeline({"pipeline": "lidar_slam", "logs": ["intel-log"],

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from slamkit.errors import ConfigError
-from slamkit.experiments.config_models import check_pipeline
+from slamkit.experiments.pipeline import check_pipeline
 from slamkit.experiments.navigation_benchmark import (ALL_EVAL, benchmark_markdown, benchmark_rows, difficulty_rows,
                                                       episode_benchmark_metrics, goals_check, optimal_path_xy_m,
                                                       seed_blocks)

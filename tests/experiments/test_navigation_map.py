@@ -34,7 +34,7 @@ def test_map_source_config_is_checked():
 
 def test_a_pipeline_file_with_a_misspelt_map_key_names_its_line(tmp_path):
     from slamkit.config import load_yaml
-    from slamkit.experiments.config_models import check_pipeline
+    from slamkit.experiments.pipeline import check_pipeline
 
     path = tmp_path / "nav.yaml"
     path.write_text("pipeline: navigation\nname: x\nmap:\n  source: slam_tour\n  tour_goal: 4\n")

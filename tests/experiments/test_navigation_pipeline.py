@@ -7,7 +7,7 @@ import json
 import pytest
 
 from slamkit.errors import ConfigError
-from slamkit.experiments.config_models import check_pipeline
+from slamkit.experiments.pipeline import check_pipeline
 from slamkit.experiments.navigation import _variants
 from slamkit.experiments.pipeline import run_pipeline, validate_pipeline_config
 

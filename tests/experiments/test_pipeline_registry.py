@@ -10,7 +10,8 @@ import pytest
 
 from slamkit.errors import ConfigError
 from slamkit.experiments import pipeline as pipeline_mod
-from slamkit.experiments.config_models import PipelineConfig, check_pipeline
+from slamkit.experiments.config_models import PipelineConfig
+from slamkit.experiments.pipeline import check_pipeline
 from slamkit.experiments.pipeline import PIPELINES, Pipeline, PipelineOutput, pipeline_of, register_pipeline
 from slamkit.experiments.results import RunRecord
 from slamkit.naming import SlamkitDeprecationWarning

@@ -130,7 +130,7 @@ def test_sphere2500_1000_random_outliers_pcm_in_space(shared_datasets) -> None:
 def test_a_section_may_not_set_what_the_combinations_set(section, key, owner) -> None:
     """outliers.kind / count and solver.backend are the pipeline's own lists (issue 30: these were
     a TypeError from the dataclass after validation)."""
-    from slamkit.experiments.config_models import check_pipeline
+    from slamkit.experiments.pipeline import check_pipeline
 
     config = {"pipeline": "pose_graph_outliers", "datasets": ["ring"], section: {key: "random" if key == "kind" else 1}}
     with pytest.raises(ConfigError, match=rf"{section}\.{key}: set by the pipeline's '{owner}'"):

@@ -7,7 +7,9 @@ from pathlib import Path
 
 import yaml
 
-from slamkit.experiments.config_models import check_pipeline, with_defaults
+from slamkit.experiments.config_models import with_defaults
+
+from slamkit.experiments.pipeline import check_pipeline
 from slamkit.experiments.pipeline import load_config, run_pipeline
 
 
