@@ -62,10 +62,10 @@ from slamkit.geometry import se2
 from slamkit.maps.log_odds import LogOddsMap, MapQuality, map_quality
 from slamkit.maps.occupancy_grid import OccupancyGrid
 from slamkit.metrics.alignment import align
-from slamkit.metrics.ate import ate
 from slamkit.metrics.loop_closures import loop_closure_counts
 from slamkit.metrics.map_consistency import map_consistency
 from slamkit.metrics.relations import RelationErrors, read_relations, relation_errors
+from slamkit.metrics.trajectory_score import score_trajectory
 from slamkit.models import diff_drive
 from slamkit.paths import file_in
 from slamkit.sim.grid_world import GridScenario, simulate_grid_sequence
@@ -158,10 +158,11 @@ def false_loop_edges(poses: np.ndarray, n: int, rng: np.random.Generator, min_se
 
 
 def ate_keyframes_m(ground_truth: Trajectory, stamps_s: np.ndarray, poses: np.ndarray) -> float:
-    """ATE RMSE (m) of keyframe poses after SE(2) alignment; ground truth looked up by stamp."""
+    """ATE RMSE (m) of keyframe poses after SE(2) alignment; ground truth looked up by stamp
+    (:func:`slamkit.metrics.score_trajectory`, the one scorer, without RPE)."""
     gt = _ground_truth_at(ground_truth, stamps_s)
-    return float(ate(Trajectory.from_se2(stamps_s, gt), Trajectory.from_se2(stamps_s, poses),
-                     "se2").translation_m.rmse)
+    return score_trajectory(Trajectory.from_se2(stamps_s, gt), Trajectory.from_se2(stamps_s, poses), "se2",
+                            rpe_delta=None)["ate_rmse_m"]
 
 
 def align_se2(poses: np.ndarray, reference: np.ndarray, stamps_s: np.ndarray) -> np.ndarray:
@@ -179,16 +180,37 @@ def _ground_truth_at(ground_truth: Trajectory, stamps_s: np.ndarray) -> np.ndarr
     return ground_truth.xytheta()[idx]
 
 
+def _frozen(a: Any) -> np.ndarray:
+    """A read-only float copy (a snapshot never shares memory with the live system)."""
+    out = np.array(a, dtype=float, copy=True)
+    out.setflags(write=False)
+    return out
+
+
+@dataclass(frozen=True)
+class LidarSlamSnapshot:
+    """The state of a ``lidar_slam`` step snapshot (issue 30, item 4: a type, not a dict of
+    string keys), one per keyframe as it is added: its pose when added ``world_xytheta_body`` (3,)
+    and its scan ``body_p_scan`` (N, 2) in the body frame -- read-only copies, never the live
+    :class:`~slamkit.systems.lidar_slam.LidarSlam`."""
+
+    world_xytheta_body: np.ndarray
+    body_p_scan: np.ndarray
+
+    @classmethod
+    def of(cls, kf: Keyframe) -> "LidarSlamSnapshot":
+        return cls(_frozen(kf.world_xytheta_body), _frozen(np.asarray(kf.body_xy_points).reshape(-1, 2)))
+
+
 class _KeyframeSnapshots:
-    """Adapter: the system's keyframe hook -> the pipeline observer's per-step snapshots."""
+    """Adapter: the system's keyframe hook -> the pipeline observer's per-step snapshots, whose
+    state is a :class:`LidarSlamSnapshot`."""
 
     def __init__(self, observer, name: str):
         self.observer, self.name = observer, name
 
     def on_keyframe(self, kf: Keyframe) -> None:
-        self.observer.on_step(StepSnapshot("lidar_slam", self.name, kf.index, kf.stamp_s,
-                                           {"world_xytheta_body": kf.world_xytheta_body,
-                                            "body_p_scan": kf.body_xy_points}))
+        self.observer.on_step(StepSnapshot("lidar_slam", self.name, kf.index, kf.stamp_s, LidarSlamSnapshot.of(kf)))
 
     def on_loop_closure(self, closure: LoopClosure) -> None:
         pass

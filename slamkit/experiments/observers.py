@@ -28,7 +28,7 @@ StateT = TypeVar("StateT")
 class StepSnapshot(Generic[StateT]):
     """One step of one run: ``state`` is the pipeline's record of it (the runner's
     :class:`BeliefSnapshot`; for navigation a ``navigation.NavigationSnapshot``; for local
-    planning a ``closed_loop.LocalPlanningSnapshot``; for lidar SLAM the keyframe pose and scan)."""
+    planning a ``closed_loop.LocalPlanningSnapshot``; for lidar SLAM a ``lidar_slam.LidarSlamSnapshot``)."""
 
     kind: str
     run: str

@@ -22,7 +22,7 @@ ROTATION_UNITS = ("rad", "deg")
 
 def score_trajectory(ref: Trajectory, est: Trajectory, align: AlignMode = "se3", *,
                      extra_aligns: tuple[AlignMode, ...] = (), rotation_unit: str = "rad",
-                     rpe_delta: float = 1.0, rpe_delta_unit: DeltaUnit = "m", rpe_align: AlignMode = "none",
+                     rpe_delta: float | None = 1.0, rpe_delta_unit: DeltaUnit = "m", rpe_align: AlignMode = "none",
                      rpe_pairs_from_reference: bool = False, rpe_min_path_m: float = 0.0,
                      drift_lengths_m: tuple[float, ...] | None = None, drift_step_frames: int = 10,
                      drift_suffix: str = "") -> dict[str, float]:
@@ -35,7 +35,8 @@ def score_trajectory(ref: Trajectory, est: Trajectory, align: AlignMode = "se3",
       beside the headline, e.g. ``ate_sim3_rmse_m``);
     * ``rpe_rmse_m``, ``rpe_rot_rmse_<unit>``: RPE over ``rpe_delta`` ``rpe_delta_unit`` after
       ``rpe_align``; left out where the reference path is not longer than ``rpe_min_path_m`` or
-      the delta gives no pose pair;
+      the delta gives no pose pair, and not computed when ``rpe_delta`` is None (a scorer that
+      reports ATE only, such as lidar SLAM's keyframe ATE);
     * ``drift_percent<suffix>``, ``drift_deg_per_100m<suffix>``: KITTI segment drift over
       ``drift_lengths_m`` (starting every ``drift_step_frames``), when lengths are given.
 
@@ -52,7 +53,7 @@ def score_trajectory(ref: Trajectory, est: Trajectory, align: AlignMode = "se3",
         out["sim3_scale"] = float(headline.alignment.scale)
     for mode in extra_aligns:
         out[f"ate_{mode}_rmse_m"] = float(ate(ref, est, mode).translation_m.rmse)
-    if rpe_min_path_m <= 0.0 or ref.path_length_m() > rpe_min_path_m:
+    if rpe_delta is not None and (rpe_min_path_m <= 0.0 or ref.path_length_m() > rpe_min_path_m):
         try:
             rel = rpe(ref, est, rpe_delta, rpe_delta_unit, align_mode=rpe_align,
                       pairs_from_reference=rpe_pairs_from_reference)

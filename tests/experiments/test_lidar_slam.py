@@ -19,6 +19,7 @@ import pytest
 from slamkit.config import build
 from slamkit.errors import ConfigError
 from slamkit.experiments.lidar_slam import (
+    LidarSlamSnapshot,
     MclCheckConfig,
     _sim_parts,
     _simulate,
@@ -140,6 +141,37 @@ def test_pipeline_false_loop_closure_and_recording(tmp_path, verify_rrd):
                        "world/trajectory/optimised", "world/keyframes", "world/loop_closures",
                        "world/false_loop_closures", "world/robot", "world/robot/scan", "map/occupancy"):
             assert f"/{run}/{entity}" in paths, f"/{run}/{entity}"
+
+
+class _Steps:
+    """An observer that keeps every step snapshot."""
+
+    wants_steps = True
+
+    def __init__(self):
+        self.snaps = []
+
+    def on_step(self, snap) -> None:
+        self.snaps.append(snap)
+
+
+def test_keyframe_snapshots_are_typed_read_only_copies():
+    # issue 30: the lidar SLAM seam sends a LidarSlamSnapshot per keyframe, not a dict of keys
+    seq, grid = _sim_parts(_simulate({"name": "short", "world": "office", "world_size_m": [20.0, 20.0],
+                                      "num_goals": 2, "duration_s": 30.0}, 0))
+    steps = _Steps()
+    res = run_slam(seq, grid, LidarSlamConfig(), observer=steps)
+    assert [s.index for s in steps.snaps] == list(range(len(res.stamps_s))) and len(steps.snaps) >= 5
+    assert all(s.kind == "lidar_slam" and isinstance(s.state, LidarSlamSnapshot) for s in steps.snaps)
+    np.testing.assert_array_equal([s.stamp_s for s in steps.snaps], res.stamps_s)
+    for k in (0, len(steps.snaps) - 1):
+        state = steps.snaps[k].state
+        assert state.world_xytheta_body.shape == (3,) and state.body_p_scan.shape[1] == 2
+        np.testing.assert_array_equal(state.body_p_scan, res.keyframe_points[k])
+        with pytest.raises(ValueError):
+            state.body_p_scan[0, 0] = 1.0
+    # the first keyframe is added at the known start, and snapshots are the poses when added
+    np.testing.assert_allclose(steps.snaps[0].state.world_xytheta_body, res.frontend_poses[0])
 
 
 def test_config_errors():

@@ -70,3 +70,11 @@ def test_rpe_left_out_on_a_short_path_and_bad_units_refused():
     assert "rpe_rmse_m" not in s
     with pytest.raises(DataError, match="rotation_unit"):
         score_trajectory(ref, ref, rotation_unit="grad")
+
+
+def test_ate_only_when_rpe_delta_is_none():
+    ref = helix()
+    est = Trajectory(ref.stamps_s, ref.world_t_body + [0.3, 0.4, 0.0], ref.world_q_body_wxyz)
+    s = score_trajectory(ref, est, "none", rpe_delta=None)
+    assert set(s) == {"ate_rmse_m", "ate_rot_rmse_rad"}
+    assert s["ate_rmse_m"] == pytest.approx(0.5)
