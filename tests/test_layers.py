@@ -221,12 +221,10 @@ def test_the_lazy_import_list_is_not_stale() -> None:
 
 
 #: imports of one pipeline's module by another module of slamkit.experiments that are known
-#: leftovers of issue 30 (importer stem -> pipeline stems): navigation draws its start/goal pairs
-#: with local_planning's sampler (item 4: simulation goes to slamkit.sim), the robot's map built by
-#: SLAM runs the lidar_slam pipeline's run_slam (a system: slamkit.systems), pose_graph_outliers
-#: scores with pose_graph's ate_against (a metric)
-_PIPELINE_IMPORT_LEFTOVERS = {"navigation": {"closed_loop"}, "navigation_map": {"lidar_slam"},
-                              "pose_graph_outliers": {"pose_graph"}}
+#: leftovers of issue 30 (importer stem -> pipeline stems): the robot's map built by SLAM runs the
+#: lidar_slam pipeline's run_slam (a system: slamkit.systems), pose_graph_outliers scores with
+#: pose_graph's ate_against (a metric)
+_PIPELINE_IMPORT_LEFTOVERS = {"navigation_map": {"lidar_slam"}, "pose_graph_outliers": {"pose_graph"}}
 
 
 def test_pipelines_do_not_import_each_other() -> None:
@@ -248,3 +246,7 @@ def test_pipelines_do_not_import_each_other() -> None:
                     and target[2] not in _PIPELINE_IMPORT_LEFTOVERS.get(own, set())):
                 wrong.append(f"{path.relative_to(PACKAGE)}:{no} imports {mod}")
     assert not wrong, "imports between pipelines:\n" + "\n".join(wrong)
+    for importer, targets in _PIPELINE_IMPORT_LEFTOVERS.items():
+        found = {mod.split(".")[2] for _, mod in _imports(PACKAGE / "experiments" / f"{importer}.py")
+                 if mod.startswith("slamkit.experiments.")}
+        assert targets <= found, f"{importer} no longer imports {sorted(targets - found)}: drop it from the leftovers"

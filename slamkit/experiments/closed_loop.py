@@ -51,7 +51,6 @@ from slamkit.experiments.pipeline import Pipeline, PipelineOutput, StepProgress
 from slamkit.experiments.pipeline import run_pipeline as _run
 from slamkit.experiments.results import ResultsFolder, RunRecord, markdown_table, summarise, summary_markdown
 from slamkit.maps.distance_field import distance_field_m
-from slamkit.maps.generators import random_free_poses
 from slamkit.maps.inflation import costmap
 from slamkit.maps.occupancy_grid import OccupancyGrid
 from slamkit.models.diff_drive import motion
@@ -61,6 +60,7 @@ from slamkit.planning.protocols import PlanningProblem
 from slamkit.sim.local_planning_world import SCENARIO_KINDS, scenario_map, visible_obstacles
 from slamkit.sim.local_planning_world import clearance_m as world_clearance_m
 from slamkit.sim.moving_obstacles import MovingObstacles, crossing_obstacles
+from slamkit.sim.navigation_world import start_goal_draws
 
 
 # --------------------------------------------------------------------------- scenarios
@@ -107,22 +107,6 @@ def _simplify(path: np.ndarray, every: int = 3) -> np.ndarray:
     return path[keep]
 
 
-def start_goal_draws(grid: OccupancyGrid, rng: np.random.Generator, cell_cost: np.ndarray,
-                     robot_radius_m: float, distance_m: tuple[float, float], attempts: int):
-    """Yield (poses (2, 3), A* result) for start/goal pairs drawn in free space at least 0.5 m
-    beyond the robot's radius from walls, ``distance_m`` apart, with an A* path on ``cell_cost``
-    at most twice the longest distance (up to ``attempts`` draws)."""
-    planner = AStarPlanner()
-    for _attempt in range(attempts):
-        poses = random_free_poses(grid, rng, 2, clearance_m=robot_radius_m + 0.5)
-        d = float(np.linalg.norm(poses[0, :2] - poses[1, :2]))
-        if not distance_m[0] <= d <= distance_m[1]:
-            continue
-        res = planner.plan(PlanningProblem(grid, poses[0, :2], poses[1, :2], cell_cost=cell_cost))
-        if res.solved and res.length_m <= 2.0 * distance_m[1]:
-            yield poses, res
-
-
 def make_scenario(seed: int, kind: str = "office", n_obstacles: int = 3,
                   robot_radius_m: float = 0.2, distance_m: tuple[float, float] = (6.0, 14.0),
                   nominal_speed_mps: float = 0.5,
@@ -135,7 +119,12 @@ def make_scenario(seed: int, kind: str = "office", n_obstacles: int = 3,
     # safety margin, so a path never leads through a gap the local planner refuses to enter
     cost = costmap(grid, inscribed_radius_m=robot_radius_m + 0.15, inflation_radius_m=1.0)
     cell_cost = costmap_to_cell_cost(cost)
-    for poses, res in start_goal_draws(grid, rng, cell_cost, robot_radius_m, distance_m, 200):
+    planner = AStarPlanner()
+
+    def route(start_xy: np.ndarray, goal_xy: np.ndarray):
+        return planner.plan(PlanningProblem(grid, start_xy, goal_xy, cell_cost=cell_cost))
+
+    for poses, res in start_goal_draws(grid, rng, route, robot_radius_m, distance_m, 200):
         path = _simplify(res.path)
         start = poses[0].copy()
         # start roughly facing the path, as after a global plan

@@ -12,7 +12,9 @@ reached the goal pose, on a collision, or after ``max_time_s``.
 Scenarios (:func:`make_navigation_scenario`): a seeded map (generated 20 m office or warehouse at
 5 cm, or the real Willow Garage map at 10 cm), start and goal poses 6-14 m apart with an A* path
 on the costmap, and ``n_obstacles`` discs (people, a forklift) crossing that path timed to meet
-the robot. The robot's map (``map: {source: ...}``, :mod:`slamkit.experiments.navigation_map`) is
+the robot; the start/goal draws and the kidnapping (``kidnap_at_s``) are the simulator's
+(:func:`slamkit.sim.navigation_world.start_goal_draws`, ``NavigationPlant.kidnap``), this module
+supplies the A* route they are drawn with. The robot's map (``map: {source: ...}``, :mod:`slamkit.experiments.navigation_map`) is
 the world's grid (``truth``) or built offline by slamkit's lidar SLAM on a mapping tour of the
 world (``slam_tour``, 5 cm); the simulator keeps the true world either way.
 
@@ -47,7 +49,6 @@ from pydantic import BaseModel, Field
 from slamkit.config import STRICT, YamlDocument, build, model_of
 from slamkit.data.registry import path_of
 from slamkit.errors import ConfigError
-from slamkit.experiments.closed_loop import start_goal_draws
 from slamkit.experiments.config_models import (PipelineConfig, PlainName, Seed, Seeds, _nested, _refuse_moved_keys,
                                                seed_list)
 from slamkit.experiments.navigation_benchmark import (DEV_BLOCK, benchmark_markdown, block_of, benchmark_rows, difficulty_rows,
@@ -66,7 +67,8 @@ from slamkit.planning.astar import AStarPlanner
 from slamkit.planning.grid_search import costmap_to_cell_cost
 from slamkit.planning.protocols import PlanningProblem
 from slamkit.sim.social_force import crossing_traffic
-from slamkit.sim.navigation_world import WORLDS, NavigationPlant, NavigationScenario, world_map
+from slamkit.sim.navigation_world import (WORLDS, NavigationPlant, NavigationScenario, passage_draws, start_goal_draws,
+                                         world_map)
 from slamkit.systems.navigation import (MOVED_FIELDS, CommandStatus, NavigationCommand, NavigationConfig,
                                         NavigationStack, layer_timing_summary)
 
@@ -87,8 +89,13 @@ def make_navigation_scenario(seed: int, kind: str, willow_yaml: str | None = Non
     field_m = distance_field_m(grid)
     inscribed = robot_radius_m + path_margin_m
     cell_cost = costmap_to_cell_cost(costmap(grid, inscribed, max(1.0, inscribed), distance_m=field_m))
-    draws = (_passage_draws(grid, rng, cell_cost, 300) if kind == "passage"
-             else start_goal_draws(grid, rng, cell_cost, robot_radius_m, distance_m, 300))
+    planner = AStarPlanner()
+
+    def route(start_xy: np.ndarray, goal_xy: np.ndarray):
+        return planner.plan(PlanningProblem(grid, start_xy, goal_xy, cell_cost=cell_cost))
+
+    draws = (passage_draws(grid, rng, route, 300) if kind == "passage"
+             else start_goal_draws(grid, rng, route, robot_radius_m, distance_m, 300))
     for poses, res in draws:
         path = res.path
         start = poses[0].copy()
@@ -99,19 +106,6 @@ def make_navigation_scenario(seed: int, kind: str, willow_yaml: str | None = Non
                                      min_side_m=1.0)
         return NavigationScenario(f"{kind}_{seed}", seed, grid, start, poses[1].copy(), path, obstacles)
     raise ConfigError(f"could not draw a start/goal pair with a path in the {kind} map (seed {seed})")
-
-
-def _passage_draws(grid, rng: np.random.Generator, cell_cost: np.ndarray, attempts: int):
-    """Start and goal on either side of the passage hall's partition (1-2.5 m from the end
-    walls, 1.2 m from the side walls), with the A* path between them on ``cell_cost``."""
-    w, h = grid.width * grid.resolution_m, grid.height * grid.resolution_m
-    for _attempt in range(attempts):
-        x = rng.uniform(1.0, 2.5, 2)
-        y = rng.uniform(1.2, h - 1.2, 2)
-        poses = np.array([[x[0], y[0], 0.0], [w - x[1], y[1], rng.uniform(-np.pi, np.pi)]])
-        res = AStarPlanner().plan(PlanningProblem(grid, poses[0, :2], poses[1, :2], cell_cost=cell_cost))
-        if res.solved:
-            yield poses, res
 
 
 @dataclass(frozen=True)
@@ -216,7 +210,7 @@ def run_episode(scenario: NavigationScenario, nav_config: NavigationConfig = Nav
         if stack.reached:
             break
         if config.kidnap_at_s is not None and not kidnapped and t >= config.kidnap_at_s:
-            kidnapped = _kidnap(plant, np.asarray(config.kidnap_xy_m, float), t, r, field_m)
+            kidnapped = plant.kidnap(np.asarray(config.kidnap_xy_m, float), t, r, field_m)
         t_next = t + config.dt_s
         stack.step(plant.advance(cmd, config.dt_s, t_next))
         stack.step(plant.scan(t_next))
@@ -278,22 +272,6 @@ def run_episode(scenario: NavigationScenario, nav_config: NavigationConfig = Nav
     }
     return Episode(scenario.name, scenario.name.rsplit("_", 1)[0], scenario.seed, variant,
                    np.array(ts), true, est, metrics, loc_err)
-
-
-def _kidnap(plant: NavigationPlant, shift_xy_m: np.ndarray, t_s: float, robot_radius_m: float,
-            field_m: np.ndarray) -> bool:
-    """Shift the true robot by ``shift_xy_m`` (in its body frame), or by the opposite shift if
-    that lands in a wall; True when one of them was free (>= 0.05 m clearance) and applied."""
-    x = plant.world_xytheta_body
-    c, s = math.cos(x[2]), math.sin(x[2])
-    world_shift = np.array([c * shift_xy_m[0] - s * shift_xy_m[1], s * shift_xy_m[0] + c * shift_xy_m[1]])
-    for sign in (1.0, -1.0):
-        before = x[:2].copy()
-        x[:2] = before + sign * world_shift
-        if min(plant.clearance_m(t_s, robot_radius_m, field_m)) >= 0.05:
-            return True
-        x[:2] = before
-    return False
 
 
 # --------------------------------------------------------------------------- the pipeline

@@ -5,8 +5,11 @@ commands exactly (``slamkit.models.diff_drive.motion``) while its wheel odometry
 Gaussian noise and its lidar sees the map and the moving discs (ray cast, then corrupted by the
 beam-model mixture as in :mod:`slamkit.sim.grid_world`).
 
-Scenarios (start, goal, the path they were drawn with, obstacles timed on it) are drawn in
-:mod:`slamkit.experiments.navigation`, which may plan (this layer may not).
+Start and goal draws (:func:`start_goal_draws`, :func:`passage_draws`) live here; they take the
+route between the two poses from the caller's planner (``route``: this layer may not plan), and
+:mod:`slamkit.experiments.navigation` (and local planning's scenarios) compose map, costmap,
+planner and crossing traffic into a scenario. :meth:`NavigationPlant.kidnap` shifts the true
+robot (the kidnapped-robot test).
 
 ``NavigationPlant.advance(command, dt)`` moves the truth and returns the odometry event of that
 period; ``scan(t)`` the lidar event at the current pose. The truth is ``plant.world_xytheta_body``.
@@ -16,12 +19,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any, Callable, Iterator
 
 import numpy as np
 
 from slamkit.data.sequence import Odometry, Scan
 from slamkit.errors import ConfigError
-from slamkit.maps.generators import OfficeConfig, PassageHallConfig, WarehouseConfig, office, passage_hall, warehouse
+from slamkit.maps.generators import (OfficeConfig, PassageHallConfig, WarehouseConfig, office, passage_hall,
+                                     random_free_poses, warehouse)
 from slamkit.maps.occupancy_grid import OccupancyGrid
 from slamkit.maps.raycast import RayCaster, cast_circles
 from slamkit.models.diff_drive import motion
@@ -152,3 +157,52 @@ class NavigationPlant:
             d_moving = float((np.linalg.norm(centres - xy, axis=1) - obs.radius_m).min())
             d_moving -= robot_radius_m
         return d_static, d_moving
+
+    def kidnap(self, shift_xy_m: np.ndarray, t_s: float, robot_radius_m: float, distance_m: np.ndarray) -> bool:
+        """Shift the true robot by ``shift_xy_m`` (in its body frame), or by the opposite shift if
+        that lands in a wall; True when one of them was free (>= 0.05 m clearance, ``distance_m``
+        the map's distance field as in :meth:`clearance_m`) and applied."""
+        x = self.world_xytheta_body
+        c, s = math.cos(x[2]), math.sin(x[2])
+        world_shift = np.array([c * shift_xy_m[0] - s * shift_xy_m[1], s * shift_xy_m[0] + c * shift_xy_m[1]])
+        for sign in (1.0, -1.0):
+            before = x[:2].copy()
+            x[:2] = before + sign * world_shift
+            if min(self.clearance_m(t_s, robot_radius_m, distance_m)) >= 0.05:
+                return True
+            x[:2] = before
+        return False
+
+
+#: the caller's planner between two points: ``route(start_xy, goal_xy)`` -> a result with
+#: ``solved``, ``length_m`` and ``path`` (slamkit.planning's PlanResult)
+Route = Callable[[np.ndarray, np.ndarray], Any]
+
+
+def start_goal_draws(grid: OccupancyGrid, rng: np.random.Generator, route: Route, robot_radius_m: float,
+                     distance_m: tuple[float, float], attempts: int) -> Iterator[tuple[np.ndarray, Any]]:
+    """Yield (poses (2, 3), route result) for start/goal pairs drawn in free space at least 0.5 m
+    beyond the robot's radius from walls, ``distance_m`` apart, with a route at most twice the
+    longest distance (up to ``attempts`` draws)."""
+    for _attempt in range(attempts):
+        poses = random_free_poses(grid, rng, 2, clearance_m=robot_radius_m + 0.5)
+        d = float(np.linalg.norm(poses[0, :2] - poses[1, :2]))
+        if not distance_m[0] <= d <= distance_m[1]:
+            continue
+        res = route(poses[0, :2], poses[1, :2])
+        if res.solved and res.length_m <= 2.0 * distance_m[1]:
+            yield poses, res
+
+
+def passage_draws(grid: OccupancyGrid, rng: np.random.Generator, route: Route, attempts: int
+                  ) -> Iterator[tuple[np.ndarray, Any]]:
+    """Start and goal on either side of the passage hall's partition (1-2.5 m from the end
+    walls, 1.2 m from the side walls), with the route between them."""
+    w, h = grid.width * grid.resolution_m, grid.height * grid.resolution_m
+    for _attempt in range(attempts):
+        x = rng.uniform(1.0, 2.5, 2)
+        y = rng.uniform(1.2, h - 1.2, 2)
+        poses = np.array([[x[0], y[0], 0.0], [w - x[1], y[1], rng.uniform(-np.pi, np.pi)]])
+        res = route(poses[0, :2], poses[1, :2])
+        if res.solved:
+            yield poses, res
