@@ -24,8 +24,14 @@ per scan along the log.
 
 ``run(config, folder, progress, observer=None)`` is the pipeline kind; the observer (the Rerun
 recorder, ``slamkit.viz.lidar_slam``) gets ``on_step`` per keyframe (when it ``wants_steps``)
-and, from the runner, ``on_output`` with the ``PipelineOutput`` whose ``payload`` is the list of
-:class:`LidarSlamResult` of every run.
+with a :class:`LidarSlamSnapshot` as the state and, from the runner, ``on_output`` with the
+``PipelineOutput`` whose ``payload`` is the list of :class:`LidarSlamResult` of every run.
+
+Where things live (issue 30): the config model :class:`LidarSlamPipeline` is at the end of this
+module; ``slam``, ``mcl`` and ``logs`` entries become LidarSlamConfig, :class:`MclCheckConfig` and
+:class:`LogEntry` through :func:`slamkit.config.build`; worlds are grid scenarios
+(:func:`slamkit.sim.scenario.scenario_from_dict`); keyframe ATE is
+:func:`slamkit.metrics.score_trajectory`'s.
 """
 
 from __future__ import annotations
@@ -480,39 +486,44 @@ def _localize_once(result: LidarSlamResult, sequence: Sequence, config: MclCheck
 
 @dataclass(frozen=True)
 class LogEntry:
-    """A recorded log: its name, the recording (a registry name or a file), the relations file
-    it is scored on (None: unscored) and, optionally, only its first ``duration_s`` seconds."""
+    """A ``logs`` item: the recording ``path`` (a CARMEN log, a .slamseq file, a ROS 1 .bag, a
+    ROS 2 bag folder or a registry name such as ``intel-log``), its ``name`` ("": the file's
+    stem, or the registry name without ``-log``), the ``relations`` file it is scored on (None:
+    unscored, or the registry's for a registry log), optionally only its first ``duration_s``
+    seconds, and the topics that choose a bag's scans and odometry when it has several of a
+    type. Built from the config by :func:`slamkit.config.build` (:func:`log_entry`)."""
 
-    name: str
-    source: str
-    relations: str | None
+    path: str
+    name: str = ""
+    relations: str | None = None
     duration_s: float | None = None
     scan_topic: str | None = None
     odom_topic: str | None = None
 
+    def __post_init__(self) -> None:
+        target = registry.recording_source(str(self.path))
+        name, rel = self.name, self.relations
+        if isinstance(target, Path):
+            name = name or target.name.split(".")[0]
+        else:
+            name = name or target.name.removesuffix("-log")
+            if rel is None:
+                rel = registry.relations_of(target.name)
+        object.__setattr__(self, "path", str(self.path))
+        object.__setattr__(self, "name", str(name))
+        object.__setattr__(self, "relations", None if rel is None else str(rel))
+        if self.duration_s is not None:
+            object.__setattr__(self, "duration_s", float(self.duration_s))
 
-def log_entry(raw: str | Mapping[str, Any]) -> LogEntry:
-    """A ``logs`` item: a registry name (``intel-log``; its relations come from the registry) or
-    ``{name, path, relations, duration_s, scan_topic, odom_topic}`` (``path`` a CARMEN log, a
-    .slamseq file, a ROS 1 .bag, a ROS 2 bag folder or a registry name; the topics choose a
-    bag's scans and odometry when it has several of a type)."""
-    if isinstance(raw, str):
-        raw = {"path": raw}
-    raw = dict(raw)
-    if "path" not in raw:
-        raise ConfigError("lidar_slam.logs: an entry is a registry name or {name, path, relations}")
-    target = registry.recording_source(str(raw["path"]))
-    rel = raw.get("relations")
-    if isinstance(target, Path):
-        name = str(raw.get("name") or target.name.split(".")[0])
-    else:
-        name = str(raw.get("name") or target.name.removesuffix("-log"))
-        if rel is None:
-            rel = registry.relations_of(target.name)
-    duration = raw.get("duration_s")
-    return LogEntry(name, str(raw["path"]), None if rel is None else str(rel),
-                    None if duration is None else float(duration),
-                    raw.get("scan_topic"), raw.get("odom_topic"))
+    @property
+    def source(self) -> str:
+        """The recording as given (``path``)."""
+        return self.path
+
+
+def log_entry(raw: str | Mapping[str, Any], where: str = "lidar_slam.logs") -> LogEntry:
+    """A ``logs`` item: a registry name (``intel-log``) or a mapping of :class:`LogEntry` fields."""
+    return build(LogEntry, {"path": raw} if isinstance(raw, str) else raw, where)
 
 
 def first_seconds(sequence: Sequence, duration_s: float) -> Sequence:
@@ -533,7 +544,8 @@ def run(config: Mapping[str, Any], folder, progress, observer=None):
     once per robust kernel (``robust_variants``) and motion prior (``motion_priors``); with an
     ``mcl`` mapping (fields of :class:`MclCheckConfig`) also global localization on each map
     built in a simulated world."""
-    worlds, logs = config.get("worlds") or [], [log_entry(x) for x in config.get("logs") or []]
+    worlds = config.get("worlds") or []
+    logs = [log_entry(x, f"lidar_slam.logs[{k}]") for k, x in enumerate(config.get("logs") or [])]
     if not worlds and not logs:
         raise ConfigError("lidar_slam: 'worlds' (grid scenario mappings) or 'logs' (laser logs) must "
                           "list at least one entry")
