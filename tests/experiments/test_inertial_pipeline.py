@@ -10,7 +10,7 @@ import pytest
 import yaml
 
 from slamkit.data import registry as datasets
-from slamkit.experiments.filter_vs_smoother import assemble, parse_scenarios, run_monte_carlo
+from slamkit.experiments.filter_vs_smoother import assemble, scenarios_of, run_monte_carlo
 from slamkit.experiments.pipeline import run_pipeline
 from slamkit.viz.pipelines import observer_for
 
@@ -56,7 +56,7 @@ def test_shipped_inertial_pipeline_is_valid() -> None:
 
     config = yaml.safe_load((ROOT / "pipelines" / "filter_vs_smoother_inertial.yaml").read_text())
     check_pipeline(config)
-    assert [s.name for s in parse_scenarios(config)] == ["car3d", "kitti_outage10s", "kitti_outage30s",
+    assert [s.name for s in scenarios_of(config)] == ["car3d", "kitti_outage10s", "kitti_outage30s",
                                                          "kitti_outage60s"]
 
 

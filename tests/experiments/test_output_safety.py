@@ -120,13 +120,13 @@ def test_default_out_is_runs_slash_name(tmp_path, toy, monkeypatch) -> None:
 
 
 def test_scenario_names_and_estimator_labels_must_be_plain(tmp_path) -> None:
-    from slamkit.experiments.filter_vs_smoother import parse_estimators, parse_scenarios
+    from slamkit.experiments.filter_vs_smoother import estimators_of, scenarios_of
     from slamkit.sim.scenario import scenario_from_dict
 
     with pytest.raises(ConfigError, match=r"scenarios\[0\]: name '\.\./\.\./x/scen' cannot be used as a file name"):
-        parse_scenarios({"scenarios": [{"preset": "mild", "name": "../../x/scen"}]})
+        scenarios_of({"scenarios": [{"preset": "mild", "name": "../../x/scen"}]})
     with pytest.raises(ConfigError, match=r"estimator label '\.\./\.\./x/est' cannot be used as a file name"):
-        parse_estimators({"estimators": {"../../x/est": {"type": "ekf"}}})
+        estimators_of({"estimators": {"../../x/est": {"type": "ekf"}}})
     with pytest.raises(ConfigError, match=r"office.yaml: name '\.\./\.\./x/scen' cannot be used"):
         scenario_from_dict({"kind": "grid", "name": "../../x/scen"}, "office.yaml")
 

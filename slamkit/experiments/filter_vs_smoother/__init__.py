@@ -37,7 +37,7 @@ Output: ``results.json`` (runs + mean and 95% CI per scenario x estimator x metr
 per scenario, the first seed's sequence, runs and error series.
 
 Modules, each readable on its own (issue 18 split the former 480-line module):
-:mod:`.config` (parsing the checked config into frozen values), :mod:`.monte_carlo` (sequences,
+:mod:`.config` (the config model, and the checked config built into frozen values), :mod:`.monte_carlo` (sequences,
 tasks, the process pool; which seeds an observer sees live), :mod:`.score` (Monte-Carlo NEES
 consistency, the payload), :mod:`.report` (Markdown and plots). This module composes them into
 the :class:`~slamkit.experiments.pipeline.Pipeline` ``PIPELINE``.
@@ -49,10 +49,8 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from slamkit.experiments.filter_vs_smoother.config import (NAME, EstimatorChoice, FilterVsSmootherPipeline,
-                                                            ScenarioSpec,
-                                                            default_workers, parse_estimators,
-                                                            parse_scenarios, parse_seeds,
-                                                            parse_workers)
+                                                            ScenarioSpec, default_workers, estimators_of,
+                                                            scenarios_of, seeds_of, workers_of)
 from slamkit.experiments.filter_vs_smoother.monte_carlo import (Task, TaskResult, build_sequence,
                                                                  run_monte_carlo, run_task)
 from slamkit.experiments.filter_vs_smoother.report import plot_all, report_markdown
@@ -66,8 +64,8 @@ from slamkit.experiments.results import ResultsFolder, paired_comparisons, summa
 __all__ = [
     "DEGENERATE_VERDICT_LIMIT", "EstimatorChoice", "FilterVsSmootherPayload", "NeesCurve", "PIPELINE",
     "ScenarioOutcome", "ScenarioSpec", "Task", "TaskResult", "assemble", "build_sequence",
-    "consistency_table", "default_workers", "nees_verdict", "parse_estimators", "parse_scenarios",
-    "parse_seeds", "parse_workers", "plot_all", "report_markdown", "run", "run_monte_carlo", "run_task",
+    "consistency_table", "default_workers", "estimators_of", "nees_verdict", "scenarios_of",
+    "seeds_of", "workers_of", "plot_all", "report_markdown", "run", "run_monte_carlo", "run_task",
 ]
 
 

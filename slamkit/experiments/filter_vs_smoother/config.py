@@ -1,9 +1,12 @@
-"""The ``filter_vs_smoother`` config: scenarios, estimators, seeds and workers as frozen values.
+"""The ``filter_vs_smoother`` config: its pydantic model and the frozen values the runs use.
 
-The pydantic model (:class:`slamkit.experiments.config_models.FilterVsSmootherPipeline`) has
-already refused malformed configs before the pipeline runs; these parsers turn the checked
-mapping into the values the Monte-Carlo runs use (and give the same errors to callers that
-bypass the model, such as notebooks).
+The model (:class:`FilterVsSmootherPipeline`, at the end of this module) refuses malformed
+configs before the pipeline runs, naming file and line. :func:`scenarios_of` and
+:func:`estimators_of` turn the checked mapping into :class:`ScenarioSpec` and
+:class:`EstimatorChoice` values with :func:`slamkit.config.build` (the entries' own rules --
+exactly one source, a known preset, plain names, a registered estimator -- are the dataclasses',
+checked once for the config check and the run alike; callers that bypass the model, such as
+notebooks, get the same errors); :func:`seeds_of` and :func:`workers_of` read the two scalars.
 """
 
 from __future__ import annotations
@@ -113,7 +116,7 @@ def scenario_entries(raw: Any) -> list[dict[str, Any]]:
             for item in raw or []]
 
 
-def parse_scenarios(config: Mapping[str, Any]) -> list[ScenarioSpec]:
+def scenarios_of(config: Mapping[str, Any]) -> list[ScenarioSpec]:
     """The ``scenarios`` of a config (:func:`scenario_entries`, each built by
     :func:`slamkit.config.build`); their names are unique."""
     raw = config.get("scenarios")
@@ -143,7 +146,7 @@ def estimator_items(raw: Any) -> list[tuple[str, dict[str, Any]]]:
     return items
 
 
-def parse_estimators(config: Mapping[str, Any]) -> list[EstimatorChoice]:
+def estimators_of(config: Mapping[str, Any]) -> list[EstimatorChoice]:
     """The ``estimators`` of a config, each built by :func:`slamkit.config.build`."""
     raw = config.get("estimators")
     if not raw:
@@ -158,7 +161,7 @@ def parse_estimators(config: Mapping[str, Any]) -> list[EstimatorChoice]:
     return out
 
 
-def parse_seeds(config: Mapping[str, Any]) -> list[int]:
+def seeds_of(config: Mapping[str, Any]) -> list[int]:
     """The run's seeds (one rule for every pipeline: :func:`config_models.seed_list`)."""
     return seed_list(config.get("seeds", 1))
 
@@ -167,7 +170,7 @@ def default_workers() -> int:
     return max(1, min(2, os.cpu_count() or 1))
 
 
-def parse_workers(config: Mapping[str, Any]) -> int:
+def workers_of(config: Mapping[str, Any]) -> int:
     """Local processes for the seeds after the first (1: everything in this process)."""
     workers = int(config.get("workers", default_workers()))
     if workers < 1:

@@ -31,8 +31,8 @@ from slamkit.errors import ConfigError, EstimationError
 from slamkit.experiments.estimators import factory, spec
 from slamkit.experiments.executors import LocalExecutor, TaskFailure
 from slamkit.experiments.filter_vs_smoother.config import (INERTIAL_PRESETS, NAME, EstimatorChoice,
-                                                            ScenarioSpec, parse_estimators,
-                                                            parse_scenarios, parse_seeds, parse_workers)
+                                                            ScenarioSpec, estimators_of,
+                                                            scenarios_of, seeds_of, workers_of)
 from slamkit.experiments.observers import PipelineObserver
 from slamkit.experiments.perturbation import perturbation_config, twin_params, twin_suffix
 from slamkit.experiments.results import RunRecord
@@ -160,10 +160,10 @@ def run_monte_carlo(config: Mapping[str, Any], trajectories_dir: Path | None = N
                     ) -> tuple[list[TaskResult], list[ScenarioSpec], list[EstimatorChoice]]:
     """Every scenario x seed (datasets once); the first seed of every scenario runs in this
     process with ``observer`` (and keeps its sequence and estimates), the rest in the pool."""
-    scenarios = parse_scenarios(config)
-    choices = tuple(parse_estimators(config))
-    seeds = parse_seeds(config)
-    workers = parse_workers(config)
+    scenarios = scenarios_of(config)
+    choices = tuple(estimators_of(config))
+    seeds = seeds_of(config)
+    workers = workers_of(config)
     tdir = None if trajectories_dir is None else str(trajectories_dir)
     twins = perturbation_config(config)
     tasks = [Task(s, seed, s.estimator_choices(list(choices)), tdir, keep_full=(k == 0 and twin == 0),
