@@ -44,7 +44,6 @@ from slamkit.control.protocols import (ControlOutput, ControlStatus, Controller,
 from slamkit.control.registry import CONTROLLERS, make_controller
 from slamkit.config import STRICT, YamlDocument, build, model_of, validate
 from slamkit.errors import ConfigError
-from slamkit.naming import suggestion
 from slamkit.experiments.config_models import PipelineConfig, Seeds, _nested, seed_list
 from slamkit.experiments.observers import PipelineObserver, StepSnapshot
 from slamkit.experiments.pipeline import Pipeline, PipelineOutput, StepProgress
@@ -54,6 +53,7 @@ from slamkit.maps.distance_field import distance_field_m
 from slamkit.maps.inflation import costmap
 from slamkit.maps.occupancy_grid import OccupancyGrid
 from slamkit.models.diff_drive import motion
+from slamkit.naming import suggestion
 from slamkit.planning.astar import AStarPlanner
 from slamkit.planning.grid_search import costmap_to_cell_cost
 from slamkit.planning.protocols import PlanningProblem

@@ -66,11 +66,12 @@ from slamkit.maps.occupancy_grid import OccupancyGrid
 from slamkit.planning.astar import AStarPlanner
 from slamkit.planning.grid_search import costmap_to_cell_cost
 from slamkit.planning.protocols import PlanningProblem
-from slamkit.sim.social_force import crossing_traffic
 from slamkit.sim.navigation_world import (WORLDS, NavigationPlant, NavigationScenario, passage_draws, start_goal_draws,
                                          world_map)
+from slamkit.sim.social_force import crossing_traffic
 from slamkit.systems.navigation import (MOVED_FIELDS, CommandStatus, NavigationCommand, NavigationConfig,
                                         NavigationStack, layer_timing_summary)
+
 
 def make_navigation_scenario(seed: int, kind: str, willow_yaml: str | None = None,
                              robot_radius_m: float = 0.2, distance_m: tuple[float, float] = (6.0, 14.0),

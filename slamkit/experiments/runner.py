@@ -49,13 +49,13 @@ from slamkit.data.estimate import (BatchEstimator, Estimate, Estimator, LatestBe
 from slamkit.data.sequence import RangeBearing, Sequence
 from slamkit.data.trajectory import Trajectory
 from slamkit.errors import DataError, SlamkitError
+from slamkit.experiments.estimators import EstimatorFactory, prior_of
 from slamkit.experiments.observers import BeliefSnapshot, PipelineObserver, StepSnapshot
 from slamkit.geometry import so3
 from slamkit.geometry.angles import wrap_angle
 from slamkit.metrics.alignment import associate, umeyama
 from slamkit.metrics.consistency import chi2_band, nees_or_nan
 from slamkit.metrics.trajectory_score import score_trajectory
-from slamkit.experiments.estimators import EstimatorFactory, prior_of
 
 #: RPE segment length (m of travelled path)
 RPE_DELTA_M = 1.0
