@@ -31,9 +31,8 @@ from slamkit.experiments.config_models import PoseGraphPipeline
 from slamkit.experiments.observers import PipelineObserver
 from slamkit.experiments.pipeline import Pipeline, PipelineOutput, StepProgress
 from slamkit.experiments.results import ResultsFolder, RunRecord, check_output_folder, check_replace, markdown_table
-from slamkit.metrics.alignment import associate
-from slamkit.metrics.ate import ate
 from slamkit.metrics.evaluate import trajectory_from_pose_graph
+from slamkit.metrics.trajectory_score import ate_paired_by_stamp
 
 
 @dataclass(frozen=True)
@@ -105,14 +104,6 @@ class OptimizeReport:
 
 def _with_poses(graph: PoseGraph, poses: np.ndarray) -> PoseGraph:
     return replace(graph, poses=poses, has_initial=True)
-
-
-def ate_against(ground_truth: Trajectory, estimate: Trajectory) -> tuple[float, str]:
-    """ATE RMSE (m) after SE(2) alignment for planar graphs, SE(3) otherwise; poses are paired
-    by vertex id (the trajectories' stamps)."""
-    pairs = associate(ground_truth, estimate, max_diff_s=0.1)
-    mode = "se2" if ground_truth.planar and estimate.planar else "se3"
-    return float(ate(pairs.ref, pairs.est, mode).translation_m.rmse), mode
 
 
 #: ``certify="auto"`` certifies graphs with at most this many rotation unknowns (d x poses):
@@ -203,7 +194,7 @@ def _solve_and_score(graph, entry, ground_truth, config, keep_iterates, note, t0
         graph=graph, result=result, ground_truth=ground_truth, iterates=tuple(iterates),
     )
     if ground_truth is not None:
-        rmse, mode = ate_against(ground_truth, report.estimate_trajectory())
+        rmse, mode = ate_paired_by_stamp(ground_truth, report.estimate_trajectory())
         report = replace(report, ate_rmse_m=rmse, ate_align=mode)
     skipped = certify_decision(certify_mode, graph, config)
     if skipped is None:

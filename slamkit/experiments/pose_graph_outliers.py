@@ -32,9 +32,9 @@ from slamkit.errors import BackendError
 from slamkit.experiments.config_models import PoseGraphOutliersPipeline
 from slamkit.experiments.observers import PipelineObserver
 from slamkit.experiments.pipeline import Pipeline, PipelineOutput, StepProgress
-from slamkit.experiments.pose_graph import ate_against
 from slamkit.experiments.results import ResultsFolder, RunRecord, markdown_table, summarise
 from slamkit.metrics.evaluate import trajectory_from_pose_graph
+from slamkit.metrics.trajectory_score import ate_paired_by_stamp
 from slamkit.sim.outliers import CorruptedGraph, OutlierConfig, add_outliers
 from slamkit.metrics.outliers import detection_scores
 from slamkit.timing import Stopwatch
@@ -67,7 +67,7 @@ def run(config: Mapping[str, Any], folder: ResultsFolder, progress: StepProgress
             reference = gt if gt is not None else _trajectory(graph, base.poses)
             # without ground truth the reference is the outlier-free optimum itself: its ATE is 0
             # up to rounding (1e-15 m) and a ratio to it means nothing
-            clean_ate = ate_against(reference, _trajectory(graph, base.poses))[0] if gt is not None else 0.0
+            clean_ate = ate_paired_by_stamp(reference, _trajectory(graph, base.poses))[0] if gt is not None else 0.0
             clean[dataset] = (graph, reference, base, clean_ate)
         graph, reference, base, clean_ate = clean[dataset]
         corrupted = (CorruptedGraph(graph, np.zeros(graph.num_edges, bool), OutlierConfig(kind, 0), seed)
@@ -86,9 +86,9 @@ def run(config: Mapping[str, Any], folder: ResultsFolder, progress: StepProgress
                 advance()
                 continue
             est = _trajectory(corrupted.graph, result.poses)
-            ate = ate_against(reference, est)[0]
+            ate = ate_paired_by_stamp(reference, est)[0]
             metrics = {"ate_rmse_m": ate, "ate_ratio": ate / clean_ate if clean_ate > 0 else float("nan"),
-                       "ate_to_clean_rmse_m": ate_against(clean_traj, est)[0],
+                       "ate_to_clean_rmse_m": ate_paired_by_stamp(clean_traj, est)[0],
                        **detection_scores(corrupted.is_outlier, result.inlier),
                        "iterations": float(result.iterations), "time_solve_s": result.time_solve_s,
                        "failed": 0.0}

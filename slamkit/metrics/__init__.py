@@ -43,12 +43,12 @@ from slamkit.metrics.evaluate import (
 from slamkit.metrics.kitti_drift import KittiDriftResult, kitti_drift
 from slamkit.metrics.rpe import RpeResult, rpe
 from slamkit.metrics.stats import ErrorStats
-from slamkit.metrics.trajectory_score import score_trajectory
+from slamkit.metrics.trajectory_score import ate_paired_by_stamp, score_trajectory
 
 __all__ = [
     "ALIGN_MODES", "AlignmentResult", "Association", "AteResult", "Chi2Band", "ConsistencyResult",
     "ErrorStats", "EvaluationResult", "KittiDriftResult", "RpeResult", "align", "associate", "ate",
-    "ate_rmse_m", "chi2_band", "consistency", "evaluate_files", "evaluate_trajectories",
+    "ate_paired_by_stamp", "ate_rmse_m", "chi2_band", "consistency", "evaluate_files", "evaluate_trajectories",
     "kitti_drift", "load_trajectory", "nees", "nis", "rpe", "score_trajectory", "trajectory_from_pose_graph",
     "transform_trajectory", "umeyama",
 ]

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from slamkit.data.trajectory import Trajectory
 from slamkit.errors import DataError
-from slamkit.metrics.alignment import AlignMode
+from slamkit.metrics.alignment import AlignMode, associate
 from slamkit.metrics.ate import ate
 from slamkit.metrics.kitti_drift import kitti_drift
 from slamkit.metrics.rpe import DeltaUnit, rpe
@@ -68,3 +68,13 @@ def score_trajectory(ref: Trajectory, est: Trajectory, align: AlignMode = "se3",
         out[f"drift_percent{drift_suffix}"] = float(drift.translation_percent)
         out[f"drift_deg_per_100m{drift_suffix}"] = float(drift.rotation_deg_per_100m)
     return out
+
+
+def ate_paired_by_stamp(reference: Trajectory, estimate: Trajectory, max_diff_s: float = 0.1) -> tuple[float, str]:
+    """``ate_rmse_m`` of :func:`score_trajectory` (no RPE) with the poses paired by stamp
+    (within ``max_diff_s``; a pose graph's vertex ids) and the alignment that removes what a
+    pose graph cannot observe: SE(2) when both trajectories are planar, SE(3) otherwise; returns
+    (ATE RMSE in m, the alignment)."""
+    pairs = associate(reference, estimate, max_diff_s=max_diff_s)
+    mode: AlignMode = "se2" if reference.planar and estimate.planar else "se3"
+    return score_trajectory(pairs.ref, pairs.est, mode, rpe_delta=None)["ate_rmse_m"], mode

@@ -9,7 +9,7 @@ import pytest
 
 from slamkit.backend.robust import ROBUST_BACKENDS, RobustSolveConfig, solve_robust
 from slamkit.errors import ConfigError
-from slamkit.experiments.pose_graph import ate_against
+from slamkit.metrics.trajectory_score import ate_paired_by_stamp
 from slamkit.experiments.pose_graph_outliers import _trajectory
 from slamkit.metrics.outliers import detection_scores
 from slamkit.sim.outliers import OutlierConfig, add_outliers
@@ -23,7 +23,7 @@ def _ring(shared_datasets):
 
 
 def _ate(gt, graph, poses) -> float:
-    return ate_against(gt, _trajectory(graph, poses))[0]
+    return ate_paired_by_stamp(gt, _trajectory(graph, poses))[0]
 
 
 def test_detection_scores_worked_example():

@@ -61,7 +61,7 @@ def _goal(dataset: str, backend: str):
     import numpy as np
 
     from slamkit.data import registry
-    from slamkit.experiments.pose_graph import ate_against
+    from slamkit.metrics.trajectory_score import ate_paired_by_stamp
     from slamkit.experiments.pose_graph_outliers import _solve, _trajectory
     from slamkit.metrics.outliers import detection_scores
     from slamkit.sim.outliers import OutlierConfig, add_outliers
@@ -71,8 +71,8 @@ def _goal(dataset: str, backend: str):
     clean = _solve(graph, "none", {})
     bad = add_outliers(graph, OutlierConfig(kind="random", count=1000), np.random.default_rng(0), 0)
     result = _solve(bad.graph, backend, {})
-    ratio = (ate_against(gt, _trajectory(bad.graph, result.poses))[0]
-             / ate_against(gt, _trajectory(graph, clean.poses))[0])
+    ratio = (ate_paired_by_stamp(gt, _trajectory(bad.graph, result.poses))[0]
+             / ate_paired_by_stamp(gt, _trajectory(graph, clean.poses))[0])
     return ratio, detection_scores(bad.is_outlier, result.inlier)
 
 

@@ -9,7 +9,7 @@ import pytest
 from slamkit.data.trajectory import Trajectory
 from slamkit.errors import DataError
 from slamkit.geometry import so3
-from slamkit.metrics import ate, kitti_drift, rpe, score_trajectory
+from slamkit.metrics import ate, ate_paired_by_stamp, kitti_drift, rpe, score_trajectory
 
 
 def helix(n: int = 50) -> Trajectory:
@@ -78,3 +78,20 @@ def test_ate_only_when_rpe_delta_is_none():
     s = score_trajectory(ref, est, "none", rpe_delta=None)
     assert set(s) == {"ate_rmse_m", "ate_rot_rmse_rad"}
     assert s["ate_rmse_m"] == pytest.approx(0.5)
+
+
+def test_ate_paired_by_stamp_aligns_planar_in_se2_and_pairs_by_stamp():
+    k = np.arange(40.0)
+    ref = Trajectory.from_se2(k, np.column_stack([np.cos(0.2 * k) * 5, np.sin(0.2 * k) * 5, 0.2 * k + np.pi / 2]))
+    # every other pose, rotated 0.3 rad and shifted, with 0.1 m of error along x on pose 10
+    xy = ref.xytheta()[::2].copy()
+    xy[5, 0] += 0.1
+    c, s = np.cos(0.3), np.sin(0.3)
+    moved = np.column_stack([c * xy[:, 0] - s * xy[:, 1] + 2.0, s * xy[:, 0] + c * xy[:, 1] - 1.0, xy[:, 2] + 0.3])
+    rmse, mode = ate_paired_by_stamp(ref, Trajectory.from_se2(k[::2], moved))
+    assert mode == "se2"
+    assert rmse == pytest.approx(score_trajectory(Trajectory.from_se2(k[::2], ref.xytheta()[::2]),
+                                                  Trajectory.from_se2(k[::2], moved), "se2")["ate_rmse_m"])
+    assert 0.0 < rmse < 0.1 / np.sqrt(20)          # the one error, shared out by the alignment
+    _, mode3 = ate_paired_by_stamp(helix(), helix())
+    assert mode3 == "se3"
