@@ -27,6 +27,7 @@ from scipy.stats import chi2
 from slamkit.errors import ConfigError
 from slamkit.frontend.branch_and_bound import BranchAndBoundConfig
 from slamkit.frontend.icp import IcpConfig, IcpResult, IcpTarget, icp
+from slamkit.frontend.scan_context import ScanContextConfig
 from slamkit.geometry import se2
 
 
@@ -99,6 +100,12 @@ class LoopClosureConfig:
     #: 0-0.29) nor the branch-and-bound score separated them as well
     global_far_m: float = 0.3
     global_far_min_fitness: float = 0.85
+    #: place recognition (``slamkit.frontend.scan_context``) as a candidate source beyond any
+    #: window: at a keyframe where neither the local search nor the region closed a loop, the
+    #: Scan Context matches among the keyframes at least ``min_path_gap_m`` back are matched by
+    #: branch and bound around the place and the descriptor's yaw, then verified as a far global
+    #: closure (ICP fitness >= ``global_far_min_fitness``) with no region test (None: off)
+    scan_context: ScanContextConfig | None = None
 
     def __post_init__(self) -> None:
         if not self.search_radius_m > 0:
@@ -152,14 +159,20 @@ def loop_candidates(world_xytheta_keyframes: np.ndarray, config: LoopClosureConf
     return pairs[rank < config.max_candidates_per_keyframe]
 
 
+#: where a closure's candidate came from: the fixed radius, the drift region, place recognition
+LOOP_SOURCES = ("local", "region", "place")
+
+
 @dataclass(frozen=True)
 class LoopClosure:
-    """An accepted closure: ``i_T_j`` with its ICP result (covariance in the right tangent)."""
+    """An accepted closure: ``i_T_j`` with its ICP result (covariance in the right tangent) and
+    the candidate's ``source`` (``LOOP_SOURCES``)."""
 
     i: int
     j: int
     i_T_j: np.ndarray
     result: IcpResult
+    source: str = "local"
 
 
 def verify_loop(points_i: np.ndarray | IcpTarget, points_j: np.ndarray, guess_i_T_j: np.ndarray,

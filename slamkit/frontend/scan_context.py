@@ -54,8 +54,23 @@ class ScanContextConfig:
     #: nearest ring keys compared by the full distance (the paper: 10)
     num_candidates: int = 10
     #: candidates above this distance are not places revisited (the reference: 0.13 alone,
-    #: 0.4-0.6 when a geometric check follows, as here)
-    max_distance: float = 0.4
+    #: 0.4-0.6 when a geometric check follows). 0.2: on the hospital log (odometry, with the drift
+    #: region's filter) 321 candidates, the 3 that fit (ICP fitness 0.81-0.87) at 0.07-0.20
+    max_distance: float = 0.2
+    #: as a loop-closure candidate source (``slamkit.systems.lidar_slam``): a keyframe is described
+    #: by the scans of the keyframes within its last ``submap_path_m`` of travel (at most
+    #: ``submap_max_keyframes`` of them, evenly spread) stacked in its frame at their chained
+    #: scan-match poses -- a 2D laser sees half the circle at once, and a corridor travelled the
+    #: other way is seen from behind; the best ``max_candidates_per_keyframe`` matches are tried,
+    #: each by branch and bound within +-``window_xy_m`` of the matched place and
+    #: +-``window_theta_rad`` of the descriptor's yaw (two sectors: the yaw is within one)
+    submap_path_m: float = 6.0
+    submap_max_keyframes: int = 16
+    max_candidates_per_keyframe: int = 1
+    window_xy_m: float = 2.0
+    window_theta_rad: float = float(np.deg2rad(12.0))
+    #: a candidate must lie inside this probability's drift region (``DriftRegion``, uncapped)
+    region_probability: float = 0.99
 
     def __post_init__(self) -> None:
         if self.num_rings < 1 or self.num_sectors < 4:
@@ -66,6 +81,13 @@ class ScanContextConfig:
             raise ConfigError(f"ScanContextConfig.max_radius_m must be > 0, got {self.max_radius_m}")
         if self.num_candidates < 1:
             raise ConfigError("ScanContextConfig.num_candidates must be >= 1")
+        if not self.submap_path_m >= 0 or self.submap_max_keyframes < 1 or self.max_candidates_per_keyframe < 0:
+            raise ConfigError("ScanContextConfig: submap_path_m must be >= 0, submap_max_keyframes >= 1 and "
+                              "max_candidates_per_keyframe >= 0")
+        if not 0 < self.region_probability < 1:
+            raise ConfigError(f"ScanContextConfig.region_probability must lie in (0, 1), got {self.region_probability}")
+        if not (self.window_xy_m >= 0 and 0 <= self.window_theta_rad <= np.pi):
+            raise ConfigError("ScanContextConfig: window_xy_m must be >= 0 and window_theta_rad in [0, pi]")
         if not 0 < self.max_distance <= 1:
             raise ConfigError(f"ScanContextConfig.max_distance must lie in (0, 1], got {self.max_distance}")
 

@@ -37,7 +37,12 @@ graph-based SLAM", IEEE ITS Magazine 2010; the local/global split of Cartographe
    (``loops.max_global_candidates_per_keyframe``, within ``loops.max_search_radius_m``) are
    matched globally: branch and bound over the region's window (metres, tens of degrees;
    ``slamkit.frontend.branch_and_bound``), its optimum seeding the same ICP verification, and the
-   closure kept only if it lies inside the region. Accepted closures enter the graph with the
+   closure kept only if it lies inside the region. When still none is accepted and
+   ``loops.scan_context`` is set (off by default), place recognition proposes candidates beyond
+   any window: keyframe j's Scan Context (``slamkit.frontend.scan_context``; the scans of its
+   last few metres stacked in its frame) against every earlier keyframe's, among those the drift
+   region (uncapped) admits, matched by branch and bound around the place and the descriptor's
+   yaw and verified by ICP like a far global closure. Accepted closures enter the graph with the
    ``robust`` kernel (Cauchy by default), so a wrong one that slipped through is bounded.
 4. The graph is solved incrementally with iSAM2 (``slamkit.backend.Isam2PoseGraph``) at every
    keyframe. ``finish()`` runs ``loop_rounds`` more rounds of loop search over all keyframe pairs
@@ -71,6 +76,7 @@ from slamkit.frontend.branch_and_bound import MaxGridPyramid, branch_and_bound_s
 from slamkit.frontend.loop_closure import (DriftRegion, LoopClosure, LoopClosureConfig, chi2_quantile, loop_candidates,
                                           verify_loop)
 from slamkit.frontend.preprocess import despeckle, voxel_downsample
+from slamkit.frontend.scan_context import ScanContextDatabase, scan_context
 from slamkit.geometry import se2
 from slamkit.maps.log_odds import LogOddsConfig, LogOddsMap
 from slamkit.maps.occupancy_grid import OccupancyGrid
@@ -273,6 +279,10 @@ class LidarSlam:
         self._loops: list[LoopClosure] = []
         self._region = DriftRegion(config.loops)
         self._pyramids: dict[int, MaxGridPyramid] = {}   # global-match targets by keyframe, newest last
+        sc = config.loops.scan_context
+        self._places = ScanContextDatabase(sc) if sc is not None else None
+        #: every place-recognition candidate tried: (i, j, descriptor distance, yaw (rad), accepted)
+        self.place_candidates: list[tuple[int, int, float, float, bool]] = []
         self._tried: set[tuple[int, int]] = set()
         self._injected: list[tuple[int, int]] = []
         self._edge_kind: list[str] = []
@@ -287,7 +297,8 @@ class LidarSlam:
                          "wide_searches": 0, "correlative_searches": 0, "correlative_wins": 0, "loop_closures_rejected": 0,
                          "loop_candidates_global": 0, "loop_closures_global": 0,
                          "loop_global_correction_max_m": 0.0, "odometry_checks": 0, "odometry_check_wins": 0,
-                         "isam2_qr_fallbacks": 0, "loop_global_far_rejected": 0}
+                         "isam2_qr_fallbacks": 0, "loop_global_far_rejected": 0, "loop_candidates_place": 0,
+                         "loop_closures_place": 0}
 
     # ---- streaming ---------------------------------------------------------------------------
 
@@ -613,8 +624,77 @@ class LidarSlam:
                 self.counters["loop_closures_global"] += 1
                 found += 1
                 break
+        if self._places is not None:
+            descriptor = self._describe(j)
+            if not found:
+                found += self._close_place_at(j, descriptor, poses)
+            self._places.add(j, descriptor)
         self.counters["loop_closures_online"] += found
         return found
+
+    def _describe(self, j: int) -> np.ndarray:
+        """Keyframe j's Scan Context: the keyframes within its last ``submap_path_m`` of travel
+        (at most ``submap_max_keyframes``, evenly spread, j always) at their chained scan-match
+        poses, in j's frame."""
+        sc = self.config.loops.scan_context
+        path = np.asarray(self._kf.path_m)
+        first = int(np.searchsorted(path[:j + 1], path[j] - sc.submap_path_m, side="left"))
+        members = np.unique(np.linspace(j, first, min(sc.submap_max_keyframes, j - first + 1)).round().astype(np.int64))
+        fe = self._kf.frontend
+        pts = np.concatenate([se2.transform_points(se2.between(fe[j], fe[m]), self._kf.points[m]) for m in members])
+        return scan_context(pts, sc)
+
+    def _close_place_at(self, j: int, descriptor: np.ndarray, poses: np.ndarray) -> int:
+        """Place recognition's candidates for keyframe j (``loops.scan_context``): the best Scan
+        Context matches among the keyframes at least the index and path gaps back, beyond
+        ``search_radius_m`` in the estimate (nearer, the local search has them) and inside the
+        drift region of ``scan_context.region_probability`` without its cap (a corridor looks
+        the same all along: on the hospital log, of the 1772 keyframes whose best match is within
+        0.2, all but 25 matched a keyframe of the same pass down the same corridor, which the
+        chain puts further away than it can have drifted); each not tried yet is matched
+        globally around the place and the descriptor's yaw, the first verified one kept."""
+        lc = self.config.loops
+        sc = lc.scan_context
+        if sc.max_candidates_per_keyframe == 0 or len(self._places) == 0:
+            return 0
+        path = np.asarray(self._kf.path_m)
+        stored = np.arange(len(self._places))      # keyframes are added in order, one each
+        allowed = (j - stored >= lc.min_index_gap) & (path[j] - path[stored] >= lc.min_path_gap_m)
+        offsets = poses[stored, :2] - poses[j, :2]
+        allowed &= np.hypot(offsets[:, 0], offsets[:, 1]) > lc.search_radius_m
+        if not allowed.any():
+            return 0
+        q = chi2_quantile(sc.region_probability, 2)
+        cand = stored[allowed]
+        cov = self._region.covariances(cand, j) + (lc.search_radius_m ** 2 / q) * np.eye(2)
+        d = offsets[allowed]
+        allowed[cand] = np.einsum("ni,nij,nj->n", d, np.linalg.inv(cov), d) <= q
+        tried = 0
+        for match in self._places.query(descriptor, allowed):
+            i = match.index
+            if (i, j) in self._tried:
+                continue
+            if tried == sc.max_candidates_per_keyframe:
+                break
+            tried += 1
+            closure = self._verify_place(i, j, poses, match.yaw_rad)
+            self.place_candidates.append((i, j, match.distance, match.yaw_rad, closure is not None))
+            if closure is not None:
+                self._accept(closure, poses)
+                self.counters["loop_closures_place"] += 1
+                return 1
+        return 0
+
+    def _verify_place(self, i: int, j: int, poses: np.ndarray, yaw_rad: float) -> LoopClosure | None:
+        """Keyframe j's scan against the submap around i by branch and bound within the place
+        window around (0, 0, ``yaw_rad``) in i's frame -- the estimate says nothing here --
+        then ICP (``verify_loop``) with the far closures' fitness (``global_far_min_fitness``)."""
+        sc = self.config.loops.scan_context
+        res = self._match_global(i, j, poses, np.array([0.0, 0.0, yaw_rad]), sc.window_xy_m, sc.window_theta_rad,
+                                 "loop_candidates_place")
+        if res is None or res.fitness < self.config.loops.global_far_min_fitness:
+            return None
+        return LoopClosure(i, j, res.target_T_source, res, source="place")
 
     def _global_candidates_for(self, j: int, poses: np.ndarray):
         """The uncertainty region's candidates for keyframe j (``DriftRegion``): earlier
@@ -653,32 +733,10 @@ class LidarSlam:
         around the estimate, the optimum seeding ICP (``verify_loop``: fitness, and a correction
         within ``max_correction_m`` of the seed); accepted when the closure's position also lies
         in the region (its correction from the estimate within the chi-square ellipse)."""
-        cfg = self.config
-        lc = cfg.loops
-        pts_j = self._kf.points[j]
-        if min(len(self._kf.points[i]), len(pts_j)) < lc.icp.min_correspondences:
-            return None
-        self._tried.add((i, j))
-        self.counters["loop_candidates_global"] += 1
-        s = cfg.loop_submap_keyframes
-        K = len(self._kf.points)
-        members = range(max(0, i - s), min(K, i + s + 1))
-        target = self._submap_at(i, members, poses, lc.icp)
-        if target is None:
-            return None
-        pyramid = self._pyramids.pop(i, None)
-        if pyramid is None:
-            pyramid = MaxGridPyramid(target.points, lc.global_match(window_xy_m, window_theta_rad))
-        self._pyramids[i] = pyramid
-        while len(self._pyramids) > self.PYRAMID_CACHE:
-            self._pyramids.pop(next(iter(self._pyramids)))
+        lc = self.config.loops
         guess = se2.between(poses[i], poses[j])
-        source = voxel_downsample(pts_j, lc.global_resolution_m)
-        found = branch_and_bound_search(source, pyramid, guess, lc.global_match(window_xy_m, window_theta_rad))
-        if found is None:
-            return None
-        ok, res = verify_loop(target, pts_j, found.target_T_source, lc)
-        if not ok:
+        res = self._match_global(i, j, poses, guess, window_xy_m, window_theta_rad, "loop_candidates_global")
+        if res is None:
             return None
         moved = se2.between(guess, res.target_T_source)
         if np.hypot(moved[0], moved[1]) > lc.global_far_m and res.fitness < lc.global_far_min_fitness:
@@ -694,7 +752,40 @@ class LidarSlam:
         # how far the estimate had drifted from the revisit it found
         self.counters["loop_global_correction_max_m"] = max(self.counters["loop_global_correction_max_m"],
                                                             float(np.hypot(shift[0], shift[1])))
-        return LoopClosure(i, j, res.target_T_source, res)
+        return LoopClosure(i, j, res.target_T_source, res, source="region")
+
+    def _match_global(self, i: int, j: int, poses: np.ndarray, guess: np.ndarray, window_xy_m: float,
+                      window_theta_rad: float, counter: str) -> IcpResult | None:
+        """Branch and bound of keyframe j's scan against the submap around i (at ``poses``) over
+        the window around ``guess`` (i_T_j), its optimum seeding ``verify_loop``; the verified
+        ICP result, or None. Marks (i, j) tried and counts it in ``counter``. The targets'
+        pyramids (which do not depend on the window) are kept for the next candidates at i."""
+        cfg = self.config
+        lc = cfg.loops
+        pts_j = self._kf.points[j]
+        if min(len(self._kf.points[i]), len(pts_j)) < lc.icp.min_correspondences:
+            return None
+        self._tried.add((i, j))
+        self.counters[counter] += 1
+        s = cfg.loop_submap_keyframes
+        K = len(self._kf.points)
+        members = range(max(0, i - s), min(K, i + s + 1))
+        target = self._submap_at(i, members, poses, lc.icp)
+        if target is None:
+            return None
+        match = lc.global_match(window_xy_m, window_theta_rad)
+        pyramid = self._pyramids.pop(i, None)
+        if pyramid is None:
+            pyramid = MaxGridPyramid(target.points, match)
+        self._pyramids[i] = pyramid
+        while len(self._pyramids) > self.PYRAMID_CACHE:
+            self._pyramids.pop(next(iter(self._pyramids)))
+        source = voxel_downsample(pts_j, lc.global_resolution_m)
+        found = branch_and_bound_search(source, pyramid, guess, match)
+        if found is None:
+            return None
+        ok, res = verify_loop(target, pts_j, found.target_T_source, lc)
+        return res if ok else None
 
     def add_constraint(self, i: int, j: int, i_xytheta_j: np.ndarray, information: np.ndarray) -> None:
         """An edge between keyframes ``i`` and ``j`` from outside the system (a user's prior
