@@ -31,7 +31,7 @@ Where things live (issue 30): the config model :class:`LidarSlamPipeline` is at 
 module; ``slam``, ``mcl`` and ``logs`` entries become LidarSlamConfig, :class:`MclCheckConfig` and
 :class:`LogEntry` through :func:`slamkit.config.build`; worlds are grid scenarios
 (:func:`slamkit.sim.scenario.scenario_from_dict`); keyframe ATE is
-:func:`slamkit.metrics.score_trajectory`'s.
+:func:`slamkit.metrics.trajectory_score.ate_at_stamps_m` (through ``score_trajectory``).
 """
 
 from __future__ import annotations
@@ -71,12 +71,13 @@ from slamkit.metrics.alignment import align
 from slamkit.metrics.loop_closures import loop_closure_counts
 from slamkit.metrics.map_consistency import map_consistency
 from slamkit.metrics.relations import RelationErrors, read_relations, relation_errors
-from slamkit.metrics.trajectory_score import score_trajectory
+from slamkit.metrics.trajectory_score import ate_at_stamps_m, poses_at_stamps
 from slamkit.models import diff_drive
 from slamkit.paths import file_in
 from slamkit.sim.grid_world import GridScenario, simulate_grid_sequence
 from slamkit.sim.scenario import scenario_from_dict, simulate
-from slamkit.systems.lidar_slam import Keyframe, LidarSlam, LidarSlamConfig, occupancy_map
+from slamkit.systems.lidar_slam import Keyframe, LidarSlam, LidarSlamConfig
+from slamkit.systems.slam_map import config_for
 
 #: mean +- std of the translational relation error (m) published by Kuemmerle et al., "On
 #: measuring the accuracy of SLAM algorithms", Autonomous Robots 27(4), 2009 (as transcribed in
@@ -163,27 +164,12 @@ def false_loop_edges(poses: np.ndarray, n: int, rng: np.random.Generator, min_se
     return pairs, np.zeros((len(pairs), 3)), np.repeat(info[None], len(pairs), axis=0)
 
 
-def ate_keyframes_m(ground_truth: Trajectory, stamps_s: np.ndarray, poses: np.ndarray) -> float:
-    """ATE RMSE (m) of keyframe poses after SE(2) alignment; ground truth looked up by stamp
-    (:func:`slamkit.metrics.score_trajectory`, the one scorer, without RPE)."""
-    gt = _ground_truth_at(ground_truth, stamps_s)
-    return score_trajectory(Trajectory.from_se2(stamps_s, gt), Trajectory.from_se2(stamps_s, poses), "se2",
-                            rpe_delta=None)["ate_rmse_m"]
-
-
 def align_se2(poses: np.ndarray, reference: np.ndarray, stamps_s: np.ndarray) -> np.ndarray:
     """``poses`` (K, 3) moved by the SE(2) Umeyama alignment onto ``reference`` (K, 3)."""
     a = align(Trajectory.from_se2(stamps_s, poses), Trajectory.from_se2(stamps_s, reference), "se2")
     R, t = a.rotation[:2, :2], a.translation[:2]
     yaw = np.arctan2(R[1, 0], R[0, 0])
     return np.column_stack([poses[:, :2] @ R.T + t, se2.compose(np.array([0.0, 0.0, yaw]), poses)[:, 2]])
-
-
-def _ground_truth_at(ground_truth: Trajectory, stamps_s: np.ndarray) -> np.ndarray:
-    idx = np.clip(np.searchsorted(ground_truth.stamps_s, stamps_s - 1e-9), 0, len(ground_truth) - 1)
-    if np.max(np.abs(ground_truth.stamps_s[idx] - stamps_s)) > 1e-6:
-        raise ConfigError("ground truth has no pose at some keyframe stamps")
-    return ground_truth.xytheta()[idx]
 
 
 def _frozen(a: Any) -> np.ndarray:
@@ -220,15 +206,6 @@ class _KeyframeSnapshots:
 
     def on_loop_closure(self, closure: LoopClosure) -> None:
         pass
-
-
-def config_for(sequence: Sequence, config: LidarSlamConfig) -> LidarSlamConfig:
-    """``config`` with the lidar mounting the recording states (``metadata['body_xytheta_lidar']``)
-    unless the config sets one."""
-    mount = sequence.metadata.get("body_xytheta_lidar")
-    if mount is not None and not np.any(config.body_xytheta_lidar):
-        return replace(config, body_xytheta_lidar=tuple(float(v) for v in mount))
-    return config
 
 
 def run_slam(sequence: Sequence, truth: OccupancyGrid | None = None,
@@ -273,7 +250,7 @@ def run_slam(sequence: Sequence, truth: OccupancyGrid | None = None,
     gt_poses = None
     map_poses, fe_map_poses = poses, fe_poses
     if sequence.ground_truth is not None:
-        gt_poses = _ground_truth_at(sequence.ground_truth, stamps)
+        gt_poses = poses_at_stamps(sequence.ground_truth, stamps)
         if truth is not None:
             # SLAM fixes the map only up to a rigid motion: score it in the frame of the same SE(2)
             # alignment ATE uses (an early heading error would otherwise count on every wall)
@@ -313,9 +290,9 @@ def run_slam(sequence: Sequence, truth: OccupancyGrid | None = None,
                    time_per_scan_last_over_first=float(np.mean(step[-tenth:]) / np.mean(step[:tenth])),
                    peak_rss_mb=_peak_rss_mb())
     if sequence.ground_truth is not None:
-        before_m = ate_keyframes_m(sequence.ground_truth, stamps, fe_poses)
-        after_m = ate_keyframes_m(sequence.ground_truth, stamps, poses)
-        metrics.update(ate_odometry_m=ate_keyframes_m(sequence.ground_truth, stamps, odo_kf),
+        before_m = ate_at_stamps_m(sequence.ground_truth, stamps, fe_poses)
+        after_m = ate_at_stamps_m(sequence.ground_truth, stamps, poses)
+        metrics.update(ate_odometry_m=ate_at_stamps_m(sequence.ground_truth, stamps, odo_kf),
                        ate_frontend_m=before_m, ate_rmse_m=after_m, ate_reduction=before_m / max(after_m, 1e-12))
     if sequence.name in CARTOGRAPHER_REALTIME_FACTOR:
         # how many times faster than real time, against Cartographer's published factor

@@ -5,8 +5,8 @@ scoring; only the stack's map changes.
 Sources (``map: {source: ...}`` in ``pipelines/navigation*.yaml``):
 
 * ``truth`` -- the world's own grid (for ``willow`` that is the ROS map itself);
-* ``slam_tour`` -- built offline by slamkit's own lidar SLAM
-  (:class:`slamkit.systems.lidar_slam.LidarSlam`) on a seeded mapping tour of the world: the
+* ``slam_tour`` -- built offline by slamkit's own lidar SLAM (the system
+  :func:`slamkit.systems.slam_map.slam_map`) on a seeded mapping tour of the world: the
   grid-world simulator drives the robot through ``tour_goals`` goals spread over the free space
   (``slamkit.sim.grid_world.simulate_grid_sequence``, its 360-beam lidar and noisy wheel
   odometry), SLAM runs on the tour, and its log-odds map at ``resolution_m`` (5 cm) is the
@@ -42,14 +42,15 @@ import numpy as np
 
 from slamkit.config import build
 from slamkit.errors import ConfigError
-from slamkit.experiments.lidar_slam import ate_keyframes_m, run_slam
 from slamkit.geometry import se2
 from slamkit.maps.log_odds import map_quality, resample_to
 from slamkit.maps.occupancy_grid import OccupancyGrid
+from slamkit.metrics.trajectory_score import ate_at_stamps_m, poses_at_stamps
 from slamkit.paths import atomic_file
 from slamkit.sim.grid_world import GridScenario, simulate_grid_sequence
 from slamkit.sim.navigation_world import NavigationScenario
-from slamkit.systems.lidar_slam import LidarSlamConfig, occupancy_map
+from slamkit.systems.lidar_slam import LidarSlamConfig
+from slamkit.systems.slam_map import slam_map
 
 MAP_SOURCES = ("truth", "slam_tour")
 
@@ -170,29 +171,25 @@ def slam_tour_map(truth: OccupancyGrid, config: MapSourceConfig, seed: int,
     slam = build(LidarSlamConfig, {**dict(config.slam), "map": {**dict(config.slam.get("map", {})),
                                                                 "resolution_m": config.resolution_m}},
                  "lidar_slam.slam")
-    # truth=None: the map is built at SLAM's own poses, in the frame of the tour's known start
-    result = run_slam(sequence, None, slam)
-    log_odds = occupancy_map(result.sensor_poses(result.optimised_poses), result.keyframe_angles_rad,
-                                         result.keyframe_ranges_m, result.max_range_m, slam.map, like=truth)
-    occupied = log_odds.occupancy_grid().occupied
-    if config.unknown == "occupied":
-        occupied = occupied | ~log_odds.observed
-    grid = OccupancyGrid(occupied, log_odds.resolution_m, log_odds.origin_xy_m, name=name)
+    # the map is built at SLAM's own poses, in the frame of the tour's known start, on truth's cells
+    built = slam_map(sequence, slam, like=truth, unknown=config.unknown, name=name)
+    log_odds, grid = built.log_odds, built.grid
     quality = map_quality(log_odds, truth, tolerance_cells=1)
     truth_free = ~resample_to(truth, log_odds.shape, log_odds.origin_xy_m, log_odds.resolution_m)
     held_free = log_odds.observed & ~log_odds.occupancy_grid().occupied
-    stamps = np.asarray(result.stamps_s)
-    gt = result.ground_truth_poses
+    stamps = np.asarray(built.estimate.keyframe_stamps_s)
+    poses = built.estimate.keyframe_poses
+    gt = poses_at_stamps(sequence.ground_truth, stamps)
     metrics = {
         "map_precision_1cell": quality.precision,
         "map_recall_1cell": quality.recall,
         "map_iou_1cell": quality.iou,
         "map_free_coverage": float((truth_free & held_free).sum() / max(truth_free.sum(), 1)),
-        "map_tour_ate_m": ate_keyframes_m(sequence.ground_truth, stamps, result.optimised_poses),
-        "map_tour_error_max_m": float(np.linalg.norm(result.optimised_poses[:, :2] - gt[:, :2], axis=1).max()),
+        "map_tour_ate_m": ate_at_stamps_m(sequence.ground_truth, stamps, poses),
+        "map_tour_error_max_m": float(np.linalg.norm(poses[:, :2] - gt[:, :2], axis=1).max()),
         "map_tour_length_m": float(np.linalg.norm(np.diff(gt[:, :2], axis=0), axis=1).sum()),
-        "map_loop_closures": float(result.metrics["num_loop_closures"]),
+        "map_loop_closures": float(len(built.estimate.loops)),
         "map_build_s": time.perf_counter() - t0,
     }
-    return RobotMap(grid, config.source, metrics, np.asarray(gt, float), np.asarray(result.optimised_poses, float))
+    return RobotMap(grid, config.source, metrics, np.asarray(gt, float), np.asarray(poses, float))
 

@@ -10,6 +10,8 @@ every results.json. The definitions are evo's (:func:`slamkit.metrics.ate.ate`,
 
 from __future__ import annotations
 
+import numpy as np
+
 from slamkit.data.trajectory import Trajectory
 from slamkit.errors import DataError
 from slamkit.metrics.alignment import AlignMode, associate
@@ -78,3 +80,21 @@ def ate_paired_by_stamp(reference: Trajectory, estimate: Trajectory, max_diff_s:
     pairs = associate(reference, estimate, max_diff_s=max_diff_s)
     mode: AlignMode = "se2" if reference.planar and estimate.planar else "se3"
     return score_trajectory(pairs.ref, pairs.est, mode, rpe_delta=None)["ate_rmse_m"], mode
+
+
+def poses_at_stamps(trajectory: Trajectory, stamps_s: np.ndarray, tol_s: float = 1e-6) -> np.ndarray:
+    """(K, 3) planar poses of ``trajectory`` at ``stamps_s`` (K,), each within ``tol_s`` of one of
+    its stamps (a simulator's ground truth at the stamps of the scans it produced)."""
+    idx = np.clip(np.searchsorted(trajectory.stamps_s, stamps_s - 1e-9), 0, len(trajectory) - 1)
+    if np.max(np.abs(trajectory.stamps_s[idx] - stamps_s)) > tol_s:
+        raise DataError("ground truth has no pose at some keyframe stamps")
+    return trajectory.xytheta()[idx]
+
+
+def ate_at_stamps_m(ground_truth: Trajectory, stamps_s: np.ndarray, poses: np.ndarray) -> float:
+    """``ate_rmse_m`` of :func:`score_trajectory` (SE(2) alignment, no RPE) of planar ``poses``
+    (K, 3) at ``stamps_s`` against ``ground_truth`` looked up at those stamps
+    (:func:`poses_at_stamps`): lidar SLAM's keyframe ATE."""
+    gt = poses_at_stamps(ground_truth, stamps_s)
+    return score_trajectory(Trajectory.from_se2(stamps_s, gt), Trajectory.from_se2(stamps_s, poses), "se2",
+                            rpe_delta=None)["ate_rmse_m"]

@@ -200,7 +200,7 @@ def test_laser_mounting_from_static_tf(tmp_path, kind) -> None:
     path = write_with_rosbags(_bag_path(tmp_path, kind), _toy(), kind, static_tf=tf)
     seq = registry.load_recording(str(path))
     np.testing.assert_allclose(seq.metadata["body_xytheta_lidar"], [0.15, 0.1, math.radians(100.0)], atol=1e-12)
-    from slamkit.experiments.lidar_slam import config_for
+    from slamkit.systems.slam_map import config_for
     from slamkit.systems.lidar_slam import LidarSlamConfig
 
     assert config_for(seq, LidarSlamConfig()).body_xytheta_lidar == pytest.approx((0.15, 0.1, math.radians(100.0)))

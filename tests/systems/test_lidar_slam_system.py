@@ -21,13 +21,14 @@ from slamkit.data.perturb import PerturbationConfig, perturb
 from slamkit.data.sequence import Scan
 from slamkit.config import build
 from slamkit.errors import ConfigError, DataError
-from slamkit.experiments.lidar_slam import (_sim_parts, _simulate, ate_keyframes_m, config_for, first_seconds,
-                                            run_slam, slam_section_for)
+from slamkit.experiments.lidar_slam import _sim_parts, _simulate, first_seconds, run_slam, slam_section_for
 from slamkit.experiments.pipeline import load_config
 from slamkit.geometry import se2
 from slamkit.metrics.relations import read_relations
 from slamkit.frontend.loop_closure import LoopClosureConfig
+from slamkit.metrics.trajectory_score import ate_at_stamps_m
 from slamkit.systems.lidar_slam import LidarSlam, LidarSlamConfig
+from slamkit.systems.slam_map import config_for
 
 ROOT = Path(__file__).resolve().parents[2]
 WORLD = {"name": "wh", "world": "warehouse", "world_size_m": [20.0, 20.0], "num_goals": 4, "duration_s": 60.0}
@@ -121,7 +122,7 @@ def test_lidar_only_in_a_simulated_world(world):
     ate = {}
     for prior in ("odometry", "constant_velocity"):
         est = LidarSlam(LidarSlamConfig(motion_prior=prior), seq.initial_world_xytheta_body).run(seq).finish()
-        ate[prior] = ate_keyframes_m(seq.ground_truth, est.keyframe_stamps_s, est.keyframe_poses)
+        ate[prior] = ate_at_stamps_m(seq.ground_truth, est.keyframe_stamps_s, est.keyframe_poses)
     assert ate["odometry"] < 0.01
     assert ate["constant_velocity"] < 1.5 * ate["odometry"]
 
