@@ -59,6 +59,7 @@ Observers (the recorder) subscribe through :class:`LidarSlamObserver`: ``on_keyf
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field, replace
 from typing import Literal, Protocol
 
@@ -207,6 +208,39 @@ class Keyframe:
 
 
 @dataclass(frozen=True)
+class LidarSlamCounters:
+    """What a :class:`LidarSlam` counted so far (issue 30: a type, not a dict read by string keys):
+    scans seen and matched, matches replaced by the motion prior (``match_fallbacks``), ICP
+    iterations, the heading / correlative searches and the odometry checks with how often the
+    retry won, loop-closure candidates and closures by source (local ``loop_candidates`` /
+    ``loop_closures_online``, the drift region's ``*_global``, Scan Context's ``*_place``), the
+    closures of ``finish()``'s rounds (``loop_closures_final``) and those its consistency check
+    dropped (``loop_closures_rejected``), far global closures refused for low fitness, the largest
+    correction a global closure made (m) and iSAM2's QR fallbacks."""
+
+    scans: int = 0
+    matched_scans: int = 0
+    match_fallbacks: int = 0
+    icp_iterations: int = 0
+    wide_searches: int = 0
+    correlative_searches: int = 0
+    correlative_wins: int = 0
+    odometry_checks: int = 0
+    odometry_check_wins: int = 0
+    loop_candidates: int = 0
+    loop_closures_online: int = 0
+    loop_closures_final: int = 0
+    loop_closures_rejected: int = 0
+    loop_candidates_global: int = 0
+    loop_closures_global: int = 0
+    loop_global_far_rejected: int = 0
+    loop_global_correction_max_m: float = 0.0
+    loop_candidates_place: int = 0
+    loop_closures_place: int = 0
+    isam2_qr_fallbacks: int = 0
+
+
+@dataclass(frozen=True)
 class LidarSlamEstimate:
     """The trajectory of every scan (``stamps_s`` (N,), ``world_xytheta_body`` (N, 3)); the
     keyframes (``keyframe_scans`` indexes into the scans; poses (K, 3); ``frontend_poses``: the
@@ -221,7 +255,7 @@ class LidarSlamEstimate:
     frontend_poses: np.ndarray
     loops: tuple[LoopClosure, ...]
     injected: tuple[tuple[int, int], ...]
-    counters: dict[str, float]
+    counters: LidarSlamCounters
 
 
 class LidarSlamObserver(Protocol):
@@ -292,13 +326,8 @@ class LidarSlam:
         self._moved_m = 0.0
         self._finished = False
         self._max_range = 0.0                     # the sensor's range, known from the first scan
-        self.counters = {"scans": 0, "matched_scans": 0, "match_fallbacks": 0, "loop_candidates": 0,
-                         "loop_closures_online": 0, "loop_closures_final": 0, "icp_iterations": 0,
-                         "wide_searches": 0, "correlative_searches": 0, "correlative_wins": 0, "loop_closures_rejected": 0,
-                         "loop_candidates_global": 0, "loop_closures_global": 0,
-                         "loop_global_correction_max_m": 0.0, "odometry_checks": 0, "odometry_check_wins": 0,
-                         "isam2_qr_fallbacks": 0, "loop_global_far_rejected": 0, "loop_candidates_place": 0,
-                         "loop_closures_place": 0}
+        #: the running tally behind :attr:`counters` (one entry per LidarSlamCounters field)
+        self._counts: dict[str, float] = {f.name: f.default for f in dataclasses.fields(LidarSlamCounters)}
 
     # ---- streaming ---------------------------------------------------------------------------
 
@@ -346,7 +375,7 @@ class LidarSlam:
         self._max_range = max_range
         stamp = float(scan.stamp_s)
         n = len(self._scan_stamps)
-        self.counters["scans"] += 1
+        self._counts["scans"] += 1
         if not self._kf.stamps:
             self._odom_at_scan = self._odom.copy()
             self._last_stamp = stamp
@@ -411,33 +440,33 @@ class LidarSlam:
         pose) to test an odometry ``guess`` against (``odometry_check_deg``)."""
         cfg = self.config
         if self._target is None or len(pts) < cfg.icp.min_correspondences:
-            self.counters["match_fallbacks"] += 1
+            self._counts["match_fallbacks"] += 1
             return guess, None
         search = cfg.rotation_search_deg > 0 and hold is not None
         if search:
             guess = self._heading(pts, (guess, hold), cfg.rotation_search_deg)
         res = icp(pts, self._target, guess, cfg.icp)
-        self.counters["matched_scans"] += 1
-        self.counters["icp_iterations"] += res.iterations
+        self._counts["matched_scans"] += 1
+        self._counts["icp_iterations"] += res.iterations
         if search and res.fitness < WIDE_SEARCH_BELOW_FITNESS:
             # a turn faster than the window (Intel: up to 40 deg between two scans): once more
             # over a window four times as wide, keep the better match
             wide = icp(pts, self._target, self._heading(pts, (guess, hold), 4 * cfg.rotation_search_deg), cfg.icp)
-            self.counters["wide_searches"] += 1
+            self._counts["wide_searches"] += 1
             if wide.fitness > res.fitness:
                 res = wide
         if check is not None and self._odometry_doubtful(res, guess, check[0]):
             start = self._heading(pts, (guess, *check), cfg.rotation_search_deg)
             other = icp(pts, self._target, start, cfg.icp)
-            self.counters["odometry_checks"] += 1
-            self.counters["icp_iterations"] += other.iterations
+            self._counts["odometry_checks"] += 1
+            self._counts["icp_iterations"] += other.iterations
             if other.fitness > res.fitness:
-                self.counters["odometry_check_wins"] += 1
+                self._counts["odometry_check_wins"] += 1
                 res = other
         if search and self._uncertain(res, hold):
             res = self._correlative(pts, guess, res)
         if res.fitness < cfg.min_match_fitness or not np.all(np.isfinite(res.covariance)):
-            self.counters["match_fallbacks"] += 1
+            self._counts["match_fallbacks"] += 1
             return guess, None
         info = np.linalg.inv(res.covariance)
         return res.target_T_source, 0.5 * (info + info.T)
@@ -461,10 +490,10 @@ class LidarSlam:
             self._likelihood = CorrelativeGrid(self._target.points, self.config.correlative)
         start = correlative_search(pts, self._likelihood, guess).target_T_source
         other = icp(pts, self._target, start, self.config.icp)
-        self.counters["correlative_searches"] += 1
-        self.counters["icp_iterations"] += other.iterations
+        self._counts["correlative_searches"] += 1
+        self._counts["icp_iterations"] += other.iterations
         if other.fitness > res.fitness:
-            self.counters["correlative_wins"] += 1
+            self._counts["correlative_wins"] += 1
             return other
         return res
 
@@ -538,7 +567,7 @@ class LidarSlam:
         for (i, j, z, info), kind in zip(zip(g.edge_from, g.edge_to, g.measurements, g.information), self._edge_kind):
             self._graph.add_edge(int(i), int(j), z, info, robust_edge=kind != "odometry")
         self._graph_qr = True
-        self.counters["isam2_qr_fallbacks"] += 1
+        self._counts["isam2_qr_fallbacks"] += 1
         self._graph.update(extra)
 
     # ---- loop closure ------------------------------------------------------------------------
@@ -576,7 +605,7 @@ class LidarSlam:
         if min(len(self._kf.points[i]), len(pts_j)) < cfg.loops.icp.min_correspondences:
             return None
         self._tried.add((i, j))
-        self.counters["loop_candidates"] += 1
+        self._counts["loop_candidates"] += 1
         s = cfg.loop_submap_keyframes
         K = len(self._kf.points)
         target = self._submap_at(i, range(max(0, i - s), min(K, i + s + 1)), poses, cfg.loops.icp)
@@ -621,7 +650,7 @@ class LidarSlam:
             closure = self._verify_global(i, j, poses, window_xy_m, window_theta_rad, cov)
             if closure is not None:
                 self._accept(closure, poses)
-                self.counters["loop_closures_global"] += 1
+                self._counts["loop_closures_global"] += 1
                 found += 1
                 break
         if self._places is not None:
@@ -629,7 +658,7 @@ class LidarSlam:
             if not found:
                 found += self._close_place_at(j, descriptor, poses)
             self._places.add(j, descriptor)
-        self.counters["loop_closures_online"] += found
+        self._counts["loop_closures_online"] += found
         return found
 
     def _describe(self, j: int) -> np.ndarray:
@@ -681,7 +710,7 @@ class LidarSlam:
             self.place_candidates.append((i, j, match.distance, match.yaw_rad, closure is not None))
             if closure is not None:
                 self._accept(closure, poses)
-                self.counters["loop_closures_place"] += 1
+                self._counts["loop_closures_place"] += 1
                 return 1
         return 0
 
@@ -740,7 +769,7 @@ class LidarSlam:
             return None
         moved = se2.between(guess, res.target_T_source)
         if np.hypot(moved[0], moved[1]) > lc.global_far_m and res.fitness < lc.global_far_min_fitness:
-            self.counters["loop_global_far_rejected"] += 1
+            self._counts["loop_global_far_rejected"] += 1
             return None
         # the correction in the world frame, tested against the region (widened by the floor)
         q = chi2_quantile(lc.region_probability, 2)
@@ -750,7 +779,7 @@ class LidarSlam:
         if float(shift @ np.linalg.solve(wide, shift)) > q:
             return None
         # how far the estimate had drifted from the revisit it found
-        self.counters["loop_global_correction_max_m"] = max(self.counters["loop_global_correction_max_m"],
+        self._counts["loop_global_correction_max_m"] = max(self._counts["loop_global_correction_max_m"],
                                                             float(np.hypot(shift[0], shift[1])))
         return LoopClosure(i, j, res.target_T_source, res, source="region")
 
@@ -766,7 +795,7 @@ class LidarSlam:
         if min(len(self._kf.points[i]), len(pts_j)) < lc.icp.min_correspondences:
             return None
         self._tried.add((i, j))
-        self.counters[counter] += 1
+        self._counts[counter] += 1
         s = cfg.loop_submap_keyframes
         K = len(self._kf.points)
         members = range(max(0, i - s), min(K, i + s + 1))
@@ -825,7 +854,7 @@ class LidarSlam:
                 if closure is not None:
                     self._accept(closure, poses)
                     found += 1
-            self.counters["loop_closures_final"] += found
+            self._counts["loop_closures_final"] += found
             poses = optimize(self._graph.graph(), opt).poses.copy()
             solved = True
         if not solved and (self._loops or self._injected):
@@ -851,7 +880,7 @@ class LidarSlam:
         rejected = {(int(i), int(j)) for i, j in zip(g.edge_from[bad], g.edge_to[bad])}
         self._loops = [lc for lc in self._loops if (lc.i, lc.j) not in rejected]
         self._injected = [e for e in self._injected if e not in rejected]
-        self.counters["loop_closures_rejected"] += int(bad.sum())
+        self._counts["loop_closures_rejected"] += int(bad.sum())
         keep = ~bad
         pruned = replace(g, poses=poses, edge_from=g.edge_from[keep], edge_to=g.edge_to[keep],
                          measurements=g.measurements[keep], information=g.information[keep])
@@ -879,7 +908,7 @@ class LidarSlam:
         kf = self._kf
         return LidarSlamEstimate(np.asarray(self._scan_stamps), world, np.asarray(kf.scans, dtype=np.int64),
                                  np.asarray(kf.stamps), poses.copy(), np.asarray(kf.frontend).reshape(-1, 3),
-                                 tuple(self._loops), tuple(self._injected), dict(self.counters))
+                                 tuple(self._loops), tuple(self._injected), self.counters)
 
     def keyframe_scans(self) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
         """(body-frame points, lidar ranges (NaN: no return), beam angles) of every keyframe."""
@@ -892,6 +921,11 @@ class LidarSlam:
     @property
     def max_range_m(self) -> float:
         return self._max_range
+
+    @property
+    def counters(self) -> LidarSlamCounters:
+        """What the system counted so far (a frozen copy of its running tally)."""
+        return LidarSlamCounters(**self._counts)
 
     def map(self, config: LogOddsConfig | None = None, world_xytheta_body: np.ndarray | None = None,
             margin_m: float = 1.0, like: OccupancyGrid | None = None) -> LogOddsMap:

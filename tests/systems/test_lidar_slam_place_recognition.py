@@ -70,7 +70,7 @@ def test_place_closures_are_verified(world):
     +0.0000 and +0.0015 m)."""
     seq = _tour(world)
     system, est, truth = _run(seq, ScanContextConfig())
-    assert system.counters["loop_closures_place"] >= 3
+    assert system.counters.loop_closures_place >= 3
     kept = [lc for lc in est.loops if lc.source == "place"]
     assert len(kept) >= 3
     for lc in kept:

@@ -10,6 +10,8 @@ the cache); the tests skip when they are not available."""
 
 from __future__ import annotations
 
+import dataclasses
+
 from dataclasses import replace
 from pathlib import Path
 
@@ -27,7 +29,7 @@ from slamkit.geometry import se2
 from slamkit.metrics.relations import read_relations
 from slamkit.frontend.loop_closure import LoopClosureConfig
 from slamkit.metrics.trajectory_score import ate_at_stamps_m
-from slamkit.systems.lidar_slam import LidarSlam, LidarSlamConfig
+from slamkit.systems.lidar_slam import LidarSlam, LidarSlamConfig, LidarSlamCounters
 from slamkit.systems.slam_map import config_for
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -72,7 +74,12 @@ def test_streaming_contract(world):
     assert np.array_equal(online.keyframe_stamps_s, online.stamps_s[k])
     final = slam.finish()
     assert len(rec.loops) == len(final.loops) >= 10  # measured 27
-    assert final.counters["loop_closures_online"] + final.counters["loop_closures_final"] == len(final.loops)
+    assert final.counters.loop_closures_online + final.counters.loop_closures_final == len(final.loops)
+    # the counters are a frozen value (issue 30), a copy: the running system's tally moves on alone
+    assert isinstance(final.counters, LidarSlamCounters) and final.counters == slam.counters
+    assert final.counters.scans == len(scans) and 0 < final.counters.matched_scans <= final.counters.scans
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        final.counters.scans = 0
     assert same_poses(final.world_xytheta_body[k], final.keyframe_poses)
     # the first scan is where the sequence says the robot starts
     assert same_poses(final.world_xytheta_body[:1], np.reshape(seq.initial_world_xytheta_body, (1, 3)), 1e-3)
@@ -207,7 +214,7 @@ def test_odometry_that_froze_then_jumped_is_checked_against_the_scans():
         est = LidarSlam(cfg).run(piece).estimate()
         turn_deg = np.rad2deg(np.diff(np.unwrap(est.world_xytheta_body[:, 2])))
         turns[on] = turn_deg[1580 - first:1588 - first]   # scan n-1 -> n for n = 1581..1588
-        assert (est.counters["odometry_check_wins"] >= 1) == on
+        assert (est.counters.odometry_check_wins >= 1) == on
     # the scans turn 13-24 deg each; without the check one match is off by ~180 deg
     assert np.all((turns[True] > 12.0) & (turns[True] < 25.0)), turns[True]
     assert turns[False].min() < -150.0
@@ -242,7 +249,7 @@ def test_isam2_cholesky_giving_up_on_a_long_loop_free_chain_moves_the_graph_to_q
         slam._graph.add_edge(j - 1, j, z, info, robust_edge=False)
         slam._edge_kind.append("odometry")
         slam._update()
-    assert slam.counters["isam2_qr_fallbacks"] == 1
+    assert slam.counters.isam2_qr_fallbacks == 1
     assert isinstance(slam._graph, Isam2PoseGraph) and slam._graph_qr
     np.testing.assert_allclose(slam._graph.poses(), np.column_stack([np.arange(200.0), np.zeros(200), np.zeros(200)]),
                                atol=1e-9)
