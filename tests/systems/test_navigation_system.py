@@ -361,6 +361,37 @@ def test_evasion_never_runs_into_a_wall_while_an_arc_stays_clear():
     assert stack.distance.query(chosen[:, :2])[0].min() > stack.config.robot_radius_m
 
 
+def test_ramped_evasion_turns_a_backing_robot_round_before_it_is_run_into():
+    from slamkit.control.protocols import ControlOutput, ControlStatus, LocalWorld, RobotState
+    from slamkit.control.rollout import rollout_arcs
+
+    # backing at -0.3 m/s along y = 2 with a person (0.25 m + 0.25 m margin) 1.3 m behind coming at
+    # 0.6 m/s (issue 33: office 429, Willow 428 were hit from behind while backing off). The
+    # held arcs of the one-cycle window (v -0.3 .. -0.2 m/s) all back into it within 0.8 s, later
+    # only standing (1.0 s): the held evasion brakes. The ramped one accelerates forwards at
+    # 1 m/s^2 to 0.531 m/s: never nearer than 0.24 m over 3 s, at x = 3.545 m by then
+    stack = _straight_stack(2.0)
+    pose = np.array([2.0, 2.0, 0.0])
+    world = LocalWorld([[0.7, 2.0]], [0.5], [[0.6, 0.0]], stack.distance, 0.0)
+    state = RobotState(pose, np.array([-0.3, 0.0]), 0.0)
+    arcs = rollout_arcs(pose, stack.controller.candidates(state), 0.1, 20)
+    out = ControlOutput(np.zeros(2), ControlStatus.FALLBACK_BRAKE, candidates_xytheta=arcs, chosen=-1)
+    held_clear = world.clearance_m(arcs[..., :2], 0.1 * np.arange(21)) - stack.config.robot_radius_m
+    assert np.argmax(held_clear <= 0.0, axis=1).max() == 8 and (held_clear <= 0.0).any(axis=1).all()
+    assert stack.safety.evade(state, world, out) == pytest.approx([0.0, 0.0])
+    assert stack.safety.evasion_xytheta is None
+    stack.config = dataclasses.replace(stack.config, safety=SafetyConfig(evasion="ramped"))
+    cmd = stack.safety.evade(state, world, out)
+    assert cmd == pytest.approx([-0.2, 0.0], abs=1e-12)
+    chosen = stack.safety.evasion_xytheta
+    assert chosen.shape == (31, 3)
+    clear = world.clearance_m(chosen[:, :2], 0.1 * np.arange(31)) - stack.config.robot_radius_m
+    assert clear.min() == pytest.approx(0.24, abs=1e-9)
+    np.testing.assert_allclose(chosen[-1], [3.545, 2.0, 0.0], atol=1e-9)
+    with pytest.raises(ConfigError, match="evasion"):
+        SafetyConfig(evasion="swerve")
+
+
 def test_brake_profiles_stop_or_back_off_within_the_acceleration_limits():
     from slamkit.control.protocols import RobotState
 
