@@ -24,6 +24,7 @@ that read config files); algorithm packages never import it.
 from __future__ import annotations
 
 import dataclasses
+import enum
 import difflib
 import functools
 import math
@@ -456,3 +457,56 @@ def _preset(cls: type, name: Any, where: str) -> Any:
         raise ConfigError(f"{where}: {exc}") from None
     except (TypeError, ValueError) as exc:
         raise ConfigError(f"{where}: preset {name!r}: {exc}") from None
+
+
+# --- from the algorithms' dataclasses back to the mapping ----------------------------------------
+
+
+def dump(value: Any) -> Any:
+    """A built config as plain YAML-able data that :func:`build` reads back to an equal config:
+    the inverse of ``build`` (issue 30), so a run folder's ``config.yaml`` can say every setting
+    an algorithm used, its dataclass defaults included (:func:`resolved`).
+
+    * a dataclass -> a mapping of its init fields, recursively (nested sections too; a field
+      holding a preset class becomes the preset's fields, which ``build`` reads as overrides of
+      the field's default, hence the same values);
+    * tuples and lists -> lists (``build`` makes them tuples again); mappings -> dicts with
+      string keys; numpy scalars and arrays -> Python numbers and (nested) lists; a ``Path`` ->
+      its string; an enum -> its value;
+    * floats stay floats, non-finite ones included (YAML writes ``.inf``/``.nan`` and reads them
+      back as floats); ``None`` stays ``None`` (``build`` reads a null as "the default", so a field
+      whose value is None dumps as None only where None is its default).
+    """
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return {f.name: dump(getattr(value, f.name)) for f in dataclasses.fields(value) if f.init}
+    if isinstance(value, (list, tuple)):
+        return [dump(v) for v in value]
+    if isinstance(value, Mapping):
+        return {str(k): dump(v) for k, v in value.items()}
+    if type(value).__module__ == "numpy" and hasattr(value, "tolist"):
+        return dump(value.tolist())  # np.float64(1.0).tolist() -> 1.0; arrays -> nested lists
+    if isinstance(value, Path):
+        return str(value)
+    if isinstance(value, enum.Enum):
+        return value.value
+    return value
+
+
+def resolved(cls: type, data: Mapping[str, Any] | None, where: str | None = None, base: Any = None,
+             exclude: typing.Iterable[str] = (), **build_options: Any) -> dict[str, Any]:
+    """``data`` (a config section that holds ``cls``'s fields, as the user wrote them) with every
+    field ``build`` fills from its defaults spelt out: ``dump(build(cls, data, ...))``, less the
+    fields in ``exclude`` (those a pipeline sets itself, e.g. pose_graph's solver per run) and
+    less the fields that are None, in nested sections too: a null means "the default" to
+    ``build`` and to :func:`write_back`, and a field built as None is at a None default (so
+    ``config.yaml`` reloads to itself, as the pipeline model's None defaults stay absent). So
+    ``build(cls, resolved(cls, d))`` equals ``build(cls, d)`` (tests/test_config_dump.py)."""
+    out = _without_none(dump(build(cls, data, where, base=base, **build_options)))
+    skip = set(exclude)
+    return {k: v for k, v in out.items() if k not in skip}
+
+
+def _without_none(data: Any) -> Any:
+    if isinstance(data, dict):
+        return {k: _without_none(v) for k, v in data.items() if v is not None}
+    return data
