@@ -8,6 +8,7 @@ import dataclasses
 import math
 import typing
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,13 +18,18 @@ from slamkit.backend.solvers import OptimizeConfig
 from slamkit.config import build, dump, resolved
 from slamkit.errors import ConfigError
 from slamkit.experiments import estimators
-from slamkit.experiments.lidar_slam import MclCheckConfig
-from slamkit.experiments.navigation import EpisodeConfig
+from slamkit.experiments.config_models import with_defaults
+from slamkit.experiments.lidar_slam import MclCheckConfig, slam_section_for
+from slamkit.experiments.navigation import EpisodeConfig, _variants
 from slamkit.experiments.navigation_map import MapSourceConfig
+from slamkit.experiments.pipeline import _load_checked, check_pipeline
 from slamkit.sim.inertial_world import InertialScenario
 from slamkit.sim.landmark_world import LandmarkScenario
 from slamkit.systems.lidar_slam import LidarSlamConfig
 from slamkit.systems.navigation import NavigationConfig
+
+PIPELINES = Path(__file__).resolve().parents[1] / "pipelines"
+
 
 def _through_yaml(data):
     return yaml.safe_load(yaml.safe_dump(data))
@@ -169,3 +175,78 @@ def test_resolved_leaves_out_what_the_pipeline_sets():
     assert options["max_iterations"] == 7 and not {"solver", "init", "robust"} & set(options)
     assert set(options) == {k for k, v in dump(OptimizeConfig()).items() if v is not None} - {"solver", "init", "robust"}
     assert "robust_k" not in options   # None: "the default", as the pipeline models' None defaults
+
+
+# --- the pipelines: config.yaml spells the sections out and the runs build the same -------------
+
+def _configs(kind: str) -> list[Path]:
+    out = []
+    for path in sorted(PIPELINES.glob("*.yaml")):
+        if yaml.safe_load(path.read_text()).get("pipeline") == kind:
+            out.append(path)
+    assert out, kind
+    return out
+
+
+def _before_and_after(path: Path):
+    config, model = _load_checked(path)
+    from slamkit.experiments.config_models import _model_defaults
+
+    before = _model_defaults(config, model)           # the model's defaults only (as before)
+    after = with_defaults(config, model)
+    written = _through_yaml(after)                     # what config.yaml holds, read back
+    again = with_defaults(written, check_pipeline(written))
+    assert again == after                              # valid, and a fixed point
+    return before, _through_yaml(after)
+
+
+@pytest.mark.parametrize("path", _configs("lidar_slam"), ids=lambda p: p.stem)
+def test_lidar_slam_sections_resolved(path):
+    before, after = _before_and_after(path)
+    assert set(after["slam"]) == {k for k, v in dump(LidarSlamConfig()).items() if v is not None}
+    assert "max_iterations" in after["slam"]["icp"]
+    for prior in ("odometry", "constant_velocity", "identity"):
+        assert build(LidarSlamConfig, slam_section_for(after, prior)) == \
+            build(LidarSlamConfig, slam_section_for(before, prior))
+    if before.get("mcl"):
+        mcl = before["mcl"] if isinstance(before["mcl"], dict) else None
+        assert build(MclCheckConfig, after["mcl"]) == build(MclCheckConfig, mcl)
+
+
+@pytest.mark.parametrize("path", _configs("navigation"), ids=lambda p: p.stem)
+def test_navigation_sections_resolved(path):
+    before, after = _before_and_after(path)
+    assert set(after["navigation"]) == {k for k, v in dump(build(NavigationConfig, {})).items() if v is not None}
+    assert set(after["episode"]) >= {k for k, v in dump(EpisodeConfig()).items() if v is not None}
+    assert _variants(after) == _variants(before)
+    map_after, map_before = build(MapSourceConfig, after["map"]), build(MapSourceConfig, before.get("map"))
+    assert dataclasses.replace(map_after, slam={}) == dataclasses.replace(map_before, slam={})
+    assert build(LidarSlamConfig, map_after.slam) == build(LidarSlamConfig, map_before.slam)
+
+
+@pytest.mark.parametrize("path", _configs("pose_graph"), ids=lambda p: p.stem)
+def test_pose_graph_options_resolved(path):
+    before, after = _before_and_after(path)
+    assert "max_iterations" in after["options"]
+    for solver in ("lm", "gn", "dogleg", "isam2"):
+        for init in ("file", "odometry", "lago", "chordal"):
+            base = OptimizeConfig(solver=solver, init=init, robust=before.get("robust", "none"))
+            assert build(OptimizeConfig, after["options"], base=base) == \
+                build(OptimizeConfig, before.get("options", {}), base=base)
+
+
+@pytest.mark.parametrize("path", _configs("filter_vs_smoother"), ids=lambda p: p.stem)
+def test_filter_vs_smoother_preset_params_resolved(path):
+    from slamkit.experiments.filter_vs_smoother.config import preset_scenario, scenarios_of
+
+    before, after = _before_and_after(path)
+    old, new = scenarios_of(before), scenarios_of(after)
+    assert [s.name for s in old] == [s.name for s in new]
+    for a, b in zip(old, new):
+        if a.preset is None:
+            assert a == b
+            continue
+        cls, preset = preset_scenario(a.preset)
+        assert set(b.params) == {k for k, v in dump(preset).items() if v is not None} - {"name"}
+        assert build(cls, {**b.params, "name": b.name}, base=preset) == \
+            build(cls, {**a.params, "name": a.name}, base=preset)

@@ -28,7 +28,7 @@ from pydantic import AfterValidator, BaseModel, ConfigDict, Field
 
 from slamkit.backend.robust import RobustSolveConfig
 from slamkit.backend.solvers import OptimizeConfig
-from slamkit.config import STRICT, YamlDocument, model_of, validate, write_back
+from slamkit.config import STRICT, YamlDocument, model_of, resolved, validate, write_back
 from slamkit.data import registry
 from slamkit.data.perturb import PerturbationConfig
 from slamkit.errors import ConfigError, SlamkitError
@@ -95,6 +95,15 @@ class PipelineConfig(BaseModel):
     def check_options(self, config: dict[str, Any], doc: YamlDocument | None, source: str) -> None:
         """Validate the algorithm options this config nests (``config`` is the raw mapping)."""
 
+    def resolve(self, config: dict[str, Any]) -> dict[str, Any]:
+        """``config`` (its model's defaults already spelt out) with the algorithm sections this
+        pipeline keeps as free mappings spelt out too: each replaced by
+        :func:`slamkit.config.resolved` of the dataclass the pipeline builds from it, so
+        ``config.yaml`` names the dataclass defaults ``build`` filled in (issue 30). Rebuilt, a
+        resolved section gives an equal dataclass, so the run is the same. The default keeps
+        every section as written (a user's pipeline without such sections)."""
+        return config
+
 
 
 class _OpenPipeline(PipelineConfig):
@@ -119,9 +128,18 @@ class PoseGraphPipeline(PipelineConfig):
 
     def check_options(self, config: dict[str, Any], doc: YamlDocument | None, source: str) -> None:
         _check_pose_graph_sources(self.datasets, doc, source)
-        _refuse_pipeline_keys(self.options, "options", {"solver": "solvers", "init": "inits", "robust": "robust"},
-                              doc, source)
+        _refuse_pipeline_keys(self.options, "options", POSE_GRAPH_RUN_KEYS, doc, source)
         _nested(_optimize_options(), self.options, doc, source, ("options",))
+
+    def resolve(self, config: dict[str, Any]) -> dict[str, Any]:
+        # options: every OptimizeConfig field but the three each run sets (solvers x inits, robust)
+        options = resolved(OptimizeConfig, config.get("options"), "pose_graph.options",
+                           exclude=POSE_GRAPH_RUN_KEYS)
+        return {**config, "options": options}
+
+
+#: OptimizeConfig fields a pose_graph run sets itself (field -> the pipeline key that lists them)
+POSE_GRAPH_RUN_KEYS = {"solver": "solvers", "init": "inits", "robust": "robust"}
 
 
 def _refuse_pipeline_keys(section: dict[str, Any], name: str, owners: dict[str, str], doc: YamlDocument | None,
@@ -283,7 +301,14 @@ def with_defaults(config: Mapping[str, Any], model: pydantic.BaseModel) -> dict[
     pipeline runs on, so the folder says every setting that was used (issue 30). Given values are
     kept as written; a field missing (or null) gets its model default, recursively into nested
     models (``scenarios: {kinds: [...]}`` gains ``seeds``, ``n_obstacles`` ...); defaults that are
-    None stay absent (None means "not set")."""
+    None stay absent (None means "not set"). Then the pipeline model's
+    :meth:`PipelineConfig.resolve` spells out the algorithm sections it keeps as free mappings
+    (``slam:``, ``navigation:``, ``options:`` ...) with their dataclass defaults."""
+    out = _model_defaults(config, model)
+    return model.resolve(out) if isinstance(model, PipelineConfig) else out
+
+
+def _model_defaults(config: Mapping[str, Any], model: pydantic.BaseModel) -> dict[str, Any]:
     out = dict(config)
     for name in type(model).model_fields:
         value = getattr(model, name)
@@ -293,9 +318,9 @@ def with_defaults(config: Mapping[str, Any], model: pydantic.BaseModel) -> dict[
         if given is None:
             out[name] = _dumped(value)
         elif isinstance(value, pydantic.BaseModel) and isinstance(given, Mapping):
-            out[name] = with_defaults(given, value)
+            out[name] = _model_defaults(given, value)
         elif isinstance(value, list) and isinstance(given, list) and len(value) == len(given):
-            out[name] = [with_defaults(g, v) if isinstance(v, pydantic.BaseModel) and isinstance(g, Mapping) else g
+            out[name] = [_model_defaults(g, v) if isinstance(v, pydantic.BaseModel) and isinstance(g, Mapping) else g
                          for g, v in zip(given, value)]
     return out
 

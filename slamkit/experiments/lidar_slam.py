@@ -46,7 +46,7 @@ from typing import Annotated, Any, Literal, Mapping, Union
 import numpy as np
 from pydantic import BaseModel, Field
 
-from slamkit.config import STRICT, YamlDocument, build, model_of
+from slamkit.config import STRICT, YamlDocument, build, model_of, resolved
 from slamkit.data import registry
 from slamkit.data.estimate import Prior
 from slamkit.data.formats.tum import write_tum
@@ -915,6 +915,16 @@ class LidarSlamPipeline(PipelineConfig):
         for k, world in enumerate(self.worlds):
             _nested(model_of(GridScenario), {key: v for key, v in world.items() if key != "kind"},
                     doc, source, ("worlds", k))
+
+    def resolve(self, config: dict[str, Any]) -> dict[str, Any]:
+        # slam and mcl spelt out with LidarSlamConfig's and MclCheckConfig's defaults; the
+        # per-prior entries stay overrides (merged key by key over the spelt-out slam, they give
+        # the same configs); an mcl that is off (false, {}) stays off
+        out = {**config, "slam": resolved(LidarSlamConfig, config.get("slam"), "lidar_slam.slam")}
+        mcl = config.get("mcl")
+        if mcl:
+            out["mcl"] = resolved(MclCheckConfig, mcl if isinstance(mcl, Mapping) else None, "lidar_slam.mcl")
+        return out
 
 
 #: the ``lidar_slam`` pipeline kind (slamkit.experiments.pipeline)

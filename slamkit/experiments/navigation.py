@@ -46,7 +46,7 @@ import numpy as np
 import pydantic
 from pydantic import BaseModel, Field
 
-from slamkit.config import STRICT, YamlDocument, build, model_of
+from slamkit.config import STRICT, YamlDocument, build, model_of, resolved
 from slamkit.data.registry import path_of
 from slamkit.errors import ConfigError
 from slamkit.experiments.config_models import (PipelineConfig, PlainName, Seed, Seeds, _nested, _refuse_moved_keys,
@@ -69,6 +69,7 @@ from slamkit.planning.protocols import PlanningProblem
 from slamkit.sim.navigation_world import (WORLDS, NavigationPlant, NavigationScenario, passage_draws, start_goal_draws,
                                          world_map)
 from slamkit.sim.social_force import crossing_traffic
+from slamkit.systems.lidar_slam import LidarSlamConfig
 from slamkit.systems.navigation import (MOVED_FIELDS, CommandStatus, NavigationCommand, NavigationConfig,
                                         NavigationStack, layer_timing_summary)
 
@@ -661,6 +662,18 @@ class NavigationPipeline(PipelineConfig):
         # own checks: source, unknown, the nested lidar-SLAM config)
         _nested(model_of(MapSourceConfig), self.map, doc, source, ("map",))
         build(MapSourceConfig, config.get("map"), "map")
+
+    def resolve(self, config: dict[str, Any]) -> dict[str, Any]:
+        # the shared sections spelt out with NavigationConfig's, EpisodeConfig's and
+        # MapSourceConfig's defaults (the map's lidar-SLAM mapping with LidarSlamConfig's); a
+        # variant's sections stay overrides: each of its keys replaces the base's as a whole, over
+        # base values that equal what build filled in before, so every variant builds the same
+        robot_map = resolved(MapSourceConfig, config.get("map"), "map")
+        robot_map["slam"] = resolved(LidarSlamConfig, robot_map["slam"], "map.slam")
+        return {**config,
+                "navigation": resolved(NavigationConfig, config.get("navigation"), "navigation", moved=MOVED_FIELDS),
+                "episode": resolved(EpisodeConfig, config.get("episode"), "episode"),
+                "map": robot_map}
 
 
 PIPELINE: Pipeline[list[Episode]] = Pipeline(

@@ -2,8 +2,10 @@
 folder (config.yaml, results.json, report.md, plots/, trajectories/, recording.rrd).
 
 ``config.yaml`` is the resolved config (:func:`config_models.with_defaults`): the validated
-config with every default of its model spelt out, and the pipeline runs on that same mapping, so
-the folder says every setting that was used (issue 30).
+config with every default of its model spelt out, and the algorithm sections the pipeline keeps
+as free mappings (``slam:``, ``navigation:``, ``options:`` ...) with the defaults of the frozen
+dataclasses built from them (the model's ``resolve``, :func:`slamkit.config.resolved`); the
+pipeline runs on that same mapping, so the folder says every setting that was used (issue 30).
 
 Architecture note (issue 18): a pipeline kind is a :class:`Pipeline`, declared by its own module
 (``PIPELINE = Pipeline(...)`` in ``slamkit.experiments.pose_graph`` ...): its registry name, its

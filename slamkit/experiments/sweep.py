@@ -19,9 +19,13 @@ model before anything runs (an error names the axis values and the field).
 
 Each cell is one pipeline run (:func:`slamkit.experiments.pipeline.run_pipeline`) into
 ``<out>/cells/<key[:2]>/<key>`` (:func:`cell_path`), where ``key`` is a hash of the cell's resolved
-config -- every default of the pipeline's model spelt out (:func:`config_models.with_defaults`), so
-a default written out or left implicit is the same cell; the keys of sweeps made before issue 30
-hashed the config as written and are not found by ``--resume`` (the two-digit shard keeps each folder small: a results folder looks for its own
+config -- every default of the pipeline's model spelt out (:func:`config_models.with_defaults`),
+and the algorithm sections it builds dataclasses from (``slam:``, ``navigation:``, ``options:``, a
+preset's ``params`` ...: ``PipelineConfig.resolve``) with the dataclasses' defaults -- so a default
+written out or left implicit is the same cell, and a cell whose algorithm defaults changed in the
+code is a new cell; the keys of sweeps made before issue 30 hashed the config as written, those
+made before the algorithm sections were resolved hashed them as written, and neither are found by
+``--resume`` (the two-digit shard keeps each folder small: a results folder looks for its own
 leftovers among its siblings, which in one flat folder of 10,000 cells made every cell scan all
 the others); the cell folder
 is written atomically by :class:`~slamkit.experiments.results.ResultsFolder`, so a sweep killed

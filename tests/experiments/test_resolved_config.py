@@ -7,6 +7,8 @@ from pathlib import Path
 
 import yaml
 
+from slamkit.backend.solvers import OptimizeConfig
+from slamkit.config import resolved
 from slamkit.experiments.config_models import with_defaults
 
 from slamkit.experiments.pipeline import check_pipeline
@@ -30,9 +32,15 @@ def test_the_run_folder_says_every_setting_and_reloads(tmp_path: Path):
               "record": False}
     run_pipeline(config, tmp_path / "out", progress=False)
     written = yaml.safe_load((tmp_path / "out" / "config.yaml").read_text())
+    # options: every OptimizeConfig field the run does not set itself (solver, init, robust),
+    # the given one as given and the others at the defaults build filled in
+    options = written.pop("options")
+    assert options == resolved(OptimizeConfig, {"max_iterations": 5}, exclude=("solver", "init", "robust"))
+    assert options["max_iterations"] == 5 and options["relative_error_tol"] == OptimizeConfig().relative_error_tol
     assert written == {"pipeline": "pose_graph", "name": "pg", "datasets": ["intel"],
-                       "options": {"max_iterations": 5}, "record": False, "plugins": [],
+                       "record": False, "plugins": [],
                        "solvers": ["lm"], "inits": ["file"], "robust": "none", "certify": "auto"}
+    written["options"] = options
     (tmp_path / "again.yaml").write_text((tmp_path / "out" / "config.yaml").read_text())
     assert load_config(tmp_path / "again.yaml") == written
     # its `plugins: []` imports nothing and leaves no search folder for worker processes (a Ray

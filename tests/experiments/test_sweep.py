@@ -336,4 +336,11 @@ def test_the_shipped_sweep_validates_into_its_cells() -> None:
     assert len(sweep.cells) == 3 * 2 * 20 and sweep.axis_names == [
         "estimators.ekf.sigma_range_m", "scenarios.0.params.duration_s", "seed"]
     assert sweep.cells[-1].config["estimators"] == {"ekf": {"sigma_range_m": 0.2}}
-    assert sweep.cells[-1].config["scenarios"][0]["params"] == {"duration_s": 20.0}
+    # the preset's params spelt out (issue 30: the cell runs on and is keyed by its resolved
+    # config), the swept duration as set, every other field at the mild preset's value
+    from slamkit.config import resolved
+    from slamkit.sim.landmark_world import PRESETS, LandmarkScenario
+
+    assert sweep.cells[-1].config["scenarios"][0]["params"] == resolved(
+        LandmarkScenario, {"duration_s": 20.0}, base=PRESETS["mild"](), exclude=("name",))
+    assert sweep.cells[-1].config["scenarios"][0]["params"]["duration_s"] == 20.0

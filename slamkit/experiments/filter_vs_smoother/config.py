@@ -19,7 +19,7 @@ from typing import Annotated, Any, Literal, Mapping, Union
 import pydantic
 from pydantic import BaseModel, Field
 
-from slamkit.config import STRICT, YamlDocument, build, model_of, params_model_of, validate
+from slamkit.config import STRICT, YamlDocument, build, dump, model_of, params_model_of, resolved, validate
 from slamkit.data import registry
 from slamkit.data.formats import landmark_datasets as lm
 from slamkit.data.formats.kitti_imu_gps import read_kitti_imu_gps
@@ -30,8 +30,8 @@ from slamkit.experiments.config_models import (PipelineConfig, Seeds, _check_per
                                                seed_list)
 from slamkit.experiments.estimators import REGISTRY, config_class
 from slamkit.paths import path_component
-from slamkit.sim.inertial_world import InertialScenario
-from slamkit.sim.landmark_world import LandmarkScenario
+from slamkit.sim.inertial_world import PRESETS as INERTIAL_SCENARIOS, InertialScenario
+from slamkit.sim.landmark_world import PRESETS as LANDMARK_SCENARIOS, LandmarkScenario
 from slamkit.sim.scenario import load_scenario
 
 #: the pipeline's registry name (``pipeline: filter_vs_smoother``)
@@ -130,6 +130,37 @@ def scenarios_of(config: Mapping[str, Any]) -> list[ScenarioSpec]:
     return out
 
 
+def preset_scenario(preset: str) -> tuple[type, Any]:
+    """The scenario class of a simulated ``preset`` and the preset's scenario: a ``scenarios``
+    entry's ``params`` are that class's fields over the preset."""
+    if preset in INERTIAL_PRESETS:
+        return InertialScenario, INERTIAL_SCENARIOS[preset]()
+    return LandmarkScenario, LANDMARK_SCENARIOS[preset]()
+
+
+def params_changed(scenario: ScenarioSpec) -> dict[str, Any]:
+    """A scenario's ``params`` less those equal to its preset's values (all of them for a
+    dataset or scenario file): what the report names, now that ``config.yaml`` spells every
+    preset field out."""
+    if scenario.preset is None:
+        return dict(scenario.params)
+    return _changed(dump(dict(scenario.params)), dump(preset_scenario(scenario.preset)[1]))
+
+
+def _changed(values: Mapping[str, Any], base: Mapping[str, Any]) -> dict[str, Any]:
+    """The entries of ``values`` that differ from ``base``'s, nested sections by their fields."""
+    out = {}
+    for key, value in values.items():
+        was = base.get(key)
+        if isinstance(value, Mapping) and isinstance(was, Mapping):
+            value = _changed(value, was)
+            if value:
+                out[key] = value
+        elif value != was:
+            out[key] = value
+    return out
+
+
 def estimator_items(raw: Any) -> list[tuple[str, dict[str, Any]]]:
     """(label, params) of a config's ``estimators`` (a mapping or a list of names / 1-key maps)."""
     if isinstance(raw, Mapping):
@@ -222,6 +253,27 @@ class FilterVsSmootherPipeline(PipelineConfig):
         _check_estimators(config.get("estimators"), doc, source)
         _check_scenarios(self, doc, source)
         _check_perturbations(self.perturbations, doc, source)
+
+    def resolve(self, config: dict[str, Any]) -> dict[str, Any]:
+        # a simulated preset's params spelt out: every field of its scenario class, the preset's
+        # values where the entry sets none (what monte_carlo.build_sequence builds); datasets and
+        # scenario files keep their params as written (reader keywords, a scenario file's
+        # overrides); estimator params too: a filter's unset sensor sigmas come from each
+        # sequence's metadata and a smoother's noise from the sequence, so they are not constants
+        # of the config (and they are the runs' params in results.json)
+        entries = []
+        raw = list(config.get("scenarios") or [])
+        for k, (given, entry) in enumerate(zip(raw, scenario_entries(raw))):
+            if not (isinstance(entry, Mapping) and entry.get("preset") in PRESETS):
+                entry = given  # as written (a bare dataset name stays one)
+            else:
+                spec = build(ScenarioSpec, entry, f"filter_vs_smoother: scenarios[{k}]")
+                cls, preset = preset_scenario(spec.preset)
+                params = resolved(cls, {**spec.params, "name": spec.name},
+                                  f"filter_vs_smoother: scenario {spec.name!r}", base=preset, exclude=("name",))
+                entry = {**entry, "params": params}
+            entries.append(entry)
+        return {**config, "scenarios": entries}
 
 
 def _check_estimators(raw: Any, doc: YamlDocument | None, source: str,

@@ -9,7 +9,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from slamkit.experiments.filter_vs_smoother.config import ScenarioSpec
+from slamkit.experiments.filter_vs_smoother.config import ScenarioSpec, params_changed
 from slamkit.experiments.filter_vs_smoother.monte_carlo import SETTINGS, TaskResult
 from slamkit.experiments.filter_vs_smoother.score import FilterVsSmootherPayload, ScenarioOutcome
 from slamkit.experiments.results import markdown_table, paired_markdown, summary_markdown
@@ -32,7 +32,7 @@ def report_markdown(config: Mapping[str, Any], summary: list[dict[str, Any]], co
     for s in scenarios:
         what = (f"simulated preset `{s.preset}`" if s.preset else f"scenario `{s.scenario}`" if s.scenario
                 else f"dataset `{s.dataset}`")
-        params = ", ".join(f"{k}={v}" for k, v in s.params.items())
+        params = ", ".join(f"{k}={v}" for k, v in params_changed(s).items())
         lines.append(f"- **{s.name}**: {what}{' (' + params + ')' if params else ''}, {seeds[s.name]} run(s), "
                      f"reference: {references.get(s.name, 'none')}")
         if "range_scale" in s.params:
