@@ -75,7 +75,20 @@ class SafetyConfig:
     #: the current command to every (v, omega) of the robot's range (``v_min_mps`` of the
     #: controller to ``cruise_speed_mps`` x +-``omega_max_radps``, ``evade_grid`` of each) at the
     #: controller's accelerations, over ``evade_horizon_s``: the manoeuvres the robot can still
-    #: make (:meth:`SafetyGuard.ramped_profiles`), turning round and leaving a lane sideways included
+    #: make (:meth:`SafetyGuard.ramped_profiles`), turning round and leaving a lane sideways included.
+    #: Measured on pipelines/navigation.yaml's traffic (issue 33; successes / moving hits / static
+    #: hits / timeouts of 90). Development seeds 400-429: defaults 82 / 7 / 0 / 1; yielding.turning
+    #: 82 / 5 / 0 / 3; ramped 86 / 4 / 0 / 0; both 85 / 0 / 0 / 5 (the 4 hits turning had left
+    #: were the held evasion backing into or driving along a returning shuttler's lane; the
+    #: timeouts are turning's waits at short, fast shuttlers: warehouse 411-413). Office 430-459,
+    #: both: 29 / 1 / 0 / 0. The three evaluation blocks (seeds 1000-1089 per world, 270 runs, not
+    #: looked at): defaults 255 / 12 / 0 / 3 (tests/experiments/test_navigation_pipeline.py), ramped
+    #: 253 / 14 / 0 / 3 (office 7 hits against 4), both 257 / 9 / 0 / 4 (office 5, warehouse 1,
+    #: Willow 3; first block paired with the defaults 3 runs better, 4 worse). No evidence that
+    #: either helps off the development seeds: held. What the office hits left share (development
+    #: seed 444): the robot half way across a shuttler's lane stops or backs off when the shuttler
+    #: slows at the far end (turning's reachable set closes the window), then drives on again --
+    #: a crossing with no commitment
     evasion: str = "held"
     evade_horizon_s: float = 3.0
     evade_grid: tuple[int, int] = (9, 11)

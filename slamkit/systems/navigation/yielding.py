@@ -102,7 +102,9 @@ class YieldingConfig:
     #: off: moving hits 4 -> 2 of 90 (office 1 -> 0, warehouse 3 -> 1, Willow 0 -> 1), successes
     #: 86 -> 88, McNemar exact p 0.625 (3 pairs one way, 1 the other); on office's second and
     #: third blocks (35 of 60 seeds run) 4 moving hits against off's 3 in all 60. No evidence that
-    #: it helps where the robot was not developed: off.
+    #: it helps where the robot was not developed: off. With the ramped evasion
+    #: (``safety.evasion``, where the figures of both are) 9 moving hits in the 270 evaluation runs
+    #: against the defaults' 12, 257 successes against 255: off, still no evidence.
     turning: bool = False
 
     def __post_init__(self) -> None:
