@@ -24,8 +24,8 @@ that read config files); algorithm packages never import it.
 from __future__ import annotations
 
 import dataclasses
-import enum
 import difflib
+import enum
 import functools
 import math
 import types

@@ -218,7 +218,6 @@ class SafetyGuard:
         if key[best] > first_still * 1e3 + np.clip(c_still.min(), -1e2, 1e2):
             self.evasion_xytheta = traj[best]
             return cand[best]
-        self.evasion_xytheta = None
         return out.command
 
     def brake_profiles(self, state: RobotState, steps: int, dt_s: float,
@@ -227,12 +226,10 @@ class SafetyGuard:
         ``accel_max_mps2`` to 0 (stop) or to its ``v_min_mps`` (back off, when it reverses),
         omega at ``alpha_max_radps2`` to one of ``n_omega`` turn rates over +-``omega_max_radps``.
         Returns their first commands (M, 2) and rollouts (M, steps + 1, 3)."""
-        cfg = dataclasses.replace(self.stack.controller.config, rollout_dt_s=dt_s)
-        v_end = np.unique([0.0, min(float(cfg.v_min_mps), 0.0)])
-        w_end = np.linspace(-cfg.omega_max_radps, cfg.omega_max_radps, n_omega)
-        targets = np.column_stack([a.ravel() for a in np.meshgrid(v_end, w_end, indexing="ij")])
-        commands = ramped_commands(state.command, targets, cfg, steps)  # (M, T, 2)
-        return commands[:, 0], rollout_profiles(state.world_xytheta_body, commands, dt_s)
+        ctrl = self.stack.controller.config
+        v_end = np.unique([0.0, min(float(ctrl.v_min_mps), 0.0)])
+        return self._ramps_to(state, v_end, np.linspace(-ctrl.omega_max_radps, ctrl.omega_max_radps, n_omega),
+                              steps, dt_s)
 
     def ramped_profiles(self, state: RobotState, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
         """The ``ramped`` evasion's candidates: from the current command, v at the controller's
@@ -241,12 +238,18 @@ class SafetyGuard:
         there, over ``evade_horizon_s``. Returns their first commands (M, 2) and rollouts
         (M, steps + 1, 3)."""
         c, ctrl = self.config, self.stack.controller.config
-        cfg = dataclasses.replace(ctrl, rollout_dt_s=dt_s)
         v_end = np.union1d(np.linspace(min(float(ctrl.v_min_mps), 0.0), self.stack.config.cruise_speed_mps,
                                        c.evade_grid[0]), [0.0])  # stopping is a manoeuvre too
         w_end = np.linspace(-ctrl.omega_max_radps, ctrl.omega_max_radps, c.evade_grid[1])
+        return self._ramps_to(state, v_end, w_end, max(1, int(round(c.evade_horizon_s / dt_s))), dt_s)
+
+    def _ramps_to(self, state: RobotState, v_end: np.ndarray, w_end: np.ndarray, steps: int,
+                  dt_s: float) -> tuple[np.ndarray, np.ndarray]:
+        """Profiles from the current command to every (v, omega) of ``v_end`` x ``w_end`` (v-major)
+        at the controller's accelerations, held there: first commands (M, 2), rollouts
+        (M, steps + 1, 3)."""
+        cfg = dataclasses.replace(self.stack.controller.config, rollout_dt_s=dt_s)
         targets = np.column_stack([a.ravel() for a in np.meshgrid(v_end, w_end, indexing="ij")])
-        steps = max(1, int(round(c.evade_horizon_s / dt_s)))
         commands = ramped_commands(state.command, targets, cfg, steps)  # (M, T, 2)
         return commands[:, 0], rollout_profiles(state.world_xytheta_body, commands, dt_s)
 
