@@ -73,8 +73,10 @@ class ScanContextConfig:
     region_probability: float = 0.99
 
     def __post_init__(self) -> None:
-        if self.num_rings < 1 or self.num_sectors < 4:
-            raise ConfigError("ScanContextConfig: num_rings must be >= 1 and num_sectors >= 4")
+        # bounded above too: every keyframe keeps a num_rings x num_sectors descriptor
+        if not (1 <= self.num_rings <= 500 and 4 <= self.num_sectors <= 3600):
+            raise ConfigError(f"ScanContextConfig: num_rings must lie in 1..500 and num_sectors in 4..3600, "
+                              f"got {self.num_rings}, {self.num_sectors}")
         if not self.ring_blur_m >= 0:
             raise ConfigError(f"ScanContextConfig.ring_blur_m must be >= 0, got {self.ring_blur_m}")
         if not self.max_radius_m > 0:

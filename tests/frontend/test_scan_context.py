@@ -135,7 +135,8 @@ def test_database_respects_allowed_and_threshold():
 
 @pytest.mark.parametrize("kwargs", [{"num_rings": 0}, {"num_sectors": 3}, {"max_radius_m": 0.0},
                                     {"num_candidates": 0}, {"max_distance": 0.0}, {"max_distance": 1.5},
-                                    {"ring_blur_m": -0.1}, {"max_radius_m": float("nan")}])
+                                    {"ring_blur_m": -0.1}, {"max_radius_m": float("nan")},
+                                    {"num_rings": 10**6}, {"num_sectors": 10**5}])
 def test_config_errors(kwargs):
     with pytest.raises(ConfigError):
         ScanContextConfig(**kwargs)

@@ -390,6 +390,10 @@ def test_ramped_evasion_turns_a_backing_robot_round_before_it_is_run_into():
     np.testing.assert_allclose(chosen[-1], [3.545, 2.0, 0.0], atol=1e-9)
     with pytest.raises(ConfigError, match="evasion"):
         SafetyConfig(evasion="swerve")
+    for bad in ({"evade_horizon_s": float("nan")}, {"evade_horizon_s": 1e9}, {"evade_grid": (9,)},
+                {"evade_grid": (9, 10**6)}, {"evade_grid": (9.5, 11)}):
+        with pytest.raises(ConfigError, match="evade_"):
+            SafetyConfig(evasion="ramped", **bad)
 
 
 def test_brake_profiles_stop_or_back_off_within_the_acceleration_limits():

@@ -100,10 +100,11 @@ class SafetyConfig:
             raise ConfigError(f"SafetyConfig.brake_decel_mps2 must be > 0, got {self.brake_decel_mps2}")
         if self.evasion not in EVASIONS:
             raise ConfigError(f"SafetyConfig.evasion must be one of {EVASIONS}, got {self.evasion!r}")
-        if not self.evade_horizon_s > 0:
-            raise ConfigError(f"SafetyConfig.evade_horizon_s must be > 0, got {self.evade_horizon_s}")
-        if len(self.evade_grid) != 2 or min(self.evade_grid) < 2:
-            raise ConfigError(f"SafetyConfig.evade_grid: two counts >= 2 (speeds, turn rates), got {self.evade_grid}")
+        # bounded above too: the evasion rolls out grid x horizon / dt profiles every cycle it runs
+        if not 0 < self.evade_horizon_s <= 20:
+            raise ConfigError(f"SafetyConfig.evade_horizon_s must lie in (0, 20] s, got {self.evade_horizon_s}")
+        if len(self.evade_grid) != 2 or not all(isinstance(n, int) and 2 <= n <= 101 for n in self.evade_grid):
+            raise ConfigError(f"SafetyConfig.evade_grid: two counts in 2..101 (speeds, turn rates), got {self.evade_grid}")
 
 
 class SafetyGuard:
