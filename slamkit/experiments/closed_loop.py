@@ -472,6 +472,6 @@ def run_pipeline(config: Mapping[str, Any], out_dir: str | Path, observer_factor
     return _run(cfg, out_dir, progress=False, observer_factory=observer_factory).results
 
 
-PIPELINE: Pipeline[list[Episode]] = Pipeline(
+PIPELINE: Pipeline[LocalPlanningPipeline, list[Episode]] = Pipeline(
     "local_planning", run, LocalPlanningPipeline, list[Episode],
     "controllers x seeded closed-loop scenarios")

@@ -209,7 +209,7 @@ def _check_perturbations(values: Any, doc: YamlDocument | None, source: str) -> 
     _nested(model_of(PerturbationConfig), values, doc, source, ("perturbations",))
 
     try:
-        perturbation_config({"perturbations": values})
+        perturbation_config(values)
     except ConfigError as exc:
         where = doc.where(("perturbations",)) if doc is not None else source
         raise ConfigError(f"{where}: {exc}") from None
@@ -306,6 +306,20 @@ def with_defaults(config: Mapping[str, Any], model: pydantic.BaseModel) -> dict[
     (``slam:``, ``navigation:``, ``options:`` ...) with their dataclass defaults."""
     out = _model_defaults(config, model)
     return model.resolve(out) if isinstance(model, PipelineConfig) else out
+
+
+def runtime_config(model_cls: type[PipelineConfig] | None, resolved_config: Mapping[str, Any]) -> PipelineConfig:
+    """The model a pipeline's ``run`` receives: ``resolved_config`` (:func:`with_defaults` of a
+    config :func:`check_with` accepted, exactly what ``config.yaml`` says) as its typed model,
+    so the run is configured by the very values the folder records. ``check_with`` has named
+    file, line and field for anything wrong; building the model of its resolved form cannot fail
+    unless ``resolve`` is wrong, which is then a bug reported as such. A sweep or executor worker
+    that is handed the resolved mapping gets the same model from it."""
+    try:
+        return (model_cls or _OpenPipeline).model_validate(dict(resolved_config))
+    except pydantic.ValidationError as exc:
+        raise ConfigError(f"the resolved config of pipeline {resolved_config.get('pipeline')!r} does not "
+                          f"validate again (a bug in its resolve()): {exc}") from None
 
 
 def _model_defaults(config: Mapping[str, Any], model: pydantic.BaseModel) -> dict[str, Any]:

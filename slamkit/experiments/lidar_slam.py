@@ -539,8 +539,8 @@ def run(config: Mapping[str, Any], folder, progress, observer=None):
     n_false, false_seed = int(config.get("false_loop_closures", 0)), int(config.get("false_loop_seed", 0))
     mcl_cfg = None if not config.get("mcl") else build(
         MclCheckConfig, config["mcl"] if isinstance(config["mcl"], Mapping) else None, "lidar_slam.mcl")
-    twins = perturbation_config(config)
-    indices = perturbation_indices(config)
+    twins = perturbation_config(config.get("perturbations"))
+    indices = perturbation_indices(twins)
     advance = progress.task("lidar_slam", (len(worlds) * len(seeds) + len(logs)) * len(variants) * len(indices))
     runs: list[RunRecord] = []
     results: list[LidarSlamResult] = []
@@ -928,6 +928,6 @@ class LidarSlamPipeline(PipelineConfig):
 
 
 #: the ``lidar_slam`` pipeline kind (slamkit.experiments.pipeline)
-PIPELINE: Pipeline[list[LidarSlamResult]] = Pipeline(
+PIPELINE: Pipeline[LidarSlamPipeline, list[LidarSlamResult]] = Pipeline(
     "lidar_slam", run, LidarSlamPipeline, list[LidarSlamResult],
     "lidar SLAM on simulated grid worlds x seeds and on recorded laser logs, x robust kernels x motion priors")

@@ -676,6 +676,6 @@ class NavigationPipeline(PipelineConfig):
                 "map": robot_map}
 
 
-PIPELINE: Pipeline[list[Episode]] = Pipeline(
+PIPELINE: Pipeline[NavigationPipeline, list[Episode]] = Pipeline(
     "navigation", run, NavigationPipeline, list[Episode],
     "MCL + A* + a local planner on the estimated pose, closed through the simulator")

@@ -35,14 +35,14 @@ from slamkit.paths import file_in
 PARAM = "perturbation"
 
 
-def perturbation_config(config: Mapping[str, Any]) -> PerturbationConfig:
-    """The validated ``perturbations`` mapping of a pipeline config as its dataclass."""
-    return build(PerturbationConfig, config.get("perturbations"), "perturbations")
+def perturbation_config(section: Mapping[str, Any] | None) -> PerturbationConfig:
+    """A pipeline config's validated ``perturbations`` section (None: none) as its dataclass."""
+    return build(PerturbationConfig, section, "perturbations")
 
 
-def perturbation_indices(config: Mapping[str, Any]) -> list[int]:
-    """0 (the data as given) then 1..count."""
-    return list(range(perturbation_config(config).count + 1))
+def perturbation_indices(twins: PerturbationConfig) -> list[int]:
+    """0 (the data as given) then 1..``twins.count``."""
+    return list(range(twins.count + 1))
 
 
 def twin_suffix(index: int) -> str:

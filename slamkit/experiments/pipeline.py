@@ -5,7 +5,9 @@ folder (config.yaml, results.json, report.md, plots/, trajectories/, recording.r
 config with every default of its model spelt out, and the algorithm sections the pipeline keeps
 as free mappings (``slam:``, ``navigation:``, ``options:`` ...) with the defaults of the frozen
 dataclasses built from them (the model's ``resolve``, :func:`slamkit.config.resolved`); the
-pipeline runs on that same mapping, so the folder says every setting that was used (issue 30).
+pipeline's ``run`` receives that same config as its typed model
+(:func:`config_models.runtime_config`), so the folder says every setting that was used and the
+run reads typed fields, not a mapping's keys with restated defaults (issue 30).
 
 Architecture note (issue 18): a pipeline kind is a :class:`Pipeline`, declared by its own module
 (``PIPELINE = Pipeline(...)`` in ``slamkit.experiments.pose_graph`` ...): its registry name, its
@@ -36,7 +38,8 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 
 from slamkit.config import YamlDocument, load_yaml
 from slamkit.errors import ConfigError
-from slamkit.experiments.config_models import PipelineConfig, check_with, import_config_plugins, with_defaults
+from slamkit.experiments.config_models import (PipelineConfig, check_with, import_config_plugins, runtime_config,
+                                               with_defaults)
 from slamkit.experiments.observers import NullObserver, PipelineObserver
 from slamkit.experiments.perturbation import with_perturbation_report
 from slamkit.experiments.results import ResultsFolder, RunRecord
@@ -44,6 +47,7 @@ from slamkit.naming import Registry, load_target
 from slamkit.paths import path_component
 
 PayloadT = TypeVar("PayloadT")
+ConfigT = TypeVar("ConfigT", bound=PipelineConfig)
 
 
 @dataclass(frozen=True)
@@ -69,24 +73,31 @@ class StepProgress(Protocol):
     def task(self, label: str, total: int) -> Callable[..., None]: ...
 
 
-class RunFunction(Protocol[PayloadT]):
-    def __call__(self, config: Mapping[str, Any], folder: ResultsFolder, progress: StepProgress,
+class RunFunction(Protocol[ConfigT, PayloadT]):
+    def __call__(self, config: ConfigT, folder: ResultsFolder, progress: StepProgress,
                  observer: PipelineObserver) -> PipelineOutput[PayloadT]: ...
 
 
 @dataclass(frozen=True)
-class Pipeline(Generic[PayloadT]):
+class Pipeline(Generic[ConfigT, PayloadT]):
     """One pipeline kind, declared by the module that implements it.
 
     ``config_model`` validates the config before anything runs (None: only the fields every
-    pipeline has are checked, extra keys allowed -- a user's quick pipeline); ``payload_type`` is
-    what ``run`` returns in ``PipelineOutput.payload`` for observers (None: nothing)."""
+    pipeline has are checked, extra keys allowed -- a user's quick pipeline); ``run`` receives
+    that validated model, the runtime config (issue 30): its defaults filled, its algorithm
+    sections resolved (:func:`runtime_config`), so a run reads ``config.seeds``, never
+    ``config.get("seeds", 3)``. ``payload_type`` is what ``run`` returns in
+    ``PipelineOutput.payload`` for observers (None: nothing).
+
+    ``typed`` is transitional (issue 30): a pipeline whose ``run`` still reads the resolved
+    mapping says False and is handed that mapping; it goes once every built-in kind is typed."""
 
     name: str
-    run: RunFunction[PayloadT]
-    config_model: type[PipelineConfig] | None = None
+    run: RunFunction[ConfigT, PayloadT]
+    config_model: type[ConfigT] | None = None
     payload_type: type[PayloadT] | None = None
     description: str = ""
+    typed: bool = False
 
 
 #: what the viz layer registers against a pipeline: ``factory(recording_path, spawn=False)``
@@ -269,7 +280,8 @@ def run_pipeline(config: str | Path | Mapping[str, Any], out_dir: str | Path | N
                           UserWarning, stacklevel=2)
         observer = observer_factory(cfg["pipeline"], folder.recording_path) if record else NullObserver()
         try:
-            output = with_perturbation_report(pipeline.run(cfg, folder, reporter, observer), folder.plots)
+            runtime = runtime_config(pipeline.config_model, cfg) if pipeline.typed else cfg
+            output = with_perturbation_report(pipeline.run(runtime, folder, reporter, observer), folder.plots)
             if not output.runs:
                 # e.g. inits: [chordal] on 2D graphs only: nothing to report is an error, not a result
                 raise ConfigError(f"pipeline {cfg['pipeline']!r} ran nothing: every combination it lists was "

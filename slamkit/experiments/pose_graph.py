@@ -369,6 +369,6 @@ def _plot(plots: Path, reports: list[OptimizeReport]) -> None:
         plt.close(fig)
 
 
-PIPELINE: Pipeline[list[OptimizeReport]] = Pipeline(
+PIPELINE: Pipeline[PoseGraphPipeline, list[OptimizeReport]] = Pipeline(
     "pose_graph", run, PoseGraphPipeline, list[OptimizeReport],
     "pose-graph datasets x solvers x initialisations")

@@ -186,6 +186,6 @@ def _plot(plots: Path, runs: list[RunRecord], backends: list[str]) -> None:
     plt.close(fig)
 
 
-PIPELINE: Pipeline[list[dict[str, Any]]] = Pipeline(
+PIPELINE: Pipeline[PoseGraphOutliersPipeline, list[dict[str, Any]]] = Pipeline(
     "pose_graph_outliers", run, PoseGraphOutliersPipeline, list,
     "robust back-ends x Vertigo-style false loop closures (counts, kinds, seeds)")

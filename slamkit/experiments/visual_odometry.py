@@ -189,6 +189,6 @@ def _plot(plots: Path, runs: list[VoRun]) -> None:
         fig.savefig(file_in(plots, f"trajectory_{name}", ".png", "sequence name"), dpi=110)
         plt.close(fig)
 
-PIPELINE: Pipeline[VoPayload] = Pipeline(
+PIPELINE: Pipeline[VisualOdometryPipeline, VoPayload] = Pipeline(
     "visual_odometry", run, VisualOdometryPipeline, VoPayload,
     "monocular visual odometry with sliding-window bundle adjustment on image sequences")

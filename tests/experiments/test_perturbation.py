@@ -95,5 +95,5 @@ def test_perturbation_settings_are_validated_where_they_are_written(tmp_path) ->
     # null means the default, as for every config key: {count: 1, kinds: null} is one twin of each default kind
     from slamkit.experiments.perturbation import perturbation_config
 
-    assert perturbation_config({"perturbations": {"count": 1, "kinds": None, "seed": None}}).kinds == \
+    assert perturbation_config({"count": 1, "kinds": None, "seed": None}).kinds == \
         ("start_offset", "range_jitter")

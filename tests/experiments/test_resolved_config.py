@@ -9,10 +9,10 @@ import yaml
 
 from slamkit.backend.solvers import OptimizeConfig
 from slamkit.config import resolved
-from slamkit.experiments.config_models import with_defaults
+from slamkit.experiments.config_models import runtime_config, with_defaults
 
 from slamkit.experiments.pipeline import check_pipeline
-from slamkit.experiments.pipeline import load_config, run_pipeline
+from slamkit.experiments.pipeline import load_config, pipeline_of, run_pipeline
 
 
 def test_defaults_are_filled_recursively_and_given_values_kept():
@@ -48,3 +48,19 @@ def test_the_run_folder_says_every_setting_and_reloads(tmp_path: Path):
     from slamkit.naming import plugin_env
 
     assert str(tmp_path) not in plugin_env().get("PYTHONPATH", "")
+
+
+def test_every_shipped_pipeline_runs_on_its_resolved_config_as_its_model():
+    """What ``run`` receives (issue 30): the resolved config as the pipeline's typed model, with
+    the values config.yaml records (a resolve() that wrote something its model refuses fails)."""
+    shipped = sorted((Path(__file__).resolve().parents[2] / "pipelines").glob("*.yaml"))
+    assert len(shipped) >= 10
+    for path in shipped:
+        config = load_config(path)
+        model = check_pipeline(dict(config))
+        resolved_config = with_defaults(config, model)
+        typed = runtime_config(pipeline_of(config["pipeline"]).config_model, resolved_config)
+        assert type(typed) is type(model), path.name
+        for name in type(model).model_fields:
+            if name in resolved_config:
+                assert getattr(typed, name) is not None, (path.name, name)

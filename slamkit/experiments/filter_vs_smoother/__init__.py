@@ -99,6 +99,6 @@ def assemble(config: Mapping[str, Any], results: list[TaskResult], scenarios: li
     return PipelineOutput(every_record, report, summary, {"consistency": rows, "paired": paired}, payload)
 
 
-PIPELINE: Pipeline[FilterVsSmootherPayload] = Pipeline(
+PIPELINE: Pipeline[FilterVsSmootherPipeline, FilterVsSmootherPayload] = Pipeline(
     NAME, run, FilterVsSmootherPipeline, FilterVsSmootherPayload,
     "filters and smoothers on the same sequences, Monte-Carlo over seeds")

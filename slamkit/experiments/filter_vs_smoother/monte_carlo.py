@@ -165,7 +165,7 @@ def run_monte_carlo(config: Mapping[str, Any], trajectories_dir: Path | None = N
     seeds = seeds_of(config)
     workers = workers_of(config)
     tdir = None if trajectories_dir is None else str(trajectories_dir)
-    twins = perturbation_config(config)
+    twins = perturbation_config(config.get("perturbations"))
     tasks = [Task(s, seed, s.estimator_choices(list(choices)), tdir, keep_full=(k == 0 and twin == 0),
                   perturbation=twin, perturbations=twins)
              for s in scenarios for k, seed in enumerate(seeds if s.simulated else seeds[:1])
