@@ -230,35 +230,23 @@ def write_outputs(trajectories: Path, report: OptimizeReport, stem: str | None =
 
 # --------------------------------------------------------------------------- pipeline
 
-_DEFAULT_INITS = {2: ["file"], 3: ["file"]}
-
-
-def _combinations(config: Mapping[str, Any]) -> list[tuple[str, str, str]]:
-    datasets = config.get("datasets")
-    if not datasets:
-        raise ConfigError("pose_graph pipeline: 'datasets' must list registry names or paths")
-    solvers = config.get("solvers", ["lm"])
-    inits = config.get("inits", ["file"])
-    return list(itertools.product(datasets, solvers, inits))
-
-
-def run(config: Mapping[str, Any], folder: ResultsFolder, progress: StepProgress,
+def run(config: PoseGraphPipeline, folder: ResultsFolder, progress: StepProgress,
         observer: PipelineObserver) -> PipelineOutput[list[OptimizeReport]]:
     """Pipeline ``pose_graph``: every dataset x solver x initialisation (initialisations that do
-    not apply to a dataset's dimension -- LAGO is 2D, chordal is 3D -- are skipped and noted)."""
-    combos = _combinations(config)
-    options = dict(config.get("options", {}))
-    robust = config.get("robust", "none")
-    certify_mode = config.get("certify", "auto")
+    not apply to a dataset's dimension -- LAGO is 2D, chordal is 3D -- are skipped and noted).
+    ``config`` is the validated, resolved model (its ``options`` every OptimizeConfig field but
+    the three each combination sets)."""
+    combos = list(itertools.product(config.datasets, config.solvers, config.inits))
+    robust = config.robust
     advance = progress.task("pose graphs", len(combos))
     runs: list[RunRecord] = []
     reports: list[OptimizeReport] = []
     skipped: list[str] = []
     for dataset, solver, init in combos:
-        cfg = build(OptimizeConfig, options, "pose_graph.options",
+        cfg = build(OptimizeConfig, config.options, "pose_graph.options",
                     base=OptimizeConfig(solver=solver, init=init, robust=robust))
         try:
-            report = optimize_source(dataset, cfg, certify_mode=certify_mode)
+            report = optimize_source(dataset, cfg, certify_mode=config.certify)
         except ConfigError as exc:
             skipped.append(f"{dataset} / {solver} / {init}: {exc}")
             advance()
@@ -288,7 +276,7 @@ def published_fstar(dataset: str) -> float | None:
     return next((ref.value for ref in entry.references if ref.kind == "sesync_fstar" and ref.published), None)
 
 
-def _report_markdown(config: Mapping[str, Any], reports: list[OptimizeReport], skipped: list[str]
+def _report_markdown(config: PoseGraphPipeline, reports: list[OptimizeReport], skipped: list[str]
                      ) -> str:
     header = ["dataset", "solver", "init", "poses", "initial error", "final error", "SE-Sync F",
               "iterations", "time (s)", "ATE RMSE (m)", "certified", "certified F", "published f*",
@@ -306,7 +294,7 @@ def _report_markdown(config: Mapping[str, Any], reports: list[OptimizeReport], s
                          None if c is None else c.objective, fstar,
                          None if c is None or fstar is None else c.objective / fstar,
                          None if c is None else c.min_eigenvalue, None if c is None else c.time_total_s])
-    text = f"# Pose-graph optimisation: {config.get('name', 'pose_graph')}\n\n"
+    text = f"# Pose-graph optimisation: {config.name or 'pose_graph'}\n\n"
     text += ("Final error is GTSAM's (one half of the weighted squared residuals); SE-Sync F is "
              "Rosen et al.'s objective evaluated on the solution, comparable with published optima. "
              "Certified: SE-Sync's optimality certificate (slamkit.backend.certify) after refining the "
@@ -371,4 +359,4 @@ def _plot(plots: Path, reports: list[OptimizeReport]) -> None:
 
 PIPELINE: Pipeline[PoseGraphPipeline, list[OptimizeReport]] = Pipeline(
     "pose_graph", run, PoseGraphPipeline, list[OptimizeReport],
-    "pose-graph datasets x solvers x initialisations")
+    "pose-graph datasets x solvers x initialisations", typed=True)
