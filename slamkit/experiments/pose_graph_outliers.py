@@ -44,15 +44,14 @@ def _trajectory(graph: PoseGraph, poses: np.ndarray):
     return trajectory_from_pose_graph(replace(graph, poses=poses, has_initial=True))
 
 
-def run(config: Mapping[str, Any], folder: ResultsFolder, progress: StepProgress,
+def run(config: PoseGraphOutliersPipeline, folder: ResultsFolder, progress: StepProgress,
         observer: PipelineObserver) -> PipelineOutput[list[dict[str, Any]]]:
-    datasets = list(config["datasets"])
-    counts = sorted(set(int(c) for c in config.get("counts", [0, 10, 100, 1000])))
-    kinds = list(config.get("kinds", ["random"]))
-    backends = list(config.get("backends", BACKENDS))
-    seeds = list(config.get("seeds", [0]))
-    outlier_options = dict(config.get("outliers", {}))
-    solve_options = dict(config.get("solver", {}))
+    """Pipeline ``pose_graph_outliers`` on its validated, resolved model: every dataset x outlier
+    kind x count x seed x back-end."""
+    datasets = config.datasets
+    counts = sorted(set(config.counts))
+    kinds, backends, seeds = config.kinds, config.backends, config.seeds
+    outlier_options, solve_options = config.outliers, config.solver
     cells = [(d, k, c, s) for d in datasets for k, c, s in itertools.product(kinds, counts, seeds)
              if c > 0 or (k == kinds[0] and s == seeds[0])]
     advance = progress.task("outlier cells", len(cells) * len(backends))
@@ -120,8 +119,8 @@ def _solve(graph: PoseGraph, backend: str, solve_options: Mapping[str, Any]) -> 
     return replace(result, backend=backend, time_solve_s=sw.elapsed_s)
 
 
-def _report(config: Mapping[str, Any], runs: list[RunRecord], clean, failures: list[str]) -> str:
-    text = f"# Robust back-ends under false loop closures: {config.get('name', 'pose_graph_outliers')}\n\n"
+def _report(config: PoseGraphOutliersPipeline, runs: list[RunRecord], clean, failures: list[str]) -> str:
+    text = f"# Robust back-ends under false loop closures: {config.name or 'pose_graph_outliers'}\n\n"
     text += ("Vertigo-style false loop closures (slamkit.sim.outliers) added to each graph; every back-end "
              "starts from odometry dead reckoning and trusts the odometry edges. ATE is against ground "
              "truth (or the outlier-free least-squares optimum when there is none); ATE ratio is to the "
@@ -188,4 +187,4 @@ def _plot(plots: Path, runs: list[RunRecord], backends: list[str]) -> None:
 
 PIPELINE: Pipeline[PoseGraphOutliersPipeline, list[dict[str, Any]]] = Pipeline(
     "pose_graph_outliers", run, PoseGraphOutliersPipeline, list,
-    "robust back-ends x Vertigo-style false loop closures (counts, kinds, seeds)")
+    "robust back-ends x Vertigo-style false loop closures (counts, kinds, seeds)", typed=True)
