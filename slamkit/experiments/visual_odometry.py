@@ -20,7 +20,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Mapping
 
 import numpy as np
 
@@ -101,16 +100,16 @@ class VoPayload:
     max_recorded_frames: int = 60
 
 
-def run(config: Mapping[str, Any], folder: ResultsFolder, progress: StepProgress,
+def run(config: VisualOdometryPipeline, folder: ResultsFolder, progress: StepProgress,
         observer: PipelineObserver) -> PipelineOutput[VoPayload]:
-    """Pipeline ``visual_odometry``: every sequence with bundle adjustment (and without, when
-    ``compare_without_ba``), scored against its ground truth."""
-    vo_config = build(VisualOdometryConfig, config.get("vo"), "visual_odometry.vo")
-    max_frames = config.get("max_frames")
+    """Pipeline ``visual_odometry`` on its validated, resolved model: every sequence with bundle
+    adjustment (and without, when ``compare_without_ba``), scored against its ground truth."""
+    vo_config = build(VisualOdometryConfig, config.vo, "visual_odometry.vo")
     variants = [("mono_vo_ba", vo_config)]
-    if config.get("compare_without_ba", True) and vo_config.window:
+    if config.compare_without_ba and vo_config.window:
         variants.append(("mono_vo", replace(vo_config, window=0)))
-    sequences = [load_image_sequence(s, max_frames) for s in config["sequences"]]
+    sequences = [load_image_sequence(s if isinstance(s, str) else s.model_dump(exclude_none=True), config.max_frames)
+                 for s in config.sequences]
     runs: list[VoRun] = []
     records: list[RunRecord] = []
     for seq in sequences:
@@ -130,8 +129,8 @@ _REPORT_METRICS = ("ate_rmse_m", "ate_percent_of_distance", "ate_se3_rmse_m", "r
                    "time_per_frame_ms")
 
 
-def _report(config: Mapping[str, Any], runs: list[VoRun]) -> str:
-    text = f"# Monocular visual odometry: {config.get('name', 'visual_odometry')}\n\n"
+def _report(config: VisualOdometryPipeline, runs: list[VoRun]) -> str:
+    text = f"# Monocular visual odometry: {config.name or 'visual_odometry'}\n\n"
     text += ("Monocular scale is unobservable: the trajectory is in the unit of the first baseline, so "
              "ATE is reported after a Sim(3) alignment (`ate_rmse_m`); `ate_se3_rmse_m` (no scale) is only "
              "meaningful where the scale is known. `mono_vo_ba` runs the sliding-window bundle adjustment, "
@@ -191,4 +190,4 @@ def _plot(plots: Path, runs: list[VoRun]) -> None:
 
 PIPELINE: Pipeline[VisualOdometryPipeline, VoPayload] = Pipeline(
     "visual_odometry", run, VisualOdometryPipeline, VoPayload,
-    "monocular visual odometry with sliding-window bundle adjustment on image sequences")
+    "monocular visual odometry with sliding-window bundle adjustment on image sequences", typed=True)
