@@ -240,7 +240,7 @@ def test_filter_vs_smoother_preset_params_resolved(path):
     from slamkit.experiments.filter_vs_smoother.config import preset_scenario, scenarios_of
 
     before, after = _before_and_after(path)
-    old, new = scenarios_of(before), scenarios_of(after)
+    old, new = scenarios_of(before["scenarios"]), scenarios_of(after["scenarios"])
     assert [s.name for s in old] == [s.name for s in new]
     for a, b in zip(old, new):
         if a.preset is None:

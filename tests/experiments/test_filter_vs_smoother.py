@@ -10,11 +10,11 @@ import yaml
 
 from slamkit.errors import ConfigError
 from slamkit.experiments import estimators as registry
+from slamkit.experiments.config_models import seed_list
 from slamkit.experiments.filter_vs_smoother import (
     assemble,
     estimators_of,
     scenarios_of,
-    seeds_of,
     run_monte_carlo,
 )
 from slamkit.experiments.pipeline import run_pipeline
@@ -76,17 +76,18 @@ def test_pipeline_writes_the_documented_folder_and_recording(tmp_path, verify_rr
 
 def test_config_errors_name_the_field() -> None:
     with pytest.raises(ConfigError, match=r"scenarios\[0\]: needs exactly one of 'preset', 'dataset' or 'scenario'"):
-        scenarios_of({"scenarios": [{"preset": "mild", "dataset": "x"}]})
+        scenarios_of([{"preset": "mild", "dataset": "x"}])
     with pytest.raises(ConfigError, match="preset must be one of mild, strong, car3d"):
-        scenarios_of({"scenarios": [{"preset": "wild"}]})
+        scenarios_of([{"preset": "wild"}])
     with pytest.raises(ConfigError, match="unknown estimator 'kalmann'"):
-        estimators_of({"estimators": ["kalmann"]})
+        estimators_of(["kalmann"])
     from slamkit.experiments.pipeline import check_pipeline
 
     with pytest.raises(ConfigError, match=r"seeds: Input should be greater than or equal to 1 \(got 0\)"):
         check_pipeline({"pipeline": "filter_vs_smoother", "seeds": 0, "scenarios": ["mild"], "estimators": ["ekf"]})
-    assert seeds_of({"seeds": [3, 7]}) == [3, 7]
-    assert [c.label for c in estimators_of({"estimators": ["ekf", {"pf": {"n_particles": 10}}]})] == ["ekf", "pf"]
+    assert seed_list(check_pipeline({"pipeline": "filter_vs_smoother", "seeds": [3, 7], "scenarios": ["mild"],
+                                     "estimators": ["ekf"]}).seeds) == [3, 7]
+    assert [c.label for c in estimators_of(["ekf", {"pf": {"n_particles": 10}}])] == ["ekf", "pf"]
 
 
 def test_a_scenario_may_leave_out_an_estimator_and_override_another() -> None:
@@ -95,8 +96,8 @@ def test_a_scenario_may_leave_out_an_estimator_and_override_another() -> None:
     config = {"pipeline": "filter_vs_smoother", "estimators": {"ekf": {}, "batch": {}, "isam2": {}},
               "scenarios": ["mild", {"preset": "strong", "estimators": {"batch": False, "isam2": {"update_every": 5}}}]}
     check_pipeline(config)
-    mild, strong = scenarios_of(config)
-    choices = estimators_of(config)
+    mild, strong = scenarios_of(config["scenarios"])
+    choices = estimators_of(config["estimators"])
     assert [c.label for c in mild.estimator_choices(choices)] == ["ekf", "batch", "isam2"]
     assert [(c.label, dict(c.params)) for c in strong.estimator_choices(choices)] == [
         ("ekf", {}), ("isam2", {"update_every": 5})]
@@ -119,7 +120,7 @@ def test_scenario_files_with_overrides_are_checked_before_running() -> None:
         check_pipeline({**base, "scenarios": [{"scenario": office, "preset": "mild"}]})
     with pytest.raises(ConfigError, match="lidar_noise"):
         check_pipeline({**base, "scenarios": ["mild"], "estimators": {"fusion_ekf": {"ekf": {"lidar_noise": 3}}}})
-    (spec,) = scenarios_of({"scenarios": [{"scenario": office, "params": {"slip_episodes": 1}}]})
+    (spec,) = scenarios_of([{"scenario": office, "params": {"slip_episodes": 1}}])
     assert (spec.name, spec.simulated, spec.params) == ("office_tour", True, {"slip_episodes": 1})
 
 
@@ -128,15 +129,15 @@ def test_shipped_fusion_config_is_valid(monkeypatch) -> None:
 
     monkeypatch.chdir(ROOT)
     config = load_config(ROOT / "pipelines" / "filter_vs_smoother_fusion.yaml")
-    assert [s.name for s in scenarios_of(config)] == ["office_tour", "warehouse_tour", "office_radius_only"]
-    assert {c.type for c in estimators_of(config)} == {"dead_reckoning", "fusion_ekf", "fusion_isam2"}
+    assert [s.name for s in scenarios_of(config["scenarios"])] == ["office_tour", "warehouse_tour", "office_radius_only"]
+    assert {c.type for c in estimators_of(config["estimators"])} == {"dead_reckoning", "fusion_ekf", "fusion_isam2"}
 
 
 def test_shipped_pipeline_config_is_valid() -> None:
     config = yaml.safe_load((ROOT / "pipelines" / "filter_vs_smoother.yaml").read_text())
     assert config["pipeline"] == "filter_vs_smoother"
-    assert len(scenarios_of(config)) >= 2
-    assert all(registry.is_available(c.type) or c.type in registry.REGISTRY for c in estimators_of(config))
+    assert len(scenarios_of(config["scenarios"])) >= 2
+    assert all(registry.is_available(c.type) or c.type in registry.REGISTRY for c in estimators_of(config["estimators"]))
 
 
 def test_ekf_nees_inside_its_band_when_mild_and_outside_when_strong() -> None:

@@ -56,7 +56,7 @@ def test_shipped_inertial_pipeline_is_valid() -> None:
 
     config = yaml.safe_load((ROOT / "pipelines" / "filter_vs_smoother_inertial.yaml").read_text())
     check_pipeline(config)
-    assert [s.name for s in scenarios_of(config)] == ["car3d", "kitti_outage10s", "kitti_outage30s",
+    assert [s.name for s in scenarios_of(config["scenarios"])] == ["car3d", "kitti_outage10s", "kitti_outage30s",
                                                          "kitti_outage60s"]
 
 

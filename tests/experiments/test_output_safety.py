@@ -124,9 +124,9 @@ def test_scenario_names_and_estimator_labels_must_be_plain(tmp_path) -> None:
     from slamkit.sim.scenario import scenario_from_dict
 
     with pytest.raises(ConfigError, match=r"scenarios\[0\]: name '\.\./\.\./x/scen' cannot be used as a file name"):
-        scenarios_of({"scenarios": [{"preset": "mild", "name": "../../x/scen"}]})
+        scenarios_of([{"preset": "mild", "name": "../../x/scen"}])
     with pytest.raises(ConfigError, match=r"estimator label '\.\./\.\./x/est' cannot be used as a file name"):
-        estimators_of({"estimators": {"../../x/est": {"type": "ekf"}}})
+        estimators_of({"../../x/est": {"type": "ekf"}})
     with pytest.raises(ConfigError, match=r"office.yaml: name '\.\./\.\./x/scen' cannot be used"):
         scenario_from_dict({"kind": "grid", "name": "../../x/scen"}, "office.yaml")
 

@@ -50,7 +50,7 @@ from typing import Any, Mapping
 
 from slamkit.experiments.filter_vs_smoother.config import (NAME, EstimatorChoice, FilterVsSmootherPipeline,
                                                             ScenarioSpec, default_workers, estimators_of,
-                                                            scenarios_of, seeds_of, workers_of)
+                                                            scenarios_of, typed_config)
 from slamkit.experiments.filter_vs_smoother.monte_carlo import (Task, TaskResult, build_sequence,
                                                                  run_monte_carlo, run_task)
 from slamkit.experiments.filter_vs_smoother.report import plot_all, report_markdown
@@ -65,13 +65,13 @@ __all__ = [
     "DEGENERATE_VERDICT_LIMIT", "EstimatorChoice", "FilterVsSmootherPayload", "NeesCurve", "PIPELINE",
     "ScenarioOutcome", "ScenarioSpec", "Task", "TaskResult", "assemble", "build_sequence",
     "consistency_table", "default_workers", "estimators_of", "nees_verdict", "scenarios_of",
-    "seeds_of", "workers_of", "plot_all", "report_markdown", "run", "run_monte_carlo", "run_task",
+    "typed_config", "plot_all", "report_markdown", "run", "run_monte_carlo", "run_task",
 ]
 
 
-def run(config: Mapping[str, Any], folder: ResultsFolder, progress: StepProgress,
+def run(config: FilterVsSmootherPipeline, folder: ResultsFolder, progress: StepProgress,
         observer: PipelineObserver) -> PipelineOutput[FilterVsSmootherPayload]:
-    """Pipeline ``filter_vs_smoother`` (see the module docstring)."""
+    """Pipeline ``filter_vs_smoother`` (see the module docstring) on its validated, resolved model."""
     results, scenarios, choices = run_monte_carlo(config, folder.trajectories, progress, observer)
     output = assemble(config, results, scenarios, choices)
     setting = {(rec.dataset, rec.estimator): rec.params.get("setting") for rec in output.runs}
@@ -79,11 +79,13 @@ def run(config: Mapping[str, Any], folder: ResultsFolder, progress: StepProgress
     return output
 
 
-def assemble(config: Mapping[str, Any], results: list[TaskResult], scenarios: list[ScenarioSpec],
-             choices: list[EstimatorChoice]) -> PipelineOutput[FilterVsSmootherPayload]:
+def assemble(config: FilterVsSmootherPipeline | Mapping[str, Any], results: list[TaskResult],
+             scenarios: list[ScenarioSpec], choices: list[EstimatorChoice]
+             ) -> PipelineOutput[FilterVsSmootherPayload]:
     """The pipeline's output from its task results: runs, summary, consistency, report, payload.
     Everything but ``runs`` is over the data as given; perturbed twins only enter the runner's
-    perturbation table (slamkit.experiments.perturbation)."""
+    perturbation table (slamkit.experiments.perturbation). ``config`` as for ``run_monte_carlo``."""
+    config = typed_config(config)
     every_record = [rec for r in results for rec in r.records]
     results = [r for r in results if r.perturbation == 0]
     records = [rec for r in results for rec in r.records]
@@ -101,4 +103,4 @@ def assemble(config: Mapping[str, Any], results: list[TaskResult], scenarios: li
 
 PIPELINE: Pipeline[FilterVsSmootherPipeline, FilterVsSmootherPayload] = Pipeline(
     NAME, run, FilterVsSmootherPipeline, FilterVsSmootherPayload,
-    "filters and smoothers on the same sequences, Monte-Carlo over seeds")
+    "filters and smoothers on the same sequences, Monte-Carlo over seeds", typed=True)

@@ -1,12 +1,14 @@
 """The ``filter_vs_smoother`` config: its pydantic model and the frozen values the runs use.
 
 The model (:class:`FilterVsSmootherPipeline`, at the end of this module) refuses malformed
-configs before the pipeline runs, naming file and line. :func:`scenarios_of` and
-:func:`estimators_of` turn the checked mapping into :class:`ScenarioSpec` and
-:class:`EstimatorChoice` values with :func:`slamkit.config.build` (the entries' own rules --
-exactly one source, a known preset, plain names, a registered estimator -- are the dataclasses',
-checked once for the config check and the run alike; callers that bypass the model, such as
-notebooks, get the same errors); :func:`seeds_of` and :func:`workers_of` read the two scalars.
+configs before the pipeline runs, naming file and line; the pipeline runs on that model
+(issue 30: ``config.seeds``, ``config.workers``, never a mapping's keys with restated defaults),
+and :func:`typed_config` gives a notebook's plain mapping the same model by the same path.
+:func:`scenarios_of` and :func:`estimators_of` turn its ``scenarios`` and ``estimators`` into
+:class:`ScenarioSpec` and :class:`EstimatorChoice` values with :func:`slamkit.config.build` (the
+entries' own rules -- exactly one source, a known preset, plain names, a registered estimator --
+are the dataclasses', checked once for the config check and the run alike; callers that bypass
+the model, such as notebooks, get the same errors).
 """
 
 from __future__ import annotations
@@ -14,7 +16,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Annotated, Any, Literal, Mapping, Union
+from typing import Annotated, Any, Literal, Mapping, Sequence, Union
 
 import pydantic
 from pydantic import BaseModel, Field
@@ -26,8 +28,8 @@ from slamkit.data.formats.kitti_imu_gps import read_kitti_imu_gps
 from slamkit.data.formats.plaza import read_plaza_sequence
 from slamkit.data.noise import SENSOR_SIGMAS
 from slamkit.errors import ConfigError, SlamkitError
-from slamkit.experiments.config_models import (PipelineConfig, Seeds, _check_perturbations, _nested,
-                                               seed_list)
+from slamkit.experiments.config_models import (PipelineConfig, Seeds, _check_perturbations, _nested, check_with,
+                                               runtime_config, with_defaults)
 from slamkit.experiments.estimators import REGISTRY, config_class
 from slamkit.paths import path_component
 from slamkit.sim.inertial_world import PRESETS as INERTIAL_SCENARIOS, InertialScenario
@@ -116,14 +118,12 @@ def scenario_entries(raw: Any) -> list[dict[str, Any]]:
             for item in raw or []]
 
 
-def scenarios_of(config: Mapping[str, Any]) -> list[ScenarioSpec]:
-    """The ``scenarios`` of a config (:func:`scenario_entries`, each built by
-    :func:`slamkit.config.build`); their names are unique."""
-    raw = config.get("scenarios")
-    if not raw:
-        raise ConfigError("filter_vs_smoother: 'scenarios' must list simulated presets or datasets")
+def scenarios_of(entries: Sequence[Any]) -> list[ScenarioSpec]:
+    """A config's ``scenarios`` entries (names, mappings or the model's :class:`ScenarioEntry`;
+    :func:`scenario_entries`), each built by :func:`slamkit.config.build`; their names are unique."""
+    plain = [e.model_dump(exclude_none=True) if isinstance(e, BaseModel) else e for e in entries]
     out = [build(ScenarioSpec, item, f"filter_vs_smoother: scenarios[{k}]")
-           for k, item in enumerate(scenario_entries(raw))]
+           for k, item in enumerate(scenario_entries(plain))]
     names = [s.name for s in out]
     if len(set(names)) != len(names):
         raise ConfigError(f"filter_vs_smoother: scenario names must be unique, got {names} (set 'name')")
@@ -177,14 +177,11 @@ def estimator_items(raw: Any) -> list[tuple[str, dict[str, Any]]]:
     return items
 
 
-def estimators_of(config: Mapping[str, Any]) -> list[EstimatorChoice]:
-    """The ``estimators`` of a config, each built by :func:`slamkit.config.build`."""
-    raw = config.get("estimators")
-    if not raw:
-        raise ConfigError("filter_vs_smoother: 'estimators' must name registry estimators "
-                          f"({', '.join(REGISTRY)})")
+def estimators_of(entries: Any) -> list[EstimatorChoice]:
+    """A config's ``estimators`` (a mapping or a list of names / 1-key maps), each built by
+    :func:`slamkit.config.build`."""
     out = []
-    for label, params in estimator_items(raw):
+    for label, params in estimator_items(entries):
         params = dict(params)
         kind = params.pop("type", label)
         out.append(build(EstimatorChoice, {"label": label, "type": kind, "params": params},
@@ -192,21 +189,9 @@ def estimators_of(config: Mapping[str, Any]) -> list[EstimatorChoice]:
     return out
 
 
-def seeds_of(config: Mapping[str, Any]) -> list[int]:
-    """The run's seeds (one rule for every pipeline: :func:`config_models.seed_list`)."""
-    return seed_list(config.get("seeds", 1))
-
-
 def default_workers() -> int:
+    """``workers`` left unset: local processes for the seeds after the first, at most 2."""
     return max(1, min(2, os.cpu_count() or 1))
-
-
-def workers_of(config: Mapping[str, Any]) -> int:
-    """Local processes for the seeds after the first (1: everything in this process)."""
-    workers = int(config.get("workers", default_workers()))
-    if workers < 1:
-        raise ConfigError(f"filter_vs_smoother: workers must be >= 1, got {workers}")
-    return workers
 
 
 # --- the config model (slamkit.experiments.config_models.PipelineConfig): checked before anything runs
@@ -356,3 +341,13 @@ def _check_scenarios(model: FilterVsSmootherPipeline, doc: YamlDocument | None, 
                     load_scenario(entry.scenario, entry.params)
                 except ConfigError as exc:
                     raise ConfigError(f"{where}: scenarios.{k}: {exc}") from None
+
+
+def typed_config(config: "FilterVsSmootherPipeline | Mapping[str, Any]") -> "FilterVsSmootherPipeline":
+    """The model the pipeline runs on; a plain mapping (a notebook's, a test's; ``pipeline:`` may
+    be left out) is checked and resolved as ``slamkit run`` does it (check_with, with_defaults,
+    runtime_config), so the Python API and the CLI run on the same values."""
+    if isinstance(config, FilterVsSmootherPipeline):
+        return config
+    data = {"pipeline": NAME, **config}
+    return runtime_config(FilterVsSmootherPipeline, with_defaults(data, check_with(FilterVsSmootherPipeline, data)))

@@ -30,9 +30,11 @@ from slamkit.data.sequence import Sequence
 from slamkit.errors import ConfigError, EstimationError
 from slamkit.experiments.estimators import factory, spec
 from slamkit.experiments.executors import LocalExecutor, TaskFailure
+from slamkit.experiments.config_models import seed_list
 from slamkit.experiments.filter_vs_smoother.config import (INERTIAL_PRESETS, NAME, EstimatorChoice,
-                                                            ScenarioSpec, estimators_of,
-                                                            scenarios_of, seeds_of, workers_of)
+                                                            FilterVsSmootherPipeline, ScenarioSpec,
+                                                            default_workers, estimators_of, scenarios_of,
+                                                            typed_config)
 from slamkit.experiments.observers import PipelineObserver
 from slamkit.experiments.perturbation import perturbation_config, twin_params, twin_suffix
 from slamkit.experiments.results import RunRecord
@@ -155,17 +157,19 @@ def run_task(task: Task, observer: PipelineObserver | None = None) -> TaskResult
                       task.perturbation, sequence if task.keep_full else None, runs if task.keep_full else None)
 
 
-def run_monte_carlo(config: Mapping[str, Any], trajectories_dir: Path | None = None, progress=None,
-                    observer: PipelineObserver | None = None
+def run_monte_carlo(config: FilterVsSmootherPipeline | Mapping[str, Any], trajectories_dir: Path | None = None,
+                    progress=None, observer: PipelineObserver | None = None
                     ) -> tuple[list[TaskResult], list[ScenarioSpec], list[EstimatorChoice]]:
     """Every scenario x seed (datasets once); the first seed of every scenario runs in this
-    process with ``observer`` (and keeps its sequence and estimates), the rest in the pool."""
-    scenarios = scenarios_of(config)
-    choices = tuple(estimators_of(config))
-    seeds = seeds_of(config)
-    workers = workers_of(config)
+    process with ``observer`` (and keeps its sequence and estimates), the rest in the pool.
+    ``config``: the pipeline's model (a plain mapping is made one by :func:`typed_config`)."""
+    config = typed_config(config)
+    scenarios = scenarios_of(config.scenarios)
+    choices = tuple(estimators_of(config.estimators))
+    seeds = seed_list(config.seeds)
+    workers = default_workers() if config.workers is None else config.workers
     tdir = None if trajectories_dir is None else str(trajectories_dir)
-    twins = perturbation_config(config.get("perturbations"))
+    twins = perturbation_config(config.perturbations)
     tasks = [Task(s, seed, s.estimator_choices(list(choices)), tdir, keep_full=(k == 0 and twin == 0),
                   perturbation=twin, perturbations=twins)
              for s in scenarios for k, seed in enumerate(seeds if s.simulated else seeds[:1])

@@ -9,21 +9,21 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from slamkit.experiments.filter_vs_smoother.config import ScenarioSpec, params_changed
+from slamkit.experiments.filter_vs_smoother.config import NAME, FilterVsSmootherPipeline, ScenarioSpec, params_changed
 from slamkit.experiments.filter_vs_smoother.monte_carlo import SETTINGS, TaskResult
 from slamkit.experiments.filter_vs_smoother.score import FilterVsSmootherPayload, ScenarioOutcome
 from slamkit.experiments.results import markdown_table, paired_markdown, summary_markdown
 from slamkit.paths import file_in
 
 
-def report_markdown(config: Mapping[str, Any], summary: list[dict[str, Any]], consistency: list[dict],
+def report_markdown(config: FilterVsSmootherPipeline, summary: list[dict[str, Any]], consistency: list[dict],
                     scenarios: list[ScenarioSpec], references: Mapping[str, str], notes: list[str],
                     results: list[TaskResult], paired: list[dict[str, Any]] | None = None) -> str:
     """``report.md``: scenarios, the metric summary, the paired comparisons, the consistency
     table and the notes."""
     seeds = {s.name: sum(1 for r in results if r.scenario == s.name) for s in scenarios}
     setting = {(rec.dataset, rec.estimator): rec.params.get("setting") for r in results for rec in r.records}
-    text = f"# Filters against smoothers: {config.get('name', 'filter_vs_smoother')}\n\n"
+    text = f"# Filters against smoothers: {config.name or NAME}\n\n"
     text += ("Every estimator sees the same sequence. Cells are the mean over runs ± the half width "
              "of the 95% Student-t confidence interval. ATE and RPE after SE(2) (planar) or SE(3) (3D) alignment; NEES "
              "from the unaligned pose error and the estimator's own covariance (filters: filtered, "
@@ -59,7 +59,7 @@ def report_markdown(config: Mapping[str, Any], summary: list[dict[str, Any]], co
                  "Monte-Carlo average.\n\n")
         text += by_setting(consistency, setting, consistency_markdown)
     text += inertial_markdown(summary)
-    text += outside_references_markdown(config.get("outside_references") or [], summary)
+    text += outside_references_markdown([r.model_dump() for r in config.outside_references], summary)
     failed = [(rec.dataset, rec.estimator, rec.seed, rec.params.get("failed"))
               for r in results for rec in r.records if rec.params.get("failed")]
     if failed:
