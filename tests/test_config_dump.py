@@ -206,8 +206,8 @@ def test_lidar_slam_sections_resolved(path):
     assert set(after["slam"]) == {k for k, v in dump(LidarSlamConfig()).items() if v is not None}
     assert "max_iterations" in after["slam"]["icp"]
     for prior in ("odometry", "constant_velocity", "identity"):
-        assert build(LidarSlamConfig, slam_section_for(after, prior)) == \
-            build(LidarSlamConfig, slam_section_for(before, prior))
+        assert build(LidarSlamConfig, slam_section_for(after.get("slam"), after.get("slam_by_motion_prior"), prior)) == \
+            build(LidarSlamConfig, slam_section_for(before.get("slam"), before.get("slam_by_motion_prior"), prior))
     if before.get("mcl"):
         mcl = before["mcl"] if isinstance(before["mcl"], dict) else None
         assert build(MclCheckConfig, after["mcl"]) == build(MclCheckConfig, mcl)

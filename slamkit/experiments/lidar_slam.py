@@ -367,12 +367,13 @@ def _merged(base: Mapping[str, Any], override: Mapping[str, Any]) -> dict[str, A
     return out
 
 
-def slam_section_for(config: Mapping[str, Any], motion_prior: str) -> dict[str, Any]:
-    """A pipeline's ``slam`` mapping for one motion prior: ``slam`` with the prior's entry of
+def slam_section_for(slam: Mapping[str, Any] | None, slam_by_motion_prior: Mapping[str, Mapping[str, Any]] | None,
+                     motion_prior: str) -> dict[str, Any]:
+    """A pipeline's ``slam`` section for one motion prior: ``slam`` with the prior's entry of
     ``slam_by_motion_prior`` merged in (what a matcher needs without odometry differs from what
     it needs with it: pipelines/lidar_slam_logs.yaml)."""
-    per_prior = (config.get("slam_by_motion_prior") or {}).get(motion_prior) or {}
-    return {**_merged(config.get("slam") or {}, per_prior), "motion_prior": motion_prior}
+    per_prior = (slam_by_motion_prior or {}).get(motion_prior) or {}
+    return {**_merged(slam or {}, per_prior), "motion_prior": motion_prior}
 
 
 def _simulate(world: Mapping[str, Any], seed: int):
@@ -520,26 +521,25 @@ def _label(robust: str, prior: str) -> str:
     return f"lidar_slam/{robust}" + ("" if prior == "odometry" else f"/{prior}")
 
 
-def run(config: Mapping[str, Any], folder, progress, observer=None):
-    """The ``lidar_slam`` pipeline: every world x seed and every log through :func:`run_slam`,
-    once per robust kernel (``robust_variants``) and motion prior (``motion_priors``); with an
-    ``mcl`` mapping (fields of :class:`MclCheckConfig`) also global localization on each map
-    built in a simulated world."""
-    worlds = config.get("worlds") or []
-    logs = [log_entry(x, f"lidar_slam.logs[{k}]") for k, x in enumerate(config.get("logs") or [])]
-    if not worlds and not logs:
-        raise ConfigError("lidar_slam: 'worlds' (grid scenario mappings) or 'logs' (laser logs) must "
-                          "list at least one entry")
-    seeds = seed_list(config.get("seeds", [0]))
-    slam_cfg = build(LidarSlamConfig, config.get("slam"), "lidar_slam.slam")
-    robusts = config.get("robust_variants") or [slam_cfg.robust]
-    priors = config.get("motion_priors") or [slam_cfg.motion_prior]
+def run(config: LidarSlamPipeline, folder, progress, observer=None):
+    """The ``lidar_slam`` pipeline on its validated, resolved model: every world x seed and every
+    log through :func:`run_slam`, once per robust kernel (``robust_variants``) and motion prior
+    (``motion_priors``); with an ``mcl`` mapping (fields of :class:`MclCheckConfig`) also global
+    localization on each map built in a simulated world."""
+    worlds = config.worlds
+    logs = [log_entry(x if isinstance(x, str) else x.model_dump(exclude_none=True), f"lidar_slam.logs[{k}]")
+            for k, x in enumerate(config.logs)]
+    seeds = seed_list(config.seeds)
+    slam_cfg = build(LidarSlamConfig, config.slam, "lidar_slam.slam")
+    robusts = config.robust_variants or [slam_cfg.robust]
+    priors = config.motion_priors or [slam_cfg.motion_prior]
     variants = [(r, p) for r in robusts for p in priors]
-    slam_by_prior = {p: build(LidarSlamConfig, slam_section_for(config, p), "lidar_slam.slam") for p in priors}
-    n_false, false_seed = int(config.get("false_loop_closures", 0)), int(config.get("false_loop_seed", 0))
-    mcl_cfg = None if not config.get("mcl") else build(
-        MclCheckConfig, config["mcl"] if isinstance(config["mcl"], Mapping) else None, "lidar_slam.mcl")
-    twins = perturbation_config(config.get("perturbations"))
+    slam_by_prior = {p: build(LidarSlamConfig, slam_section_for(config.slam, config.slam_by_motion_prior, p),
+                              "lidar_slam.slam") for p in priors}
+    n_false, false_seed = config.false_loop_closures, config.false_loop_seed
+    mcl_cfg = None if not config.mcl else build(
+        MclCheckConfig, config.mcl if isinstance(config.mcl, Mapping) else None, "lidar_slam.mcl")
+    twins = perturbation_config(config.perturbations)
     indices = perturbation_indices(twins)
     advance = progress.task("lidar_slam", (len(worlds) * len(seeds) + len(logs)) * len(variants) * len(indices))
     runs: list[RunRecord] = []
@@ -633,8 +633,8 @@ def _write_trajectory(folder, stamps_s: np.ndarray, poses: np.ndarray, stem: str
               Trajectory.from_se2(np.asarray(stamps_s)[order], np.asarray(poses)[order]))
 
 
-def report_markdown(config: Mapping[str, Any], sim_runs: list[RunRecord], log_runs: list[RunRecord]) -> str:
-    text = f"# Lidar SLAM: {config.get('name', 'lidar_slam')}\n\n"
+def report_markdown(config: LidarSlamPipeline, sim_runs: list[RunRecord], log_runs: list[RunRecord]) -> str:
+    text = f"# Lidar SLAM: {config.name or 'lidar_slam'}\n\n"
     if sim_runs:
         header = ["world", "seed", "estimator", "keyframes", "loops", "false loops", "ATE odometry (m)",
                   "ATE before LC (m)", "ATE after LC (m)", "reduction", "map IoU", "precision", "recall",
@@ -930,4 +930,5 @@ class LidarSlamPipeline(PipelineConfig):
 #: the ``lidar_slam`` pipeline kind (slamkit.experiments.pipeline)
 PIPELINE: Pipeline[LidarSlamPipeline, list[LidarSlamResult]] = Pipeline(
     "lidar_slam", run, LidarSlamPipeline, list[LidarSlamResult],
-    "lidar SLAM on simulated grid worlds x seeds and on recorded laser logs, x robust kernels x motion priors")
+    "lidar SLAM on simulated grid worlds x seeds and on recorded laser logs, x robust kernels x motion priors",
+    typed=True)

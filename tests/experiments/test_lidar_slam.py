@@ -197,12 +197,12 @@ def test_slam_by_motion_prior_is_merged_into_slam_key_by_key():
                        "loops": {"min_fitness": 0.6, "icp": {"trim_fraction": 0.9}}},
               "slam_by_motion_prior": {"constant_velocity": {"icp": {"trim_fraction": 1.0, "target_voxel_m": 0.05},
                                                              "loops": {"icp": {"target_voxel_m": 0.05}}}}}
-    lidar_only = build(LidarSlamConfig, slam_section_for(config, "constant_velocity"))
+    lidar_only = build(LidarSlamConfig, slam_section_for(config["slam"], config["slam_by_motion_prior"], "constant_velocity"))
     assert lidar_only.motion_prior == "constant_velocity" and lidar_only.submap_keyframes == 8
     assert (lidar_only.icp.trim_fraction, lidar_only.icp.max_iterations, lidar_only.icp.target_voxel_m) == (1.0, 30, 0.05)
     assert (lidar_only.loops.min_fitness, lidar_only.loops.icp.trim_fraction,
             lidar_only.loops.icp.target_voxel_m) == (0.6, 0.9, 0.05)
-    with_odometry = build(LidarSlamConfig, slam_section_for(config, "odometry"))
+    with_odometry = build(LidarSlamConfig, slam_section_for(config["slam"], config["slam_by_motion_prior"], "odometry"))
     assert with_odometry.icp.trim_fraction == 0.9 and with_odometry.icp.target_voxel_m == 0.0
     from slamkit.experiments.pipeline import check_pipeline
 

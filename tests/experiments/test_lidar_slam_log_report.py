@@ -30,6 +30,12 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[2]
 
 
+def _logs_slam_config(prior: str) -> LidarSlamConfig:
+    """pipelines/lidar_slam_logs.yaml's slam section for one motion prior, built."""
+    config = load_config(ROOT / "pipelines" / "lidar_slam_logs.yaml")
+    return build(LidarSlamConfig, slam_section_for(config.get("slam"), config.get("slam_by_motion_prior"), prior))
+
+
 @pytest.fixture(scope="module")
 def intel_60s():
     entry = registry.get("intel-log")
@@ -37,7 +43,7 @@ def intel_60s():
         pytest.skip("intel-log is not available locally")
     seq = replace(first_seconds(registry.load_recording(entry.name), 60.0), name="intel")
     relations = read_relations(registry.relations_of(entry.name))
-    cfg = build(LidarSlamConfig, slam_section_for(load_config(ROOT / "pipelines" / "lidar_slam_logs.yaml"), "odometry"))
+    cfg = _logs_slam_config("odometry")
     return run_slam(seq, None, cfg, relations=relations, label="intel"), relations
 
 
@@ -135,7 +141,7 @@ def intel_whole_consistency_m():
     entry = registry.get("intel-log")
     if not registry.is_available(entry):
         pytest.skip("intel-log is not available locally")
-    cfg = build(LidarSlamConfig, slam_section_for(load_config(ROOT / "pipelines" / "lidar_slam_logs.yaml"), "odometry"))
+    cfg = _logs_slam_config("odometry")
     return run_slam(registry.load_recording(entry.name), None, cfg).metrics["map_consistency_mean_m"]
 
 
@@ -150,7 +156,7 @@ def test_mit_csail_map_is_as_consistent_as_intel(prior, intel_whole_consistency_
     entry = registry.get("mit-csail-log")
     if not registry.is_available(entry):
         pytest.skip("mit-csail-log is not available locally")
-    cfg = build(LidarSlamConfig, slam_section_for(load_config(ROOT / "pipelines" / "lidar_slam_logs.yaml"), prior))
+    cfg = _logs_slam_config(prior)
     m = run_slam(registry.load_recording(entry.name), None, cfg).metrics
     assert m["map_consistency_overlap"] > 0.6
     assert m["map_consistency_mean_m"] <= 1.5 * intel_whole_consistency_m

@@ -164,7 +164,8 @@ def _log(name: str):
 
 def logs_config(prior: str = "odometry") -> LidarSlamConfig:
     """The logs pipeline's slam config for one motion prior (its slam_by_motion_prior merged in)."""
-    return build(LidarSlamConfig, slam_section_for(load_config(ROOT / "pipelines" / "lidar_slam_logs.yaml"), prior))
+    config = load_config(ROOT / "pipelines" / "lidar_slam_logs.yaml")
+    return build(LidarSlamConfig, slam_section_for(config.get("slam"), config.get("slam_by_motion_prior"), prior))
 
 
 @pytest.fixture(scope="module")
