@@ -14,6 +14,7 @@ KERNELS = {
     "slamkit.planning._gridsearch": "slamkit/planning/_gridsearch.c",
     "slamkit.estimation._pfkernel": "slamkit/estimation/_pfkernel.c",
     "slamkit.estimation._eskfkernel": "slamkit/estimation/_eskfkernel.c",
+    "slamkit.frontend._bnbkernel": "slamkit/frontend/_bnbkernel.c",
 }
 
 setup(ext_modules=[Extension(name, [source], extra_compile_args=["-O3"], libraries=["m"], optional=True)

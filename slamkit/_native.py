@@ -27,6 +27,7 @@ KERNELS: dict[str, str] = {
     "slamkit.planning._gridsearch": "grid A*/Dijkstra search core",
     "slamkit.estimation._pfkernel": "particle-filter likelihood, motion and resampling",
     "slamkit.estimation._eskfkernel": "error-state EKF IMU step (inertial navigation)",
+    "slamkit.frontend._bnbkernel": "branch-and-bound descent of the global scan matcher (loop closure)",
 }
 
 _lock = threading.Lock()

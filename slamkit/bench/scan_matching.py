@@ -12,13 +12,19 @@ The global matcher of loop closure (``slamkit.frontend.branch_and_bound``) is ti
 exhaustive search of the same window in the same run: a scan from a pose 1-1.5 m and 10-15 deg
 off the guess, matched against the map of a scan from the guess's neighbourhood over +-2 m x
 +-20 deg (81 x 81 cells, 41 headings at 1 deg); both must return the same pose and score (the
-branch and bound is exact), and the ratio is the time the pruning saves.
+branch and bound is exact), and the ratio is the time the pruning saves. The same branch and
+bound is also timed with its descent in Python (``SLAMKIT_NO_NATIVE=1``) against the compiled
+kernel (``_bnbkernel.c``): same optimum, score and nodes scored; the ratio is the kernel's gain.
 """
 
 from __future__ import annotations
 
+import os
+from contextlib import contextmanager
+
 import numpy as np
 
+from slamkit.frontend import branch_and_bound as bnb_mod
 from slamkit.frontend.branch_and_bound import (BranchAndBoundConfig, MaxGridPyramid, branch_and_bound_search,
                                                exhaustive_search)
 from slamkit.frontend.icp import IcpConfig, _best_rigid, icp, scan_to_points
@@ -113,6 +119,15 @@ def global_match_cases(grid, caster, beams, rng, quick: bool) -> list[BenchCase]
 
     bnb_s, fast = best_of(bnb, repeat=3)
     full_s, slow = best_of(full, repeat=1)
+    # the same branch and bound with the descent in Python (SLAMKIT_NO_NATIVE=1): the compiled
+    # kernel's gain, same nodes scored
+    compiled = bnb_mod._kernel() is not None
+    with _no_native():
+        py_s, py = best_of(bnb, repeat=1 if quick else 2)
+    same_py = all((a is None and b is None) or (a is not None and b is not None and a.score == b.score
+                                               and a.candidates_scored == b.candidates_scored
+                                               and np.array_equal(a.target_T_source, b.target_T_source))
+                  for a, b in zip(fast, py))
     same = all((a is None and b is None) or (a is not None and b is not None and a.score == b.score
                                             and np.array_equal(a.target_T_source, b.target_T_source))
                for a, b in zip(fast, slow))
@@ -121,5 +136,22 @@ def global_match_cases(grid, caster, beams, rng, quick: bool) -> list[BenchCase]
                     "exhaustive search of the same window (81 x 81 cells x 41 headings)", 1e3 * full_s / n,
                     goal=">= 10", problems=n, same_optimum=bool(same),
                     nodes_scored_mean=float(np.mean(scored)) if scored else 0.0,
-                    candidates_in_window=81 * 81 * 41)]
+                    candidates_in_window=81 * 81 * 41),
+            compare("global_match_bnb_compiled_descent", 1e3 * bnb_s / n, "ms",
+                    "the same branch and bound, descent in Python (SLAMKIT_NO_NATIVE=1)", 1e3 * py_s / n,
+                    goal=">= 3", problems=n, compiled=compiled, same_result_and_nodes=bool(same_py))]
+
+
+@contextmanager
+def _no_native():
+    """``SLAMKIT_NO_NATIVE=1`` for the block (the kernels' numpy/Python fallbacks run)."""
+    old = os.environ.get("SLAMKIT_NO_NATIVE")
+    os.environ["SLAMKIT_NO_NATIVE"] = "1"
+    try:
+        yield
+    finally:
+        if old is None:
+            os.environ.pop("SLAMKIT_NO_NATIVE")
+        else:
+            os.environ["SLAMKIT_NO_NATIVE"] = old
 

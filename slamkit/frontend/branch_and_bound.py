@@ -34,6 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from slamkit._native import load_extension
 from slamkit.errors import ConfigError
 from slamkit.frontend.correlative import CorrelativeResult, likelihood_field
 from slamkit.frontend.icp import finite_points_xy
@@ -42,6 +43,8 @@ from slamkit.geometry.angles import wrap_angle
 #: blocks of at most 2^h x 2^h candidates are scored whole at full resolution instead of descending
 #: (scan-matching bench, CPU time per search: 18 ms at 0, 22 ms at 1, 20 ms at 2, 29 ms at 3)
 LEAF_BLOCK_HEIGHT = 0
+#: the compiled descent (``_bnbkernel.c``; the same search as ``_descend_python``)
+KERNEL_MODULE = "slamkit.frontend._bnbkernel"
 #: the likelihood 1.0 in the integer grids (Cartographer stores probabilities as 15-bit integers too)
 LEVELS = 32767
 
@@ -93,13 +96,16 @@ class MaxGridPyramid:
         base = np.pad(q, ((pad, 1), (pad, 1)))
         self.origin_xy_m = origin - pad * res
         self.shape = base.shape
-        self.levels = [base]
+        # every height in one (depth, H, W) array: the compiled descent reads them all
+        self.stack = np.zeros((config.depth,) + base.shape, dtype=np.int32)
+        self.stack[0] = base
+        H, W = base.shape
         for h in range(1, config.depth):
             s = 2 ** (h - 1)
-            prev = np.pad(self.levels[-1], ((0, s), (0, s)))
-            H, W = base.shape
-            self.levels.append(np.maximum(np.maximum(prev[:H, :W], prev[s:s + H, :W]),
-                                          np.maximum(prev[:H, s:s + W], prev[s:s + H, s:s + W])))
+            prev = np.pad(self.stack[h - 1], ((0, s), (0, s)))
+            self.stack[h] = np.maximum(np.maximum(prev[:H, :W], prev[s:s + H, :W]),
+                                       np.maximum(prev[:H, s:s + W], prev[s:s + H, s:s + W]))
+        self.levels = list(self.stack)
         self._flat = [lv.ravel() for lv in self.levels]
 
     def sums(self, height: int, iy: np.ndarray, ix: np.ndarray) -> np.ndarray:
@@ -194,15 +200,50 @@ def branch_and_bound_search(source_xy: np.ndarray, pyramid: MaxGridPyramid, gues
                             config: BranchAndBoundConfig | None = None) -> CorrelativeResult | None:
     """The best candidate of the window around ``guess`` (target_T_source) by depth-first branch
     and bound (module docstring): the exhaustive search's result, with ``candidates_scored``
-    counting the nodes scored at every height. None when no candidate reaches ``min_score``."""
+    counting the nodes scored at every height. None when no candidate reaches ``min_score``.
+    The descent runs in the compiled kernel (``_bnbkernel.c``) when it is built, else in
+    :func:`_descend_python`; both visit the same nodes in the same order."""
     cfg = pyramid.config if config is None else config
     p = _problem(source_xy, pyramid, guess, cfg)
-    n, k, top_h = p.n, p.k, cfg.depth - 1
+    n, top_h = p.n, cfg.depth - 1
     size = 2 ** top_h
     starts = np.arange(-n, n + 1, size)
     bounds = pyramid.sums(top_h, p.iy[:, None, None, :] + starts[None, :, None, None],
                           p.ix[:, None, None, :] + starts[None, None, :, None])      # (T, B, B)
-    state = {"best": None, "sum": p.min_sum, "rank": None, "scored": bounds.size}
+    flat = np.argsort(-bounds, axis=None, kind="stable")
+    tt, yy, xx = np.unravel_index(flat, bounds.shape)
+    top_bounds = bounds[tt, yy, xx]
+    keep = top_bounds >= p.min_sum
+    top_bounds, tt, yy, xx = top_bounds[keep], tt[keep], starts[yy[keep]], starts[xx[keep]]
+    kernel = _kernel()
+    if kernel is None:
+        best, best_sum, scored = _descend_python(pyramid, p, top_bounds, tt, yy, xx, top_h)
+    else:
+        H, W = pyramid.shape
+        i64 = np.int64
+        found, t, oy, ox, best_sum, scored = kernel.descend(
+            pyramid.stack, cfg.depth, H, W, np.ascontiguousarray(p.iy, dtype=i64),
+            np.ascontiguousarray(p.ix, dtype=i64), p.iy.shape[0], p.iy.shape[1], n, p.k, top_h,
+            LEAF_BLOCK_HEIGHT, p.min_sum, np.ascontiguousarray(top_bounds, dtype=i64),
+            np.ascontiguousarray(tt, dtype=i64), np.ascontiguousarray(yy, dtype=i64),
+            np.ascontiguousarray(xx, dtype=i64), len(tt))
+        best = (t, oy, ox) if found else None
+    return _result(p, best, best_sum, cfg.resolution_m, bounds.size + scored)
+
+
+def _kernel():
+    """The compiled descent (``slamkit.frontend._bnbkernel``), or None: not built, or
+    ``SLAMKIT_NO_NATIVE`` set."""
+    return load_extension(KERNEL_MODULE)
+
+
+def _descend_python(pyramid: MaxGridPyramid, p: _Problem, top_bounds: np.ndarray, tt: np.ndarray,
+                    yy: np.ndarray, xx: np.ndarray, top_h: int) -> tuple[tuple[int, int, int] | None, int, int]:
+    """The depth-first descent from the top-height nodes (``top_bounds`` with their heading and
+    offsets, best bound first): (best (t, oy, ox) or None, its integer score sum, nodes scored
+    below the top height). The reference of the compiled kernel."""
+    n, k = p.n, p.k
+    state = {"best": None, "sum": p.min_sum, "rank": None, "scored": 0}
 
     def min_rank_dist(t: int, oy: int, ox: int, h: int) -> int:
         # the smallest squared distance to the guess of any candidate in the block
@@ -251,9 +292,5 @@ def branch_and_bound_search(source_xy: np.ndarray, pyramid: MaxGridPyramid, gues
             if top > state["sum"] or state["rank"] is None or r < state["rank"]:
                 state.update(best=(t, int(gy[a]), int(gx[a])), sum=top, rank=r)
 
-    flat = np.argsort(-bounds, axis=None, kind="stable")
-    tt, yy, xx = np.unravel_index(flat, bounds.shape)
-    top = [(int(bounds[a, b, c]), int(a), int(starts[b]), int(starts[c])) for a, b, c in zip(tt, yy, xx)
-           if bounds[a, b, c] >= p.min_sum]
-    descend(top, top_h)
-    return _result(p, state["best"], state["sum"], cfg.resolution_m, state["scored"])
+    descend([(int(b), int(t), int(y), int(x)) for b, t, y, x in zip(top_bounds, tt, yy, xx)], top_h)
+    return state["best"], state["sum"], state["scored"]

@@ -105,7 +105,8 @@ def test_doctor_says_which_kernels_are_compiled() -> None:
     data = json.loads(result.output)
     assert data["kernels"] == {"slamkit.data.formats._textscan": "compiled", "slamkit.maps._raycast": "compiled",
                                "slamkit.planning._gridsearch": "compiled", "slamkit.estimation._pfkernel": "compiled",
-                               "slamkit.estimation._eskfkernel": "compiled"}
+                               "slamkit.estimation._eskfkernel": "compiled",
+                               "slamkit.frontend._bnbkernel": "compiled"}
     assert [r["kind"] for r in data["data_roots"]][-1] == "cache"
 
 

@@ -169,3 +169,49 @@ def test_equals_exhaustive_on_intel_revisits(intel_revisits):
         # measured: ICP from the guess itself ends 1.8-2.1 m off the relation on these three
         naive = se2.between(relation, icp(source, target, guess, icp_cfg).target_T_source)
         assert np.hypot(naive[0], naive[1]) > 0.5
+
+
+def _kernel_and_fallback(monkeypatch, source, pyramid, guess):
+    """The search with the compiled descent and with ``SLAMKIT_NO_NATIVE=1`` (the Python one)."""
+    monkeypatch.delenv("SLAMKIT_NO_NATIVE", raising=False)
+    native = branch_and_bound_search(source, pyramid, guess)
+    monkeypatch.setenv("SLAMKIT_NO_NATIVE", "1")
+    python = branch_and_bound_search(source, pyramid, guess)
+    monkeypatch.delenv("SLAMKIT_NO_NATIVE", raising=False)
+    return native, python
+
+
+@pytest.mark.parametrize("leaf_height", [0, 1, 2])
+@pytest.mark.parametrize("seed", range(6))
+def test_compiled_descent_equals_the_python_one(monkeypatch, seed, leaf_height):
+    """The kernel (``_bnbkernel.c``) visits the nodes the Python descent visits: the same pose,
+    integer score and count of scored nodes, on seeded room views (depths 1-6, windows of
+    0.2-1.2 m and 0-20 deg, min scores from none reaching it to all) and a tied corridor; also
+    with leaf blocks of 2x2 and 4x4 cells scored whole."""
+    from slamkit.frontend import branch_and_bound as bnb
+    if bnb._kernel() is None:
+        pytest.skip("the branch-and-bound kernel is not built")
+    monkeypatch.setattr(bnb, "LEAF_BLOCK_HEIGHT", leaf_height)
+    rng = np.random.default_rng(seed)
+    target = room_scan()
+    for depth in range(1, 7):
+        truth = np.array([rng.uniform(-0.5, 0.5), rng.uniform(-0.5, 0.5), np.deg2rad(rng.uniform(-10, 10))])
+        source = se2.transform_points(se2.inverse(truth), target) + rng.normal(0, 0.02, target.shape)
+        cfg = BranchAndBoundConfig(window_xy_m=float(rng.uniform(0.2, 1.2)),
+                                   window_theta_rad=np.deg2rad(float(rng.uniform(0.0, 20.0))),
+                                   theta_step_rad=np.deg2rad(1.0), depth=depth,
+                                   min_score=float(rng.choice([0.0, 0.3, 0.6, 0.95])))
+        pyramid = MaxGridPyramid(target, cfg)
+        native, python = _kernel_and_fallback(monkeypatch, source, pyramid, np.zeros(3))
+        _same(native, python)
+        if native is not None:
+            assert native.candidates_scored == python.candidates_scored
+    xs = np.arange(-5.0, 5.0, 0.023)
+    corridor = np.concatenate([np.column_stack([xs, np.full_like(xs, -1.013)]),
+                               np.column_stack([xs, np.full_like(xs, 0.987)])])
+    cfg = BranchAndBoundConfig(window_xy_m=0.5, window_theta_rad=np.deg2rad(5.0),
+                               theta_step_rad=np.deg2rad(1.0), depth=4, min_score=0.1)
+    native, python = _kernel_and_fallback(monkeypatch, corridor[np.abs(corridor[:, 0]) < 2.0],
+                                          MaxGridPyramid(corridor, cfg), np.array([0.3 + 0.01 * seed, 0.0, 0.0]))
+    _same(native, python)
+    assert native.candidates_scored == python.candidates_scored
