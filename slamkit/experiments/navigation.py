@@ -40,7 +40,7 @@ import dataclasses
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Annotated, Any, Callable, Literal, Mapping
+from typing import Annotated, Any, Callable, Literal, Mapping, Sequence
 
 import numpy as np
 import pydantic
@@ -66,7 +66,7 @@ from slamkit.maps.occupancy_grid import OccupancyGrid
 from slamkit.planning.astar import AStarPlanner
 from slamkit.planning.grid_search import costmap_to_cell_cost
 from slamkit.planning.protocols import PlanningProblem
-from slamkit.sim.navigation_world import (WORLDS, NavigationPlant, NavigationScenario, passage_draws, start_goal_draws,
+from slamkit.sim.navigation_world import (NavigationPlant, NavigationScenario, passage_draws, start_goal_draws,
                                          world_map)
 from slamkit.sim.social_force import crossing_traffic
 from slamkit.systems.lidar_slam import LidarSlamConfig
@@ -288,17 +288,27 @@ def _section(value: Any, where: str) -> dict[str, Any]:
 
 
 def _variants(config: Mapping[str, Any]) -> list[tuple[str, NavigationConfig, EpisodeConfig]]:
+    """:func:`variants_of` of a plain config mapping (the model's check of its sections, a
+    notebook's or a test's mapping): its ``navigation``, ``episode`` and ``variants`` sections
+    (no ``variants``: one called ``nominal``)."""
+    variants = config.get("variants", [{"name": "nominal"}])
+    if not isinstance(variants, list):
+        raise ConfigError("variants: expected a list of {name, navigation, episode}")
+    return variants_of(config.get("navigation"), config.get("episode"), variants)
+
+
+def variants_of(navigation: Mapping[str, Any] | None, episode: Mapping[str, Any] | None,
+                variants: "Sequence[NavigationVariant | Mapping[str, Any]]"
+                ) -> list[tuple[str, NavigationConfig, EpisodeConfig]]:
     """(name, stack config, episode config) per variant: the base ``navigation``/``episode``
     sections with each variant's keys on top -- a key the variant names replaces the base's
     value as a whole (a nested section too: ``planning: {...}`` in a variant replaces the base's
     ``planning`` mapping, over the section's defaults) -- built by :func:`slamkit.config.build`."""
-    base_nav = _section(config.get("navigation"), "navigation")
-    base_ep = _section(config.get("episode"), "episode")
-    variants = config.get("variants", [{"name": "nominal"}])
-    if not isinstance(variants, list):
-        raise ConfigError("variants: expected a list of {name, navigation, episode}")
+    base_nav = _section(navigation, "navigation")
+    base_ep = _section(episode, "episode")
+    plain = [v.model_dump(exclude_none=True) if isinstance(v, BaseModel) else v for v in variants]
     out = []
-    for i, v in enumerate(variants):
+    for i, v in enumerate(plain):
         v = _section(v, f"variants.{i}")
         name = str(v.get("name", f"variant_{i}"))
         nav = build(NavigationConfig, {**base_nav, **_section(v.get("navigation"), f"variants.{name}.navigation")},
@@ -307,7 +317,7 @@ def _variants(config: Mapping[str, Any]) -> list[tuple[str, NavigationConfig, Ep
                    f"variants.{name}.episode")
         out.append((name, nav, ep))
     names = [n for n, _, _ in out]
-    for v in variants:
+    for v in plain:
         other = v.get("paired_with") if isinstance(v, Mapping) else None
         if other is not None and (other not in names or other == v.get("name")):
             raise ConfigError(f"variants.{v.get('name')}.paired_with: {other!r} is not another variant ({names})")
@@ -321,25 +331,19 @@ def willow_yaml(spec: str | None) -> str:
     return str(spec)
 
 
-def scenarios_of(config: Mapping[str, Any]) -> list[NavigationScenario]:
-    sc = dict(config.get("scenarios", {}) or {})
-    worlds = list(sc.get("worlds", ["office"]))
-    for w in worlds:
-        if w not in WORLDS:
-            raise ConfigError(f"scenarios.worlds: unknown world {w!r}; choose from {WORLDS}")
-    seeds = [seed for _block, seed in seed_blocks_of(config)]
-    willow = willow_yaml(sc.get("willow_map")) if "willow" in worlds else None
-    n_obs = int(sc.get("n_obstacles", 2))
-    agents = str(sc.get("agents", "constant_velocity"))
-    return [make_navigation_scenario(seed, w, willow, n_obstacles=n_obs, agents=agents)
-            for w in worlds for seed in seeds]
+def scenarios_of(scenarios: "NavigationScenarios") -> list[NavigationScenario]:
+    """Every world x seed (development, then evaluation blocks) of a config's ``scenarios``."""
+    seeds = [seed for _block, seed in seed_blocks_of(scenarios)]
+    willow = willow_yaml(scenarios.willow_map) if "willow" in scenarios.worlds else None
+    return [make_navigation_scenario(seed, w, willow, n_obstacles=scenarios.n_obstacles, agents=scenarios.agents)
+            for w in scenarios.worlds for seed in seeds]
 
 
-def seed_blocks_of(config: Mapping[str, Any]) -> list[tuple[str, int]]:
+def seed_blocks_of(scenarios: "NavigationScenarios") -> list[tuple[str, int]]:
     """(block, seed) of every episode seed: ``scenarios.seeds`` as the development block, then
     the ``scenarios.evaluation`` blocks (:mod:`slamkit.experiments.navigation_benchmark`)."""
-    sc = dict(config.get("scenarios", {}) or {})
-    return seed_blocks(seed_list(sc.get("seeds", 3)), sc.get("evaluation"))
+    evaluation = None if scenarios.evaluation is None else scenarios.evaluation.model_dump()
+    return seed_blocks(seed_list(scenarios.seeds), evaluation)
 
 
 #: what the paired table of :func:`paired_variants_markdown` compares
@@ -347,11 +351,14 @@ PAIRED_METRICS = ("success", "collision_static", "collision_moving", "min_cleara
                   "path_length_m", "localisation_error_max_m")
 
 
-def paired_variants_markdown(config: Mapping[str, Any], episodes: list[Episode]) -> str:
-    """Per world, every variant with ``paired_with`` minus that variant, paired by seed (both saw
-    the same scenario and noise seed): mean difference, its 95% CI and the Wilcoxon p-value of
-    :func:`slamkit.experiments.results.paired_difference`; time over the seeds both reached."""
-    pairs = [(str(v["name"]), str(v["paired_with"])) for v in config.get("variants", []) or []
+def paired_variants_markdown(variants: "Sequence[NavigationVariant | Mapping[str, Any]]",
+                             episodes: list[Episode]) -> str:
+    """Per world, every variant (of a config's ``variants``) with ``paired_with`` minus that
+    variant, paired by seed (both saw the same scenario and noise seed): mean difference, its 95%
+    CI and the Wilcoxon p-value of :func:`slamkit.experiments.results.paired_difference`; time
+    over the seeds both reached."""
+    plain = [v.model_dump(exclude_none=True) if isinstance(v, BaseModel) else v for v in variants]
+    pairs = [(str(v["name"]), str(v["paired_with"])) for v in plain
              if isinstance(v, Mapping) and v.get("paired_with")]
     by = {(e.world, e.variant, e.seed): e.metrics for e in episodes}
     rows = []
@@ -377,9 +384,9 @@ def runs_of(episodes: list[Episode], blocks: Mapping[int, str] | None = None) ->
             for e in episodes]
 
 
-def report_markdown(config: Mapping[str, Any], episodes: list[Episode], summary: list[dict],
+def report_markdown(config: "NavigationPipeline", episodes: list[Episode], summary: list[dict],
                     maps: Mapping[str, RobotMap] | None = None, benchmark: str = "") -> str:
-    text = f"# Navigation: {config.get('name', 'navigation')}\n\n" + benchmark
+    text = f"# Navigation: {config.name or 'navigation'}\n\n" + benchmark
     text += "## Every metric\n\n"
     text += ("MCL (likelihood field, 500 particles) on simulated lidar and wheel odometry, each "
              "variant's global planner (A* by default) and local planner on the estimated pose among "
@@ -389,7 +396,7 @@ def report_markdown(config: Mapping[str, Any], episodes: list[Episode], summary:
              "(development or evaluation).\n\n")
     text += map_source_markdown(maps or {})
     lead = ["dataset", "estimator"] + (["seeds"] if summary and "seeds" in summary[0] else [])
-    text += summary_markdown(summary, lead) + "\n\n" + paired_variants_markdown(config, episodes) + "\n## Runs\n\n"
+    text += summary_markdown(summary, lead) + "\n\n" + paired_variants_markdown(config.variants, episodes) + "\n## Runs\n\n"
     rows = [[e.scenario, e.variant, e.metrics["success"], e.metrics["final_position_error_m"],
              e.metrics["collision_static"], e.metrics["collision_moving"], e.metrics["time_s"],
              e.metrics["localisation_error_max_m"], e.metrics["replans"]] for e in episodes]
@@ -553,34 +560,35 @@ def _snapshots(observer: PipelineObserver, run_name: str, scenario: NavigationSc
     return on_step
 
 
-def run(config: Mapping[str, Any], folder: ResultsFolder, progress: StepProgress,
+def run(config: NavigationPipeline, folder: ResultsFolder, progress: StepProgress,
         observer: PipelineObserver | None = None) -> PipelineOutput[list[Episode]]:
-    """Pipeline ``navigation``: worlds x seeds x variants -> runs, summary, report, plots."""
-    variants = _variants(config)
-    map_config = build(MapSourceConfig, config.get("map"), "map")
-    scenarios = scenarios_of(config)
+    """Pipeline ``navigation`` on its validated, resolved model: worlds x seeds x variants ->
+    runs, summary, report, plots."""
+    variants = variants_of(config.navigation, config.episode, config.variants)
+    map_config = build(MapSourceConfig, config.map, "map")
+    scenarios = scenarios_of(config.scenarios)
     advance = progress.task("navigation episodes", len(scenarios) * len(variants))
     watch = observer is not None and observer.wants_steps
-    n_record = int(config.get("record_scenarios", 1))
     episodes = []
     maps: dict[str, RobotMap] = {}
     for i, sc in enumerate(scenarios):
         maps[sc.name] = robot = robot_map(sc, map_config, folder.path / "maps")
         for name, nav, ep in variants:
-            hook = _snapshots(observer, f"{name}/{sc.name}", sc) if watch and i < n_record else None
+            hook = _snapshots(observer, f"{name}/{sc.name}", sc) if watch and i < config.record_scenarios else None
             episode = run_episode(sc, nav, ep, name, hook, robot)
             episodes.append(dataclasses.replace(episode, metrics={**episode.metrics, **robot.metrics}))
             advance(1)
-    runs = runs_of(episodes, {seed: block for block, seed in seed_blocks_of(config)})
+    blocks = seed_blocks_of(config.scenarios)
+    runs = runs_of(episodes, {seed: block for block, seed in blocks})
     # development and evaluation seeds never share a mean (the protocol of navigation_benchmark)
     summary = summarise(runs, lambda r: {"dataset": r.dataset, "estimator": r.estimator,
                                          "seeds": "development" if block_of(r) == DEV_BLOCK else "evaluation"})
     plot(folder.plots, episodes, {s.name: s for s in scenarios})
     rows, by_difficulty = benchmark_rows(runs), difficulty_rows(runs)
     plot_benchmark(folder.plots / "benchmark.png", rows, by_difficulty)
-    sc = config.get("scenarios", {}) or {}
-    protocol = {"dev_seeds": [s for b, s in seed_blocks_of(config) if b == DEV_BLOCK],
-                "evaluation": sc.get("evaluation")}
+    evaluation = config.scenarios.evaluation
+    protocol = {"dev_seeds": [s for b, s in blocks if b == DEV_BLOCK],
+                "evaluation": None if evaluation is None else evaluation.model_dump()}
     text = benchmark_markdown(rows, by_difficulty, protocol)
     return PipelineOutput(runs, report_markdown(config, episodes, summary, maps, text), summary,
                           extra={"benchmark": {"protocol": protocol, "rows": rows, "by_difficulty": by_difficulty}},
@@ -678,4 +686,4 @@ class NavigationPipeline(PipelineConfig):
 
 PIPELINE: Pipeline[NavigationPipeline, list[Episode]] = Pipeline(
     "navigation", run, NavigationPipeline, list[Episode],
-    "MCL + A* + a local planner on the estimated pose, closed through the simulator")
+    "MCL + A* + a local planner on the estimated pose, closed through the simulator", typed=True)

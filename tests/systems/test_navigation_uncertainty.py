@@ -89,7 +89,7 @@ def test_paired_variants_table_differences_by_seed():
                    {**base, "path_length_m": length})
            for s, v, length in ((0, "fixed", 8.0), (0, "covariance", 10.0), (1, "fixed", 8.5),
                                 (1, "covariance", 11.5), (2, "fixed", 9.0))]
-    text = paired_variants_markdown(config, eps)
+    text = paired_variants_markdown(config["variants"], eps)
     # seeds 0 and 1 are paired (seed 2 has no covariance run): +2.0 and +3.0 m -> mean 2.5
     row = next(line for line in text.splitlines() if "path_length_m" in line)
     assert "covariance - fixed" in row and "| 2 |" in row and "2.5" in row
