@@ -44,7 +44,7 @@ from slamkit.control.protocols import (ControlOutput, ControlStatus, Controller,
 from slamkit.control.registry import CONTROLLERS, make_controller
 from slamkit.config import STRICT, YamlDocument, build, model_of, validate
 from slamkit.errors import ConfigError
-from slamkit.experiments.config_models import PipelineConfig, Seeds, _nested, seed_list
+from slamkit.experiments.config_models import PipelineConfig, Seeds, _nested, seed_list, typed_config
 from slamkit.experiments.observers import PipelineObserver, StepSnapshot
 from slamkit.experiments.pipeline import Pipeline, PipelineOutput, StepProgress
 from slamkit.experiments.pipeline import run_pipeline as _run
@@ -57,7 +57,7 @@ from slamkit.naming import suggestion
 from slamkit.planning.astar import AStarPlanner
 from slamkit.planning.grid_search import costmap_to_cell_cost
 from slamkit.planning.protocols import PlanningProblem
-from slamkit.sim.local_planning_world import SCENARIO_KINDS, scenario_map, visible_obstacles
+from slamkit.sim.local_planning_world import scenario_map, visible_obstacles
 from slamkit.sim.local_planning_world import clearance_m as world_clearance_m
 from slamkit.sim.moving_obstacles import MovingObstacles, crossing_obstacles
 from slamkit.sim.navigation_world import start_goal_draws
@@ -277,25 +277,18 @@ def episode_metrics(ep: Episode, dt_s: float) -> dict[str, float]:
 # --------------------------------------------------------------------------- comparison
 
 
-def _seeds(spec: Any) -> list[int]:
-    return seed_list(spec)
+def scenario_list(scenarios: "LocalPlanningScenarios") -> list[Scenario]:
+    """The seeded scenarios of a config's ``scenarios`` (kinds taken in turn over the seeds).
 
-
-def scenario_list(config: Mapping[str, Any]) -> list[Scenario]:
-    sc = dict(config.get("scenarios", {}))
-    kinds = list(sc.get("kinds", ["office"]))
-    for k in kinds:
-        if k not in SCENARIO_KINDS:
-            raise ConfigError(f"scenarios.kinds: unknown kind {k!r}; choose from {SCENARIO_KINDS}")
-    seeds = _seeds(sc.get("seeds", 5))
-    n_obs = int(sc.get("n_obstacles", 3))
-    speed = tuple(float(v) for v in sc.get("obstacle_speed_mps", (0.2, 0.5)))
-    # how far from the path a shuttling obstacle may turn round: measured on 30 scenarios, 0.5 m
-    # left 17 % collisions for DWA and MPC, nearly all obstacles reversing beside the robot (a
-    # constant-velocity prediction cannot foresee it); 1 m gave 0-3 % but fits fewer obstacles
-    side = float(sc.get("obstacle_min_side_m", 0.5))
-    return [make_scenario(seed, kinds[i % len(kinds)], n_obs, obstacle_speed_mps=speed,
-                          obstacle_min_side_m=side) for i, seed in enumerate(seeds)]
+    ``obstacle_min_side_m``: how far from the path a shuttling obstacle may turn round: measured
+    on 30 scenarios, 0.5 m left 17 % collisions for DWA and MPC, nearly all obstacles reversing
+    beside the robot (a constant-velocity prediction cannot foresee it); 1 m gave 0-3 % but fits
+    fewer obstacles."""
+    kinds = scenarios.kinds
+    speed = tuple(float(v) for v in scenarios.obstacle_speed_mps)
+    return [make_scenario(seed, kinds[i % len(kinds)], scenarios.n_obstacles, obstacle_speed_mps=speed,
+                          obstacle_min_side_m=scenarios.obstacle_min_side_m)
+            for i, seed in enumerate(seed_list(scenarios.seeds))]
 
 
 @dataclass(frozen=True)
@@ -326,26 +319,27 @@ class _PipelineStepAdapter:
                                            LocalPlanningSnapshot(self.scenario, self.controller, snap)))
 
 
-def compare(config: Mapping[str, Any], observer=None,
+def compare(config: "LocalPlanningPipeline | Mapping[str, Any]", observer=None,
             progress: Callable[[int], None] | None = None) -> tuple[list[Episode], list[Scenario]]:
-    """Every controller on every scenario of ``config`` (the pipeline's dict). A pipeline
+    """Every controller on every scenario of ``config`` (the pipeline's model; a plain mapping
+    is made one by :func:`~slamkit.experiments.config_models.typed_config`). A pipeline
     ``observer`` that wants steps sees the episodes of the first ``record_scenarios`` scenarios
     (default 1, to keep recordings small)."""
-    controllers = list(config.get("controllers", ["dwa", "mpc"]))
+    config = typed_config(LocalPlanningPipeline, config)
+    controllers = config.controllers
     try:  # every name checked before the first episode runs
         names = [CONTROLLERS.canonical(c) for c in controllers]
     except ConfigError as exc:
         raise ConfigError(f"controllers: {exc}") from None
-    params = dict(config.get("controller_params", {}) or {})
-    loop = build(ClosedLoopConfig, config.get("closed_loop"), "closed_loop")
-    n_record = int(config.get("record_scenarios", 1))
+    params = config.controller_params
+    loop = build(ClosedLoopConfig, config.closed_loop, "closed_loop")
     watch = observer is not None and observer.wants_steps
     episodes = []
-    scenarios = scenario_list(config)
+    scenarios = scenario_list(config.scenarios)
     for typed, name in zip(controllers, names):
         ctl = make_controller(name, params.get(typed, params.get(name)))
         for i, sc in enumerate(scenarios):
-            obs = [_PipelineStepAdapter(observer, name, sc)] if watch and i < n_record else []
+            obs = [_PipelineStepAdapter(observer, name, sc)] if watch and i < config.record_scenarios else []
             episodes.append(run_episode(sc, ctl, loop, obs))
             if progress is not None:
                 progress(1)
@@ -359,8 +353,8 @@ def episodes_to_runs(episodes: Iterable[Episode]) -> list[RunRecord]:
                       params={"scenario": e.scenario}) for e in episodes]
 
 
-def report_markdown(config: Mapping[str, Any], episodes: list[Episode], summary: list[dict]) -> str:
-    text = f"# Local planning: {config.get('name', 'local_planning')}\n\n"
+def report_markdown(config: "LocalPlanningPipeline", episodes: list[Episode], summary: list[dict]) -> str:
+    text = f"# Local planning: {config.name or 'local_planning'}\n\n"
     text += ("Controllers track an A* path through a static map while moving circles cross it "
              "(perfect perception within range). Mean ± half the 95% CI over scenarios; "
              "time to goal over successful runs only.\n\n")
@@ -413,13 +407,13 @@ def plot(plots: Path, episodes: list[Episode], scenarios: Mapping[str, Scenario]
     plt.close(fig)
 
 
-def run(config: Mapping[str, Any], folder: ResultsFolder, progress: StepProgress,
+def run(config: LocalPlanningPipeline, folder: ResultsFolder, progress: StepProgress,
         observer: PipelineObserver | None = None) -> PipelineOutput[list[Episode]]:
-    """Pipeline ``local_planning`` (``PIPELINE`` below): controllers x seeded scenarios ->
-    results.json runs/summary, report.md and plots; the observer (the recorder the viz layer
-    registers, ``slamkit.viz.control.LocalPlanningObserver``) records the steps."""
-    n = len(_seeds(dict(config.get("scenarios", {})).get("seeds", 5))) * len(
-        list(config.get("controllers", ["dwa", "mpc"])))
+    """Pipeline ``local_planning`` (``PIPELINE`` below) on its validated, resolved model:
+    controllers x seeded scenarios -> results.json runs/summary, report.md and plots; the observer
+    (the recorder the viz layer registers, ``slamkit.viz.control.LocalPlanningObserver``) records
+    the steps."""
+    n = len(seed_list(config.scenarios.seeds)) * len(config.controllers)
     advance = progress.task("closed-loop episodes", n)
     episodes, scenarios = compare(config, observer, advance)
     runs = episodes_to_runs(episodes)
@@ -474,4 +468,4 @@ def run_pipeline(config: Mapping[str, Any], out_dir: str | Path, observer_factor
 
 PIPELINE: Pipeline[LocalPlanningPipeline, list[Episode]] = Pipeline(
     "local_planning", run, LocalPlanningPipeline, list[Episode],
-    "controllers x seeded closed-loop scenarios")
+    "controllers x seeded closed-loop scenarios", typed=True)

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import os
 
-from typing import Annotated, Any, Literal, Mapping, Union
+from typing import Annotated, Any, Literal, Mapping, TypeVar, Union
 
 import pydantic
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field
@@ -104,6 +104,9 @@ class PipelineConfig(BaseModel):
         every section as written (a user's pipeline without such sections)."""
         return config
 
+
+
+PipelineConfigT = TypeVar("PipelineConfigT", bound=PipelineConfig)
 
 
 class _OpenPipeline(PipelineConfig):
@@ -320,6 +323,17 @@ def runtime_config(model_cls: type[PipelineConfig] | None, resolved_config: Mapp
     except pydantic.ValidationError as exc:
         raise ConfigError(f"the resolved config of pipeline {resolved_config.get('pipeline')!r} does not "
                           f"validate again (a bug in its resolve()): {exc}") from None
+
+
+def typed_config(model_cls: type[PipelineConfigT], config: "PipelineConfigT | Mapping[str, Any]") -> PipelineConfigT:
+    """The model a pipeline runs on, from a plain mapping too (a notebook's, a test's;
+    ``pipeline:`` may be left out): checked and resolved as ``slamkit run`` does it
+    (:func:`check_with`, :func:`with_defaults`, :func:`runtime_config`), so a pipeline's Python
+    API and the CLI run on the same values. A model is returned as it is."""
+    if isinstance(config, model_cls):
+        return config
+    data = {"pipeline": model_cls.model_fields["pipeline"].annotation.__args__[0], **config}
+    return runtime_config(model_cls, with_defaults(data, check_with(model_cls, data)))
 
 
 def _model_defaults(config: Mapping[str, Any], model: pydantic.BaseModel) -> dict[str, Any]:
