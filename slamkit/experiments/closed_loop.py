@@ -468,4 +468,4 @@ def run_pipeline(config: Mapping[str, Any], out_dir: str | Path, observer_factor
 
 PIPELINE: Pipeline[LocalPlanningPipeline, list[Episode]] = Pipeline(
     "local_planning", run, LocalPlanningPipeline, list[Episode],
-    "controllers x seeded closed-loop scenarios", typed=True)
+    "controllers x seeded closed-loop scenarios")

@@ -930,5 +930,4 @@ class LidarSlamPipeline(PipelineConfig):
 #: the ``lidar_slam`` pipeline kind (slamkit.experiments.pipeline)
 PIPELINE: Pipeline[LidarSlamPipeline, list[LidarSlamResult]] = Pipeline(
     "lidar_slam", run, LidarSlamPipeline, list[LidarSlamResult],
-    "lidar SLAM on simulated grid worlds x seeds and on recorded laser logs, x robust kernels x motion priors",
-    typed=True)
+    "lidar SLAM on simulated grid worlds x seeds and on recorded laser logs, x robust kernels x motion priors")

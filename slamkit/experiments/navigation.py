@@ -686,4 +686,4 @@ class NavigationPipeline(PipelineConfig):
 
 PIPELINE: Pipeline[NavigationPipeline, list[Episode]] = Pipeline(
     "navigation", run, NavigationPipeline, list[Episode],
-    "MCL + A* + a local planner on the estimated pose, closed through the simulator", typed=True)
+    "MCL + A* + a local planner on the estimated pose, closed through the simulator")

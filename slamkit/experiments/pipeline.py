@@ -83,21 +83,18 @@ class Pipeline(Generic[ConfigT, PayloadT]):
     """One pipeline kind, declared by the module that implements it.
 
     ``config_model`` validates the config before anything runs (None: only the fields every
-    pipeline has are checked, extra keys allowed -- a user's quick pipeline); ``run`` receives
-    that validated model, the runtime config (issue 30): its defaults filled, its algorithm
-    sections resolved (:func:`runtime_config`), so a run reads ``config.seeds``, never
-    ``config.get("seeds", 3)``. ``payload_type`` is what ``run`` returns in
-    ``PipelineOutput.payload`` for observers (None: nothing).
-
-    ``typed`` is transitional (issue 30): a pipeline whose ``run`` still reads the resolved
-    mapping says False and is handed that mapping; it goes once every built-in kind is typed."""
+    pipeline has are checked, extra keys allowed -- a user's quick pipeline, whose ``run`` finds
+    them in ``config.model_extra``); ``run`` receives that validated model, the runtime config
+    (issue 30): its defaults filled, its algorithm sections resolved
+    (:func:`~slamkit.experiments.config_models.runtime_config`), so a run reads
+    ``config.seeds``, never ``config.get("seeds", 3)``. ``payload_type`` is what ``run`` returns
+    in ``PipelineOutput.payload`` for observers (None: nothing)."""
 
     name: str
     run: RunFunction[ConfigT, PayloadT]
     config_model: type[ConfigT] | None = None
     payload_type: type[PayloadT] | None = None
     description: str = ""
-    typed: bool = False
 
 
 #: what the viz layer registers against a pipeline: ``factory(recording_path, spawn=False)``
@@ -280,7 +277,7 @@ def run_pipeline(config: str | Path | Mapping[str, Any], out_dir: str | Path | N
                           UserWarning, stacklevel=2)
         observer = observer_factory(cfg["pipeline"], folder.recording_path) if record else NullObserver()
         try:
-            runtime = runtime_config(pipeline.config_model, cfg) if pipeline.typed else cfg
+            runtime = runtime_config(pipeline.config_model, cfg)
             output = with_perturbation_report(pipeline.run(runtime, folder, reporter, observer), folder.plots)
             if not output.runs:
                 # e.g. inits: [chordal] on 2D graphs only: nothing to report is an error, not a result

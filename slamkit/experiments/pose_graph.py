@@ -359,4 +359,4 @@ def _plot(plots: Path, reports: list[OptimizeReport]) -> None:
 
 PIPELINE: Pipeline[PoseGraphPipeline, list[OptimizeReport]] = Pipeline(
     "pose_graph", run, PoseGraphPipeline, list[OptimizeReport],
-    "pose-graph datasets x solvers x initialisations", typed=True)
+    "pose-graph datasets x solvers x initialisations")

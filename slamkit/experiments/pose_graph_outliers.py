@@ -187,4 +187,4 @@ def _plot(plots: Path, runs: list[RunRecord], backends: list[str]) -> None:
 
 PIPELINE: Pipeline[PoseGraphOutliersPipeline, list[dict[str, Any]]] = Pipeline(
     "pose_graph_outliers", run, PoseGraphOutliersPipeline, list,
-    "robust back-ends x Vertigo-style false loop closures (counts, kinds, seeds)", typed=True)
+    "robust back-ends x Vertigo-style false loop closures (counts, kinds, seeds)")

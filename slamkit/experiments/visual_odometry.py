@@ -190,4 +190,4 @@ def _plot(plots: Path, runs: list[VoRun]) -> None:
 
 PIPELINE: Pipeline[VisualOdometryPipeline, VoPayload] = Pipeline(
     "visual_odometry", run, VisualOdometryPipeline, VoPayload,
-    "monocular visual odometry with sliding-window bundle adjustment on image sequences", typed=True)
+    "monocular visual odometry with sliding-window bundle adjustment on image sequences")

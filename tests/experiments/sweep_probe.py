@@ -16,6 +16,8 @@ NAME = "sweep_probe"
 
 
 def run(config, folder, progress, observer) -> PipelineOutput[None]:
+    # registered without a config model: its keys are free, the validated model's extras
+    config = config.model_dump(exclude_none=True)
     if config.get("log"):
         with open(config["log"], "a") as f:
             f.write(f"{config_key(config)} {os.getpid()}\n")

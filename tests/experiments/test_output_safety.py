@@ -29,8 +29,8 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 def _toy(config, folder, progress, observer):
-    return PipelineOutput([RunRecord("toy", "est", {"ate_rmse_m": float(config.get("value", 1.0))})],
-                          f"# toy {config.get('value', 1.0)}\n")
+    value = config.model_extra.get("value", 1.0)  # registered without a model: its keys are extras
+    return PipelineOutput([RunRecord("toy", "est", {"ate_rmse_m": float(value)})], f"# toy {value}\n")
 
 
 @pytest.fixture

@@ -89,7 +89,7 @@ def _fake_pipeline(config, folder, progress, observer):
     advance = progress.task("fake", 2)
     runs = []
     for seed in range(2):
-        if config.get("fail_at") == seed:
+        if config.model_extra.get("fail_at") == seed:  # a pipeline without a model: its keys are extras
             raise RuntimeError("boom")
         runs.append(RunRecord("toy", "est", {"ate_rmse_m": 1.0 + seed}, seed=seed))
         advance()

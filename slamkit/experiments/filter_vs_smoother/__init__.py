@@ -103,4 +103,4 @@ def assemble(config: FilterVsSmootherPipeline | Mapping[str, Any], results: list
 
 PIPELINE: Pipeline[FilterVsSmootherPipeline, FilterVsSmootherPayload] = Pipeline(
     NAME, run, FilterVsSmootherPipeline, FilterVsSmootherPayload,
-    "filters and smoothers on the same sequences, Monte-Carlo over seeds", typed=True)
+    "filters and smoothers on the same sequences, Monte-Carlo over seeds")

@@ -28,8 +28,8 @@ from slamkit.data.formats.kitti_imu_gps import read_kitti_imu_gps
 from slamkit.data.formats.plaza import read_plaza_sequence
 from slamkit.data.noise import SENSOR_SIGMAS
 from slamkit.errors import ConfigError, SlamkitError
-from slamkit.experiments.config_models import (PipelineConfig, Seeds, _check_perturbations, _nested, check_with,
-                                               runtime_config, with_defaults)
+from slamkit.experiments.config_models import PipelineConfig, Seeds, _check_perturbations, _nested
+from slamkit.experiments.config_models import typed_config as typed_model
 from slamkit.experiments.estimators import REGISTRY, config_class
 from slamkit.paths import path_component
 from slamkit.sim.inertial_world import PRESETS as INERTIAL_SCENARIOS, InertialScenario
@@ -343,11 +343,9 @@ def _check_scenarios(model: FilterVsSmootherPipeline, doc: YamlDocument | None, 
                     raise ConfigError(f"{where}: scenarios.{k}: {exc}") from None
 
 
+
 def typed_config(config: "FilterVsSmootherPipeline | Mapping[str, Any]") -> "FilterVsSmootherPipeline":
     """The model the pipeline runs on; a plain mapping (a notebook's, a test's; ``pipeline:`` may
-    be left out) is checked and resolved as ``slamkit run`` does it (check_with, with_defaults,
-    runtime_config), so the Python API and the CLI run on the same values."""
-    if isinstance(config, FilterVsSmootherPipeline):
-        return config
-    data = {"pipeline": NAME, **config}
-    return runtime_config(FilterVsSmootherPipeline, with_defaults(data, check_with(FilterVsSmootherPipeline, data)))
+    be left out) is checked and resolved as ``slamkit run`` does it
+    (:func:`slamkit.experiments.config_models.typed_config`)."""
+    return typed_model(FilterVsSmootherPipeline, config)

@@ -209,7 +209,7 @@ def _pipeline():
         """The end-point error of dead reckoning with a constant heading bias b over a straight
         drive of length L: the robot turns by b s after s metres, so it ends at
         (sin(bL)/b, (1 - cos(bL))/b) instead of (L, 0)."""
-        length, bias = float(config.get("distance_m", 10.0)), float(config.get("heading_bias_radpm", 0.01))
+        length, bias = config.distance_m, config.heading_bias_radpm  # config: the validated DriftConfig
         end = np.array([np.sin(bias * length) / bias, (1 - np.cos(bias * length)) / bias]) if bias else np.array([length, 0.0])
         error_m = float(np.hypot(*(end - (length, 0.0))))
         record = RunRecord("straight", "biased_odometry", {"final_position_error_m": error_m})
