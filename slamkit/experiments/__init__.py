@@ -16,5 +16,8 @@ Where the rest went (issue 30): trajectory scoring is :func:`slamkit.metrics.sco
 :mod:`slamkit.systems.stereo_vo` and :func:`slamkit.systems.visual_inertial.run_vio`; the
 local-planning world (maps, obstacle sensor, clearance) is :mod:`slamkit.sim.local_planning_world`;
 building an algorithm's frozen config from a validated mapping is :func:`slamkit.config.build`.
-Still here and due to move: ``navigation_map`` (the robot's map built by SLAM is a system).
+``navigation_map`` is the navigation pipeline's map source: the map SLAM builds is the system
+:mod:`slamkit.systems.slam_map`, the mapping tour it is built on :func:`slamkit.sim.grid_world.mapping_tour`;
+what is left scores that map against the true world (ground truth, so not a system's business)
+and caches it in the results folder, and moves with the navigation pipeline into its package.
 """

@@ -8,7 +8,7 @@ Sources (``map: {source: ...}`` in ``pipelines/navigation*.yaml``):
 * ``slam_tour`` -- built offline by slamkit's own lidar SLAM (the system
   :func:`slamkit.systems.slam_map.slam_map`) on a seeded mapping tour of the world: the
   grid-world simulator drives the robot through ``tour_goals`` goals spread over the free space
-  (``slamkit.sim.grid_world.simulate_grid_sequence``, its 360-beam lidar and noisy wheel
+  (:func:`slamkit.sim.grid_world.mapping_tour`, its 360-beam lidar and noisy wheel
   odometry), SLAM runs on the tour, and its log-odds map at ``resolution_m`` (5 cm) is the
   robot's map. The map's frame is the SLAM estimate's: the robot was put down at the tour's
   known start pose, nothing is aligned to the ground truth afterwards, so any drift SLAM leaves
@@ -47,7 +47,7 @@ from slamkit.maps.log_odds import map_quality, resample_to
 from slamkit.maps.occupancy_grid import OccupancyGrid
 from slamkit.metrics.trajectory_score import ate_at_stamps_m, poses_at_stamps
 from slamkit.paths import atomic_file
-from slamkit.sim.grid_world import GridScenario, simulate_grid_sequence
+from slamkit.sim.grid_world import mapping_tour
 from slamkit.sim.navigation_world import NavigationScenario
 from slamkit.systems.lidar_slam import LidarSlamConfig
 from slamkit.systems.slam_map import slam_map
@@ -164,10 +164,8 @@ def slam_tour_map(truth: OccupancyGrid, config: MapSourceConfig, seed: int,
     robot's map (on ``truth``'s extent at ``config.resolution_m``) with its scores and the tour's
     keyframes as anchors between the world and the map."""
     t0 = time.perf_counter()
-    tour = GridScenario(name=name, num_goals=config.tour_goals, goal_choice="spread",
-                        clearance_m=config.tour_clearance_m, duration_s=config.tour_duration_s,
-                        speed_mps=config.tour_speed_mps, encoder=None, imu_rate_hz=None, gps=None)
-    sequence, _ = simulate_grid_sequence(tour, np.random.default_rng(seed), grid=truth)
+    sequence = mapping_tour(truth, config.tour_goals, config.tour_clearance_m, config.tour_duration_s,
+                            config.tour_speed_mps, np.random.default_rng(seed), name)
     slam = build(LidarSlamConfig, {**dict(config.slam), "map": {**dict(config.slam.get("map", {})),
                                                                 "resolution_m": config.resolution_m}},
                  "lidar_slam.slam")

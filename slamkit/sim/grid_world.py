@@ -405,3 +405,16 @@ def simulate_grid_sequence(config: GridScenario, rng: np.random.Generator,
                    world_p_landmarks=None, initial_world_xytheta_body=drive.world_xytheta_body[0].copy(),
                    metadata=metadata, occupancy_grid=grid)
     return seq, grid
+
+
+def mapping_tour(truth: OccupancyGrid, num_goals: int, clearance_m: float, duration_s: float, speed_mps: float,
+                 rng: np.random.Generator, name: str = "mapping_tour") -> Sequence:
+    """A seeded mapping tour of ``truth`` (the sequence a robot's map is built from by SLAM,
+    :func:`slamkit.systems.slam_map.slam_map`): ``num_goals`` goals spread over the free space
+    (farthest-point sampling along the routes, :func:`route` with ``goal_choice="spread"``),
+    joined by shortest routes ``clearance_m`` from walls, driven by pure pursuit for at most
+    ``duration_s`` at ``speed_mps``; lidar and noisy wheel odometry only (no encoder ticks, IMU
+    or GPS)."""
+    tour = GridScenario(name=name, num_goals=num_goals, goal_choice="spread", clearance_m=clearance_m,
+                        duration_s=duration_s, speed_mps=speed_mps, encoder=None, imu_rate_hz=None, gps=None)
+    return simulate_grid_sequence(tour, rng, grid=truth)[0]
