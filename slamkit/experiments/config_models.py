@@ -6,10 +6,11 @@ options it nests against the models that :func:`slamkit.config.model_of` derives
 algorithms' own config dataclasses, so a field exists, has a type and a bound in one place only.
 
 This module holds what every model shares (:class:`PipelineConfig`, ``Seeds``, the nested-section
-check and write-back, :func:`check_with`, :func:`with_defaults`) and the models of the pipelines
-without a config of their own (pose_graph, pose_graph_outliers, visual_odometry). The others live
-with their pipeline (issue 30): ``FilterVsSmootherPipeline`` in ``filter_vs_smoother.config``,
-``LidarSlamPipeline`` in ``lidar_slam``, ``NavigationPipeline`` in ``navigation``,
+check and write-back, :func:`check_with`, :func:`with_defaults`, :func:`runtime_config` and
+:func:`typed_config`, the checks the two pose-graph pipelines share) and the models of the
+pipelines without a config module of their own (pose_graph_outliers, visual_odometry). The others
+live with their pipeline (issue 30): ``FilterVsSmootherPipeline`` in ``filter_vs_smoother.config``,
+``PoseGraphPipeline`` in ``pose_graph.config``, ``LidarSlamPipeline`` in ``lidar_slam``, ``NavigationPipeline`` in ``navigation``,
 ``LocalPlanningPipeline`` in ``closed_loop``. This module imports no pipeline and the pipelines
 import it, so there is no circle; the registry's :func:`slamkit.experiments.pipeline.check_pipeline`
 finds a config's model and calls :func:`check_with`.
@@ -27,7 +28,6 @@ import pydantic
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field
 
 from slamkit.backend.robust import RobustSolveConfig
-from slamkit.backend.solvers import OptimizeConfig
 from slamkit.config import STRICT, YamlDocument, model_of, resolved, validate, write_back
 from slamkit.data import registry
 from slamkit.data.perturb import PerturbationConfig
@@ -113,37 +113,7 @@ class _OpenPipeline(PipelineConfig):
     model_config = ConfigDict(extra="allow", allow_inf_nan=False)
 
 
-# --- pose_graph ---------------------------------------------------------------------------------
-
-def _optimize_options() -> type:
-    return model_of(OptimizeConfig)
-
-
-class PoseGraphPipeline(PipelineConfig):
-    pipeline: Literal["pose_graph"]
-    datasets: Annotated[list[str], Field(min_length=1)]
-    solvers: Annotated[list[Literal["lm", "gn", "dogleg", "isam2"]], Field(min_length=1)] = ["lm"]
-    inits: Annotated[list[Literal["file", "odometry", "lago", "chordal"]], Field(min_length=1)] = ["file"]
-    robust: Literal["none", "huber", "cauchy", "dcs"] = "none"
-    #: SE-Sync optimality certificates: auto (least squares, up to 40k rotation unknowns), on, off
-    certify: Literal["auto", "on", "off"] = "auto"
-    options: dict[str, Any] = {}
-
-    def check_options(self, config: dict[str, Any], doc: YamlDocument | None, source: str) -> None:
-        _check_pose_graph_sources(self.datasets, doc, source)
-        _refuse_pipeline_keys(self.options, "options", POSE_GRAPH_RUN_KEYS, doc, source)
-        _nested(_optimize_options(), self.options, doc, source, ("options",))
-
-    def resolve(self, config: dict[str, Any]) -> dict[str, Any]:
-        # options: every OptimizeConfig field but the three each run sets (solvers x inits, robust)
-        options = resolved(OptimizeConfig, config.get("options"), "pose_graph.options",
-                           exclude=POSE_GRAPH_RUN_KEYS)
-        return {**config, "options": options}
-
-
-#: OptimizeConfig fields a pose_graph run sets itself (field -> the pipeline key that lists them)
-POSE_GRAPH_RUN_KEYS = {"solver": "solvers", "init": "inits", "robust": "robust"}
-
+# --- checks the pose-graph pipelines share (pose_graph.config, pose_graph_outliers) ---------------
 
 def _refuse_pipeline_keys(section: dict[str, Any], name: str, owners: dict[str, str], doc: YamlDocument | None,
                           source: str) -> None:
