@@ -8,6 +8,10 @@ O(N M) double loop over source and target points in Python (the textbook formula
 reference is run on fewer pairs in quick mode; times are per scan pair. The two results are
 checked to agree (same correspondences, same transform) so the ratio compares equal work.
 
+The heading search before lidar-only ICP (``rotation_search``: +-10 deg, coarse then fine) scores
+every heading's points with one batched KD-tree query, timed against a query per heading (the
+previous implementation, ``rotation_search_per_heading``) on the same pairs; same result checked.
+
 The global matcher of loop closure (``slamkit.frontend.branch_and_bound``) is timed against the
 exhaustive search of the same window in the same run: a scan from a pose 1-1.5 m and 10-15 deg
 off the guess, matched against the map of a scan from the guess's neighbourhood over +-2 m x
@@ -27,7 +31,7 @@ import numpy as np
 from slamkit.frontend import branch_and_bound as bnb_mod
 from slamkit.frontend.branch_and_bound import (BranchAndBoundConfig, MaxGridPyramid, branch_and_bound_search,
                                                exhaustive_search)
-from slamkit.frontend.icp import IcpConfig, _best_rigid, icp, scan_to_points
+from slamkit.frontend.icp import IcpConfig, IcpTarget, _best_rigid, icp, rotation_search, scan_to_points
 from slamkit.geometry import se2
 from slamkit.maps.generators import office, random_free_poses
 from slamkit.maps.raycast import RayCaster
@@ -57,6 +61,27 @@ def naive_icp(source: np.ndarray, target: np.ndarray, initial: np.ndarray, itera
         delta = _best_rigid(moved[src_i], target[tgt_i])
         T = se2.compose(delta, T)
     return T
+
+
+def rotation_search_per_heading(source_xy: np.ndarray, target: IcpTarget, guess: np.ndarray,
+                                half_window_rad: float, step_rad: float = float(np.deg2rad(0.5)),
+                                cap_m: float = 0.3) -> tuple[np.ndarray, float]:
+    """``slamkit.frontend.icp.rotation_search`` as it was: one KD-tree query and one mean per
+    heading (the reference of the batched one)."""
+    g = np.asarray(guess, dtype=float).reshape(3)
+
+    def best(offsets: np.ndarray) -> tuple[float, float]:
+        scores = []
+        for d in offsets:
+            dist, _ = target.tree.query(se2.transform_points(g + np.array([0.0, 0.0, d]), source_xy), k=1,
+                                        distance_upper_bound=cap_m)
+            scores.append(np.mean(np.minimum(dist, cap_m) ** 2))
+        k = int(np.argmin(scores))
+        return float(offsets[k]), float(scores[k])
+
+    coarse, _ = best(np.arange(-half_window_rad, half_window_rad + 1e-12, 4 * step_rad))
+    fine, score = best(coarse + np.arange(-3, 4) * step_rad)
+    return g + np.array([0.0, 0.0, fine]), score
 
 
 def run(quick: bool = False) -> list[BenchCase]:
@@ -89,12 +114,24 @@ def run(quick: bool = False) -> list[BenchCase]:
     agree = float(max(np.max(np.abs(a - b)) for a, b in zip(fast_T, slow_T)))
     cfg_pl = IcpConfig(method="point_to_line")
     pl_s, _ = best_of(lambda: [icp(s, t, np.zeros(3), cfg_pl) for s, t in pairs], repeat=3)
+    # the heading search before lidar-only ICP (+-10 deg, 0.5 deg steps): one batched query
+    # against a query per heading (the previous implementation), same result
+    targets = [IcpTarget(t, 6) for _, t in pairs]
+    window = np.deg2rad(10.0)
+    rot_s, rot = best_of(lambda: [rotation_search(s, t, np.zeros(3), window) for (s, _), t in zip(pairs, targets)],
+                         repeat=3)
+    ref_s, ref = best_of(lambda: [rotation_search_per_heading(s, t, np.zeros(3), window)
+                                  for (s, _), t in zip(pairs, targets)], repeat=3)
+    same_rot = all(np.array_equal(a[0], b[0]) and a[1] == b[1] for a, b in zip(rot, ref))
     return [
         compare("icp2d_point_to_point_360_beams", 1e3 * fast_s / len(pairs), "ms",
                 "naive nearest-neighbour python loop, same iterations", 1e3 * slow_s / n_ref,
                 goal=">= 10", iterations=iterations, pairs=len(pairs), max_abs_difference=agree),
         BenchCase("icp2d_point_to_line_360_beams_to_convergence", 1e3 * pl_s / len(pairs), "ms",
                   extra={"pairs": len(pairs)}),
+        compare("icp_rotation_search_10deg", 1e3 * rot_s / len(pairs), "ms",
+                "a KD-tree query per heading (the previous rotation_search)", 1e3 * ref_s / len(pairs),
+                goal=">= 1.2", pairs=len(pairs), same_result=bool(same_rot)),
     ] + global_match_cases(grid, caster, beams, rng, quick)
 
 def global_match_cases(grid, caster, beams, rng, quick: bool) -> list[BenchCase]:

@@ -181,6 +181,12 @@ def estimate_normals(points: np.ndarray, tree: cKDTree, k: int) -> np.ndarray:
 
 def _correspondences(target: IcpTarget, moved: np.ndarray, config: IcpConfig):
     dist, idx = target.tree.query(moved, k=1, distance_upper_bound=config.max_correspondence_m)
+    return _gated(dist, idx, config)
+
+
+def _gated(dist: np.ndarray, idx: np.ndarray, config: IcpConfig):
+    """(source, target) indices of the correspondences from the gated nearest-neighbour query
+    (``dist`` inf beyond the gate), trimmed to ``trim_fraction``."""
     ok = np.isfinite(dist)
     src = np.flatnonzero(ok)
     d = dist[ok]
@@ -275,9 +281,16 @@ def icp(source_xy: np.ndarray, target: np.ndarray | IcpTarget,
 def _finish(src: np.ndarray, tgt: IcpTarget, T: np.ndarray, iterations: int, converged: bool,
             config: IcpConfig) -> IcpResult:
     moved = se2.transform_points(T, src)
-    dist, _ = tgt.tree.query(moved, k=1)
-    fitness = float(np.mean(dist <= config.fitness_distance_m))
-    si, ti = _correspondences(tgt, moved, config)
+    if config.fitness_distance_m < config.max_correspondence_m:
+        # one query serves both: a point within the fitness distance of the target is within
+        # the gate, so its nearest neighbour and distance are the gated query's (exact search)
+        dist, idx = tgt.tree.query(moved, k=1, distance_upper_bound=config.max_correspondence_m)
+        fitness = float(np.mean(dist <= config.fitness_distance_m))
+        si, ti = _gated(dist, idx, config)
+    else:
+        dist, _ = tgt.tree.query(moved, k=1)
+        fitness = float(np.mean(dist <= config.fitness_distance_m))
+        si, ti = _correspondences(tgt, moved, config)
     if len(si) < 3:
         return IcpResult(T, np.diag([1e6, 1e6, 1e6]), iterations, False, fitness, float("inf"), len(si))
     n = tgt.normals[ti]
@@ -307,12 +320,22 @@ def rotation_search(source_xy: np.ndarray, target: IcpTarget, guess: np.ndarray,
     src = _check_points(source_xy, "source")
     g = np.asarray(guess, dtype=float).reshape(3)
 
+    n = len(src)
+
     def best(offsets: np.ndarray) -> tuple[float, float]:
-        scores = []
-        for d in offsets:
-            dist, _ = target.tree.query(se2.transform_points(g + np.array([0.0, 0.0, d]), src), k=1,
-                                        distance_upper_bound=cap_m)
-            scores.append(np.mean(np.minimum(dist, cap_m) ** 2))
+        # every heading's points at once and one KD-tree query for them all (a point's nearest
+        # neighbour does not depend on the others in the batch): the numbers of one
+        # se2.transform_points per heading (each heading's cos and sin taken as one scalar each)
+        poses = [g + np.array([0.0, 0.0, d]) for d in offsets]
+        x0 = np.array([T[0] for T in poses])[:, None]
+        y0 = np.array([T[1] for T in poses])[:, None]
+        c = np.array([np.cos(T[..., 2]) for T in poses])[:, None]
+        s = np.array([np.sin(T[..., 2]) for T in poses])[:, None]
+        moved = np.empty((len(poses), n, 2))
+        moved[..., 0] = x0 + c * src[:, 0] - s * src[:, 1]
+        moved[..., 1] = y0 + s * src[:, 0] + c * src[:, 1]
+        dist, _ = target.tree.query(moved.reshape(-1, 2), k=1, distance_upper_bound=cap_m)
+        scores = np.mean((np.minimum(dist, cap_m) ** 2).reshape(len(poses), n), axis=1)
         k = int(np.argmin(scores))
         return float(offsets[k]), float(scores[k])
 

@@ -63,6 +63,12 @@ def transform_points(a_T_b: np.ndarray, b_p: np.ndarray) -> np.ndarray:
     c, s = np.cos(T[..., 2]), np.sin(T[..., 2])
     x = T[..., 0] + c * p[..., 0] - s * p[..., 1]
     y = T[..., 1] + s * p[..., 0] + c * p[..., 1]
+    if T.ndim == 1 and p.ndim == 2:
+        # one pose, a point set (the scan matchers' inner loops): the same numbers, without
+        # np.stack's broadcasting machinery
+        out = np.empty((p.shape[0], 2))
+        out[:, 0], out[:, 1] = x, y
+        return out
     return np.stack(np.broadcast_arrays(x, y), axis=-1)
 
 

@@ -313,6 +313,7 @@ class LidarSlam:
         self._loops: list[LoopClosure] = []
         self._region = DriftRegion(config.loops)
         self._pyramids: dict[int, MaxGridPyramid] = {}   # global-match targets by keyframe, newest last
+        self._loop_targets: dict[tuple, IcpTarget | None] = {}   # loop-verification targets, newest last
         sc = config.loops.scan_context
         self._places = ScanContextDatabase(sc) if sc is not None else None
         #: every place-recognition candidate tried: (i, j, descriptor distance, yaw (rad), accepted)
@@ -608,7 +609,7 @@ class LidarSlam:
         self._counts["loop_candidates"] += 1
         s = cfg.loop_submap_keyframes
         K = len(self._kf.points)
-        target = self._submap_at(i, range(max(0, i - s), min(K, i + s + 1)), poses, cfg.loops.icp)
+        target = self._loop_submap(i, range(max(0, i - s), min(K, i + s + 1)), poses)
         if target is None:
             return None
         ok, res = verify_loop(target, pts_j, se2.between(poses[i], poses[j]), cfg.loops)
@@ -624,6 +625,23 @@ class LidarSlam:
         if len(pts) < max(3, icp_config.normal_neighbours):
             return None
         return IcpTarget(pts, icp_config.normal_neighbours)
+
+    #: loop-verification targets kept (keyed by the members' exact poses, so a hit is the target
+    #: that would be built again: the graph often leaves old keyframes' poses bit for bit alone)
+    LOOP_TARGET_CACHE = 64
+
+    def _loop_submap(self, i: int, members: range, poses) -> IcpTarget | None:
+        """``_submap_at(i, members, poses, loops.icp)``, reused when the same members were
+        prepared at the same poses before (the points of a keyframe never change)."""
+        key = (i, members.start, members.stop, np.asarray([poses[m] for m in members], dtype=float).tobytes())
+        if key in self._loop_targets:
+            target = self._loop_targets.pop(key)
+        else:
+            target = self._submap_at(i, members, poses, self.config.loops.icp)
+        self._loop_targets[key] = target
+        while len(self._loop_targets) > self.LOOP_TARGET_CACHE:
+            self._loop_targets.pop(next(iter(self._loop_targets)))
+        return target
 
     def _accept(self, closure: LoopClosure, poses: np.ndarray) -> None:
         correction = se2.between(se2.between(poses[closure.i], poses[closure.j]), closure.i_T_j)
@@ -799,12 +817,15 @@ class LidarSlam:
         s = cfg.loop_submap_keyframes
         K = len(self._kf.points)
         members = range(max(0, i - s), min(K, i + s + 1))
-        target = self._submap_at(i, members, poses, lc.icp)
-        if target is None:
-            return None
         match = lc.global_match(window_xy_m, window_theta_rad)
         pyramid = self._pyramids.pop(i, None)
+        # the ICP target (KD-tree, normals) is built only when it is needed: for a pyramid not
+        # kept, or to verify what the search found (most searches find nothing)
+        target = None
         if pyramid is None:
+            target = self._loop_submap(i, members, poses)
+            if target is None:
+                return None
             pyramid = MaxGridPyramid(target.points, match)
         self._pyramids[i] = pyramid
         while len(self._pyramids) > self.PYRAMID_CACHE:
@@ -813,6 +834,10 @@ class LidarSlam:
         found = branch_and_bound_search(source, pyramid, guess, match)
         if found is None:
             return None
+        if target is None:
+            target = self._loop_submap(i, members, poses)
+            if target is None:
+                return None
         ok, res = verify_loop(target, pts_j, found.target_T_source, lc)
         return res if ok else None
 

@@ -24,15 +24,19 @@ def test_quick_bench_cases():
     cases = benchmark.run(quick=True)
     names = [c.name for c in cases]
     assert names == ["icp2d_point_to_point_360_beams", "icp2d_point_to_line_360_beams_to_convergence",
-                     "global_match_bnb_window_2m_20deg", "global_match_bnb_compiled_descent"]
+                     "icp_rotation_search_10deg", "global_match_bnb_window_2m_20deg",
+                     "global_match_bnb_compiled_descent"]
     c = cases[0]
     assert c.reference is not None and c.ratio is not None and c.ratio > 0
     assert c.extra["max_abs_difference"] < 1e-9  # both did the same work
-    g = cases[2]
+    r = cases[2]
+    # the batched heading search returns the per-heading one's heading and score exactly
+    assert r.extra["same_result"] and r.ratio is not None and r.ratio > 0
+    g = cases[3]
     # the branch and bound is exact: the exhaustive search's pose and score, from fewer nodes
     assert g.extra["same_optimum"] and g.ratio is not None and g.ratio > 0
     assert 0 < g.extra["nodes_scored_mean"] < g.extra["candidates_in_window"]
     # the compiled descent (or, unbuilt, the Python one against itself) finds the same optimum
     # from the same nodes as the Python descent
-    k = cases[3]
+    k = cases[4]
     assert k.extra["same_result_and_nodes"] and k.ratio is not None and k.ratio > 0

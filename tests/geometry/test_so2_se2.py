@@ -132,3 +132,22 @@ def test_se2_batch_broadcasting():
     pts = se2.transform_points(poses[0], rng.normal(size=(4, 2)))
     assert pts.shape == (4, 2)
     assert se2.adjoint(poses).shape == (5, 3, 3)
+
+
+def test_one_pose_fast_paths_equal_the_broadcasting_ones():
+    """transform_points of one pose on a point set and compose/between/inverse of single poses
+    skip np.stack's broadcasting (the scan matchers' inner loops); the numbers are the batched
+    path's bit for bit, also at +-pi and for rows wider than 2 columns."""
+    rng = np.random.default_rng(7)
+    for _ in range(200):
+        a, b = rng.normal(0, [5, 5, 3]), rng.normal(0, [1, 1, 0.5])
+        if rng.random() < 0.2:
+            a[2] = np.pi * rng.choice([-1.0, 1.0])
+        p = rng.normal(0, 5, (int(rng.integers(1, 9)), 2))
+        np.testing.assert_array_equal(se2.transform_points(a, p), se2.transform_points(a[None], p[None])[0])
+        np.testing.assert_array_equal(se2.compose(a, b), se2.compose(a[None], b[None])[0])
+        np.testing.assert_array_equal(se2.between(a, b), se2.between(a[None], b[None])[0])
+        np.testing.assert_array_equal(se2.inverse(a), se2.inverse(a[None])[0])
+    wide = rng.normal(size=(5, 3))
+    assert se2.transform_points(np.zeros(3), wide).shape == (5, 2)
+    np.testing.assert_array_equal(se2.transform_points(np.zeros(3), wide), wide[:, :2])
