@@ -8,9 +8,10 @@ algorithms' own config dataclasses, so a field exists, has a type and a bound in
 This module holds what every model shares (:class:`PipelineConfig`, ``Seeds``, the nested-section
 check and write-back, :func:`check_with`, :func:`with_defaults`, :func:`runtime_config` and
 :func:`typed_config`, the checks the two pose-graph pipelines share) and the models of the
-pipelines without a config module of their own (pose_graph_outliers, visual_odometry). The others
-live with their pipeline (issue 30): ``FilterVsSmootherPipeline`` in ``filter_vs_smoother.config``,
-``PoseGraphPipeline`` in ``pose_graph.config``, ``LidarSlamPipeline`` in ``lidar_slam``, ``NavigationPipeline`` in ``navigation``,
+pipelines without a config module of their own (visual_odometry). The others live with their
+pipeline (issue 30): ``FilterVsSmootherPipeline`` in ``filter_vs_smoother.config``,
+``PoseGraphPipeline`` in ``pose_graph.config``, ``PoseGraphOutliersPipeline`` in
+``pose_graph_outliers.config``, ``LidarSlamPipeline`` in ``lidar_slam``, ``NavigationPipeline`` in ``navigation``,
 ``LocalPlanningPipeline`` in ``closed_loop``. This module imports no pipeline and the pipelines
 import it, so there is no circle; the registry's :func:`slamkit.experiments.pipeline.check_pipeline`
 finds a config's model and calls :func:`check_with`.
@@ -27,15 +28,13 @@ from typing import Annotated, Any, Literal, Mapping, TypeVar, Union
 import pydantic
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field
 
-from slamkit.backend.robust import RobustSolveConfig
-from slamkit.config import STRICT, YamlDocument, model_of, resolved, validate, write_back
+from slamkit.config import STRICT, YamlDocument, model_of, validate, write_back
 from slamkit.data import registry
 from slamkit.data.perturb import PerturbationConfig
 from slamkit.errors import ConfigError, SlamkitError
 from slamkit.experiments.perturbation import perturbation_config
 from slamkit.naming import import_plugins
 from slamkit.paths import path_component
-from slamkit.sim.outliers import OutlierConfig
 from slamkit.systems.visual_odometry import VisualOdometryConfig
 
 def _plain_name(v: str) -> str:
@@ -113,7 +112,7 @@ class _OpenPipeline(PipelineConfig):
     model_config = ConfigDict(extra="allow", allow_inf_nan=False)
 
 
-# --- checks the pose-graph pipelines share (pose_graph.config, pose_graph_outliers) ---------------
+# --- checks the pose-graph pipelines share (pose_graph.config, pose_graph_outliers.config) --------
 
 def _refuse_pipeline_keys(section: dict[str, Any], name: str, owners: dict[str, str], doc: YamlDocument | None,
                           source: str) -> None:
@@ -148,27 +147,6 @@ def _check_pose_graph_sources(datasets: list[str], doc: YamlDocument | None, sou
         except SlamkitError as exc:
             where = doc.where(("datasets", k)) if doc is not None else source
             raise ConfigError(f"{where}: datasets.{k}: {exc}") from None
-
-
-class PoseGraphOutliersPipeline(PipelineConfig):
-    pipeline: Literal["pose_graph_outliers"]
-    datasets: Annotated[list[str], Field(min_length=1)]
-    counts: Annotated[list[Annotated[int, Field(ge=0)]], Field(min_length=1)] = [0, 10, 100, 1000]
-    kinds: Annotated[list[Literal["random", "local", "grouped"]], Field(min_length=1)] = ["random"]
-    backends: Annotated[list[Literal["none", "huber", "cauchy", "dcs", "switchable", "gnc", "pcm", "pcm_gnc"]],
-                        Field(min_length=1)] = ["none", "huber", "cauchy", "dcs", "switchable", "gnc", "pcm", "pcm_gnc"]
-    seeds: Annotated[list[int], Field(min_length=1)] = [0]
-    #: slamkit.sim.outliers.OutlierConfig fields other than kind and count
-    outliers: dict[str, Any] = {}
-    #: slamkit.backend.robust.RobustSolveConfig fields other than backend
-    solver: dict[str, Any] = {}
-
-    def check_options(self, config: dict[str, Any], doc: YamlDocument | None, source: str) -> None:
-        _check_pose_graph_sources(self.datasets, doc, source)
-        _refuse_pipeline_keys(self.outliers, "outliers", {"kind": "kinds", "count": "counts"}, doc, source)
-        _refuse_pipeline_keys(self.solver, "solver", {"backend": "backends"}, doc, source)
-        _nested(model_of(OutlierConfig), self.outliers, doc, source, ("outliers",))
-        _nested(model_of(RobustSolveConfig), self.solver, doc, source, ("solver",))
 
 
 # --- checks pipelines share -------------------------------------------------------------------

@@ -1,24 +1,11 @@
-"""Robust back-ends under false loop closures: the ``pose_graph_outliers`` pipeline.
-
-For every dataset x outlier kind x outlier count x seed, ``slamkit.sim.outliers`` adds seeded
-Vertigo-style false loop closures and every back-end of ``slamkit.backend.robust`` solves the
-corrupted graph. Scores per run: ATE against ground truth (``ate_rmse_m``; datasets without one
-are scored against their outlier-free least-squares optimum), the ratio to the outlier-free
-solution's ATE (``ate_ratio``, ground-truth datasets only), ATE against that optimum (``ate_to_clean_rmse_m``), outlier
-recall (rejected false loop closures / all false ones), outlier precision (false among rejected),
-inlier recall (true edges kept), iterations and solve time. Count 0 runs once per dataset.
-
-Back-end ``pcm`` composes the front-end check ``slamkit.frontend.pcm`` (pairwise consistency
-with the first-order cycle covariance, exact maximum clique) with least squares on the accepted
-edges; ``pcm_gnc`` with GNC. Every back-end re-admits the rejected loop closures inside the chi2 gate at its solution (the
-``readmit`` option of ``RobustSolveConfig``), PCM's rejections included.
-"""
+"""The ``pose_graph_outliers`` pipeline's run: each dataset solved clean once, then every
+corrupted cell by every back-end (PCM composed with least squares or GNC), scored against ground
+truth (or the clean optimum) and by its outlier detection."""
 
 from __future__ import annotations
 
 import itertools
 from dataclasses import replace
-from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
@@ -29,15 +16,16 @@ from slamkit.config import build
 from slamkit.data import registry
 from slamkit.data.pose_graph import PoseGraph
 from slamkit.errors import BackendError
-from slamkit.experiments.config_models import PoseGraphOutliersPipeline
 from slamkit.experiments.observers import PipelineObserver
-from slamkit.experiments.pipeline import Pipeline, PipelineOutput, StepProgress
-from slamkit.experiments.results import ResultsFolder, RunRecord, markdown_table, summarise
+from slamkit.experiments.pipeline import PipelineOutput, StepProgress
+from slamkit.experiments.results import ResultsFolder, RunRecord, summarise
 from slamkit.metrics.evaluate import trajectory_from_pose_graph
 from slamkit.metrics.trajectory_score import ate_paired_by_stamp
 from slamkit.sim.outliers import CorruptedGraph, OutlierConfig, add_outliers
 from slamkit.metrics.outliers import detection_scores
 from slamkit.timing import Stopwatch
+from slamkit.experiments.pose_graph_outliers.config import PoseGraphOutliersPipeline
+from slamkit.experiments.pose_graph_outliers.report import _plot, _report
 
 
 def _trajectory(graph: PoseGraph, poses: np.ndarray):
@@ -117,74 +105,3 @@ def _solve(graph: PoseGraph, backend: str, solve_options: Mapping[str, Any]) -> 
         result = solve_robust(graph, _solve_config("gnc" if backend == "pcm_gnc" else "none", solve_options),
                               accepted=accepted)
     return replace(result, backend=backend, time_solve_s=sw.elapsed_s)
-
-
-def _report(config: PoseGraphOutliersPipeline, runs: list[RunRecord], clean, failures: list[str]) -> str:
-    text = f"# Robust back-ends under false loop closures: {config.name or 'pose_graph_outliers'}\n\n"
-    text += ("Vertigo-style false loop closures (slamkit.sim.outliers) added to each graph; every back-end "
-             "starts from odometry dead reckoning and trusts the odometry edges. ATE is against ground "
-             "truth (or the outlier-free least-squares optimum when there is none); ATE ratio is to the "
-             "outlier-free least-squares solution's ATE (ground-truth datasets only); outlier recall = false loop closures rejected / "
-             "all false ones; precision = false among the rejected; inlier recall = true edges kept. "
-             "Means over seeds.\n\n")
-    text += "Outlier-free least squares: " + ", ".join(
-        f"{d} ATE {v[3]:.4g} m" for d, v in clean.items()) + "\n\n"
-    header = ["dataset", "kind", "outliers", "back-end", "ATE (m)", "ATE ratio", "outlier recall",
-              "outlier precision", "inlier recall", "iterations", "time (s)", "n"]
-    groups: dict[tuple, list[RunRecord]] = {}
-    for r in runs:
-        groups.setdefault((r.dataset, r.params["kind"], r.params["outliers"], r.estimator), []).append(r)
-
-    def mean(rs, m):
-        v = [r.metrics[m] for r in rs if m in r.metrics and np.isfinite(r.metrics[m])]
-        return float(np.mean(v)) if v else None
-
-    rows = [[*key, mean(rs, "ate_rmse_m"), mean(rs, "ate_ratio"), mean(rs, "outlier_recall"),
-             mean(rs, "outlier_precision"), mean(rs, "inlier_recall"), mean(rs, "iterations"),
-             mean(rs, "time_solve_s"), len(rs)]
-            for key, rs in groups.items()]
-    text += markdown_table(header, rows) + "\n"
-    if failures:
-        text += "\n## Failed solves (no metrics)\n\n" + "\n".join(f"- {f}" for f in failures) + "\n"
-    return text
-
-
-def _plot(plots: Path, runs: list[RunRecord], backends: list[str]) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    datasets = list(dict.fromkeys(r.dataset for r in runs if r.params["outliers"] > 0))
-    kinds = list(dict.fromkeys(r.params["kind"] for r in runs if r.params["outliers"] > 0))
-    if not datasets:
-        return
-    # one row per dataset, one column per outlier kind: a row compares the kinds on one graph
-    fig, axes = plt.subplots(len(datasets), len(kinds), figsize=(4.6 * len(kinds), 3.8 * len(datasets)),
-                             squeeze=False)
-    for (row, dataset), (col, kind) in itertools.product(enumerate(datasets), enumerate(kinds)):
-        ax = axes[row][col]
-        for backend in backends:
-            pts: dict[int, list[float]] = {}
-            for r in runs:
-                if (r.dataset == dataset and r.estimator == backend
-                        and r.params["kind"] in (kind, "none")):
-                    pts.setdefault(r.params["outliers"], []).append(r.metrics.get("ate_rmse_m", np.nan))
-            xs = sorted(pts)
-            ax.plot(xs, [np.nanmean(pts[x]) if np.isfinite(pts[x]).any() else np.nan for x in xs],
-                    marker="o", label=backend)
-        ax.set_xscale("symlog", linthresh=10)
-        ax.set_yscale("log")
-        ax.set_xlabel(f"{kind} false loop closures")
-        ax.set_ylabel("ATE RMSE (m)")
-        ax.set_title(f"{dataset}, {kind}")
-        ax.grid(True, which="both", alpha=0.3)
-    axes[0][0].legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(plots / "ate_vs_outliers.png", dpi=120)
-    plt.close(fig)
-
-
-PIPELINE: Pipeline[PoseGraphOutliersPipeline, list[dict[str, Any]]] = Pipeline(
-    "pose_graph_outliers", run, PoseGraphOutliersPipeline, list,
-    "robust back-ends x Vertigo-style false loop closures (counts, kinds, seeds)")
