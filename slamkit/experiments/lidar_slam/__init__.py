@@ -44,7 +44,8 @@ from slamkit.experiments.lidar_slam.config import (LidarSlamPipeline, LogEntry, 
                                                    log_entry, slam_section_for)
 from slamkit.experiments.lidar_slam.mcl_check import localize_on_map
 from slamkit.experiments.lidar_slam.report import _scale_bar_m, log_map_figure, log_map_title, report_markdown
-from slamkit.experiments.lidar_slam.run import _sim_parts, _simulate, first_seconds, run, trim_to_free_space
+from slamkit.experiments.lidar_slam.run import _sim_parts, _simulate, first_seconds, trim_to_free_space
+from slamkit.experiments.lidar_slam.run import run as _run
 from slamkit.experiments.lidar_slam.slam import (BAD_RELATION_M, CARTOGRAPHER_REALTIME_FACTOR, PUBLISHED,
                                                  LidarSlamResult, LidarSlamSnapshot, align_se2, false_loop_edges,
                                                  run_slam)
@@ -52,11 +53,11 @@ from slamkit.experiments.pipeline import Pipeline
 
 __all__ = ["BAD_RELATION_M", "CARTOGRAPHER_REALTIME_FACTOR", "LidarSlamPipeline", "LidarSlamResult",
            "LidarSlamSnapshot", "LogEntry", "LogEntryModel", "MclCheckConfig", "PIPELINE", "PUBLISHED",
-           "_scale_bar_m", "_sim_parts", "_simulate", "align_se2", "false_loop_edges", "first_seconds", "localize_on_map",
-           "log_entry", "log_map_figure", "log_map_title", "report_markdown", "run", "run_slam",
+           "_scale_bar_m", "_sim_parts", "_simulate", "align_se2", "false_loop_edges", "first_seconds",
+           "localize_on_map", "log_entry", "log_map_figure", "log_map_title", "report_markdown", "run_slam",
            "slam_section_for", "trim_to_free_space"]
 
 
 PIPELINE: Pipeline[LidarSlamPipeline, list[LidarSlamResult]] = Pipeline(
-    "lidar_slam", run, LidarSlamPipeline, list[LidarSlamResult],
+    "lidar_slam", _run, LidarSlamPipeline, list[LidarSlamResult],
     "lidar SLAM on simulated grid worlds x seeds and on recorded laser logs, x robust kernels x motion priors")

@@ -16,13 +16,13 @@ from slamkit.experiments.pose_graph.optimize import (CERTIFY_AUTO_MAX_UNKNOWNS, 
                                                      OptimizeReport, certify_decision, optimize_source,
                                                      write_outputs)
 from slamkit.experiments.pose_graph.report import published_fstar
-from slamkit.experiments.pose_graph.run import run
+from slamkit.experiments.pose_graph.run import run as _run
 
 __all__ = ["CERTIFY_AUTO_MAX_UNKNOWNS", "CERTIFY_MODES", "OptimizeReport", "PIPELINE", "POSE_GRAPH_RUN_KEYS",
-           "PoseGraphPipeline", "RETRY_INIT", "certify_decision", "optimize_source", "published_fstar", "run",
+           "PoseGraphPipeline", "RETRY_INIT", "certify_decision", "optimize_source", "published_fstar",
            "write_outputs"]
 
 
 PIPELINE: Pipeline[PoseGraphPipeline, list[OptimizeReport]] = Pipeline(
-    "pose_graph", run, PoseGraphPipeline, list[OptimizeReport],
+    "pose_graph", _run, PoseGraphPipeline, list[OptimizeReport],
     "pose-graph datasets x solvers x initialisations")

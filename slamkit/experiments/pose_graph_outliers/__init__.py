@@ -24,11 +24,12 @@ from typing import Any
 
 from slamkit.experiments.pipeline import Pipeline
 from slamkit.experiments.pose_graph_outliers.config import PoseGraphOutliersPipeline
-from slamkit.experiments.pose_graph_outliers.run import BACKENDS, _solve, _trajectory, run
+from slamkit.experiments.pose_graph_outliers.run import BACKENDS, _solve, _trajectory
+from slamkit.experiments.pose_graph_outliers.run import run as _run
 
-__all__ = ["BACKENDS", "PIPELINE", "PoseGraphOutliersPipeline", "_solve", "_trajectory", "run"]
+__all__ = ["BACKENDS", "PIPELINE", "PoseGraphOutliersPipeline", "_solve", "_trajectory"]
 
 
 PIPELINE: Pipeline[PoseGraphOutliersPipeline, list[dict[str, Any]]] = Pipeline(
-    "pose_graph_outliers", run, PoseGraphOutliersPipeline, list,
+    "pose_graph_outliers", _run, PoseGraphOutliersPipeline, list,
     "robust back-ends x Vertigo-style false loop closures (counts, kinds, seeds)")
