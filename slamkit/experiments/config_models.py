@@ -6,12 +6,12 @@ options it nests against the models that :func:`slamkit.config.model_of` derives
 algorithms' own config dataclasses, so a field exists, has a type and a bound in one place only.
 
 This module holds what every model shares (:class:`PipelineConfig`, ``Seeds``, the nested-section
-check and write-back, :func:`check_with`, :func:`with_defaults`, :func:`runtime_config` and
-:func:`typed_config`, the checks the two pose-graph pipelines share) and the models of the
-pipelines without a config module of their own (visual_odometry). The others live with their
-pipeline (issue 30): ``FilterVsSmootherPipeline`` in ``filter_vs_smoother.config``,
+check and write-back, :func:`check_with`, :func:`with_defaults`, :func:`runtime_config`,
+:func:`typed_config`, the checks the two pose-graph pipelines share); every pipeline's model lives
+with its pipeline (issue 30): ``FilterVsSmootherPipeline`` in ``filter_vs_smoother.config``,
 ``PoseGraphPipeline`` in ``pose_graph.config``, ``PoseGraphOutliersPipeline`` in
-``pose_graph_outliers.config``, ``LidarSlamPipeline`` in ``lidar_slam``, ``NavigationPipeline`` in ``navigation``,
+``pose_graph_outliers.config``, ``LidarSlamPipeline`` in ``lidar_slam.config``,
+``VisualOdometryPipeline`` in ``visual_odometry.config``, ``NavigationPipeline`` in ``navigation``,
 ``LocalPlanningPipeline`` in ``closed_loop``. This module imports no pipeline and the pipelines
 import it, so there is no circle; the registry's :func:`slamkit.experiments.pipeline.check_pipeline`
 finds a config's model and calls :func:`check_with`.
@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import os
 
-from typing import Annotated, Any, Literal, Mapping, TypeVar, Union
+from typing import Annotated, Any, Mapping, TypeVar, Union
 
 import pydantic
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field
@@ -35,7 +35,6 @@ from slamkit.errors import ConfigError, SlamkitError
 from slamkit.experiments.perturbation import perturbation_config
 from slamkit.naming import import_plugins
 from slamkit.paths import path_component
-from slamkit.systems.visual_odometry import VisualOdometryConfig
 
 def _plain_name(v: str) -> str:
     try:
@@ -164,33 +163,6 @@ def _check_perturbations(values: Any, doc: YamlDocument | None, source: str) -> 
     except ConfigError as exc:
         where = doc.where(("perturbations",)) if doc is not None else source
         raise ConfigError(f"{where}: {exc}") from None
-
-
-# --- visual_odometry -----------------------------------------------------------------------------
-
-class ImageSequenceModel(BaseModel):
-    """A camera sequence in the KITTI odometry layout (``times`` optional: frame index x 0.1 s)."""
-
-    model_config = STRICT
-    name: PlainName
-    images: str
-    calib: str
-    poses: str | None = None
-    times: str | None = None
-
-
-class VisualOdometryPipeline(PipelineConfig):
-    pipeline: Literal["visual_odometry"]
-    #: registry names (``kitti-vo-a``) or {name, images, calib, poses, times}
-    sequences: Annotated[list[Union[str, ImageSequenceModel]], Field(min_length=1)]
-    #: fields of slamkit.systems.visual_odometry.VisualOdometryConfig (nested ``orb``, ``ba``)
-    vo: dict[str, Any] = {}
-    #: also run without bundle adjustment (window 0), so its effect is measured in the same run
-    compare_without_ba: bool = True
-    max_frames: Annotated[int, Field(ge=2, le=1_000_000)] | None = None
-
-    def check_options(self, config: dict[str, Any], doc: YamlDocument | None, source: str) -> None:
-        _nested(model_of(VisualOdometryConfig), self.vo, doc, source, ("vo",))
 
 
 def _nested(model: type, data: Any, doc: YamlDocument | None, source: str, prefix: tuple) -> None:
