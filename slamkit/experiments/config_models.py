@@ -12,7 +12,7 @@ with its pipeline (issue 30): ``FilterVsSmootherPipeline`` in ``filter_vs_smooth
 ``PoseGraphPipeline`` in ``pose_graph.config``, ``PoseGraphOutliersPipeline`` in
 ``pose_graph_outliers.config``, ``LidarSlamPipeline`` in ``lidar_slam.config``,
 ``VisualOdometryPipeline`` in ``visual_odometry.config``, ``NavigationPipeline`` in ``navigation``,
-``LocalPlanningPipeline`` in ``closed_loop``. This module imports no pipeline and the pipelines
+``LocalPlanningPipeline`` in ``closed_loop.config``. This module imports no pipeline and the pipelines
 import it, so there is no circle; the registry's :func:`slamkit.experiments.pipeline.check_pipeline`
 finds a config's model and calls :func:`check_with`.
 ``seeds`` has one meaning in every pipeline: a count (``seeds: 6`` -> 0..5), a list of seeds, or
