@@ -25,6 +25,10 @@ def _arr(x) -> np.ndarray:
 
 
 def _pack(x, y, theta) -> np.ndarray:
+    if np.ndim(x) == 0 and np.ndim(y) == 0 and np.ndim(theta) == 0:
+        # one pose (the scan matchers' inner loops): the same numbers without np.stack's
+        # broadcasting machinery
+        return np.array([float(x), float(y), float(wrap_angle(theta))])
     x, y, theta = np.broadcast_arrays(_arr(x), _arr(y), _arr(theta))
     return np.stack([x, y, np.asarray(wrap_angle(theta), dtype=float)], axis=-1)
 
