@@ -21,7 +21,7 @@ from slamkit.experiments import estimators
 from slamkit.experiments.config_models import with_defaults
 from slamkit.experiments.lidar_slam import MclCheckConfig, slam_section_for
 from slamkit.experiments.navigation import EpisodeConfig, _variants
-from slamkit.experiments.navigation_map import MapSourceConfig
+from slamkit.experiments.navigation.map_source import MapSourceConfig
 from slamkit.experiments.pipeline import _load_checked, check_pipeline
 from slamkit.sim.inertial_world import InertialScenario
 from slamkit.sim.landmark_world import LandmarkScenario

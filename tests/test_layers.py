@@ -162,11 +162,10 @@ def test_angle_wrapping_is_written_once() -> None:
 #: experiments modules that are not a pipeline: the machinery that feeds systems and estimators,
 #: scores them and writes results (runner, sweeps, executors, result folders, config validation)
 _EXPERIMENT_MACHINERY = {"__init__", "config_models", "estimators", "executors", "observers", "perturbation",
-                         "pipeline", "results", "runner", "sweep", "planning", "navigation_benchmark"}
-#: known leftovers (issue 30 item 2): the navigation pipeline's map source, which scores and caches
-#: the map the system slamkit.systems.slam_map builds (a part of the navigation pipeline, not yet
-#: in a navigation package)
-_EXPERIMENT_LEFTOVERS = {"navigation_map"}
+                         "pipeline", "results", "runner", "sweep", "planning"}
+#: known leftovers (issue 30 item 2): none since the navigation pipeline became a package (its map
+#: source and benchmark protocol are its modules)
+_EXPERIMENT_LEFTOVERS: set[str] = set()
 
 
 def test_experiments_hold_pipelines_and_their_machinery() -> None:

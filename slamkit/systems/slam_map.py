@@ -9,7 +9,7 @@ mapped) or free (``"free"``, ROS's ``allow_unknown``). :func:`config_for` gives 
 the lidar mounting the recording states.
 
 Scoring a map against a world (quality, the tour's ATE) is the experiment's
-(:mod:`slamkit.experiments.navigation_map`); driving a mapping tour is the simulator's.
+(:mod:`slamkit.experiments.navigation.map_source`); driving a mapping tour is the simulator's.
 """
 
 from __future__ import annotations

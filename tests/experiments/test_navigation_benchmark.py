@@ -10,7 +10,7 @@ import pytest
 
 from slamkit.errors import ConfigError
 from slamkit.experiments.pipeline import check_pipeline
-from slamkit.experiments.navigation_benchmark import (ALL_EVAL, benchmark_markdown, benchmark_rows, difficulty_rows,
+from slamkit.experiments.navigation.benchmark import (ALL_EVAL, benchmark_markdown, benchmark_rows, difficulty_rows,
                                                       episode_benchmark_metrics, goals_check, optimal_path_xy_m,
                                                       seed_blocks)
 from slamkit.experiments.results import RunRecord

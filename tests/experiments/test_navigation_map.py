@@ -8,7 +8,7 @@ import pytest
 
 from slamkit.errors import ConfigError
 from slamkit.config import build
-from slamkit.experiments.navigation_map import MapSourceConfig, RobotMap, robot_map
+from slamkit.experiments.navigation.map_source import MapSourceConfig, RobotMap, robot_map
 from slamkit.maps.generators import OfficeConfig, office
 from slamkit.sim.moving_obstacles import MovingObstacles
 from slamkit.sim.navigation_world import NavigationScenario

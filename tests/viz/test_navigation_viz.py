@@ -11,7 +11,7 @@ import subprocess
 import numpy as np
 
 from slamkit.experiments.navigation import EpisodeConfig, _snapshots, make_navigation_scenario, run_episode
-from slamkit.experiments.navigation_map import RobotMap
+from slamkit.experiments.navigation.map_source import RobotMap
 from slamkit.maps.occupancy_grid import OccupancyGrid
 from slamkit.systems.navigation import NavigationConfig
 from slamkit.viz.navigation import NavigationObserver

@@ -33,6 +33,7 @@ from slamkit.metrics.stats import RateInterval, rate_of
 from slamkit.planning.astar import AStarPlanner
 from slamkit.planning.protocols import PlanningProblem
 
+
 #: the block of the development seeds
 DEV_BLOCK = "dev"
 
