@@ -25,7 +25,8 @@ RESULTS = {
     "pipeline": "filter_vs_smoother", "slamkit_version": "0.1.0", "created": "2026-01-01T00:00:00",
     "runs": [{"dataset": "mild", "estimator": "ekf", "seed": 0,
               "metrics": {"ate_rmse_m": 0.41, "rpe_rmse_m": 0.05, "total_time_s": 0.06,
-                          "step_latency_median_ms": 0.08, "nees_mean": float("nan")}}],
+                          "step_latency_median_ms": 0.08, "frontend_ms_median": 140.0,
+                          "nees_mean": float("nan")}}],
     "summary": [{"dataset": "mild", "estimator": "ekf", "metric": "ate_rmse_m", "mean": 0.41, "n": 1},
                 {"dataset": "mild", "estimator": "ekf", "metric": "step_latency_median_ms", "mean": 0.08, "n": 1}],
 }
@@ -46,6 +47,7 @@ def test_identical_runs_pass_and_timing_is_ignored(cr, tmp_path, capsys):
     other["created"] = "2026-02-02T00:00:00"
     other["runs"][0]["metrics"]["total_time_s"] = 9.0
     other["runs"][0]["metrics"]["step_latency_median_ms"] = 7.0
+    other["runs"][0]["metrics"]["frontend_ms_median"] = 150.0
     other["summary"][1]["mean"] = 7.0
     b = _write(tmp_path / "b", other, {"mild_ekf_seed0.tum": TUM})
     assert cr.compare(a, b) == []

@@ -15,6 +15,7 @@ datasets unless ``SLAMKIT_DATA`` says otherwise). ``compare`` accepts either two
 run folders (each with a ``results.json``) or two folders of such run folders, and compares
 
 * ``results.json``: every field, recursively, except wall-clock ones (``TIMING``: ``*_ms``,
+  ``*_ms_<statistic>`` such as visual odometry's ``frontend_ms_median``,
   ``time_*`` but simulated ``time_to_*``/``time_over_*``, real-time factors, peak memory,
   ``created``, the version) -- numbers must be
   equal (``--rtol`` loosens that, default 0: identical), lists equally long, keys the same;
@@ -42,7 +43,7 @@ from pathlib import Path
 
 #: result fields that measure wall-clock time or describe the run, not its outcome
 TIMING = re.compile(
-    r"(_ms$|^created$|^slamkit_version$|^machine$|^time_(?!to_|over_)|^total_time_s$|peak_rss|"
+    r"(_ms$|_ms_|^created$|^slamkit_version$|^machine$|^time_(?!to_|over_)|^total_time_s$|peak_rss|"
     r"real_?time_factor|wall|latency|_build_s$|^scan_matching_s$|^elapsed|runtime|^run_s$)")
 
 #: small but real configs of the four pipelines of the main issue families (about 5 min on 2 cores);
