@@ -181,7 +181,8 @@ def plot_perturbation_spread(plots: Path, rows: list[dict[str, Any]], metrics: S
 
 #: metrics shown in the report's perturbation table when a pipeline names none
 DEFAULT_REPORT_METRICS = ("ate_rmse_m", "rpe_rmse_m", "nees_mean", "relation_trans_mean_m",
-                          "relation_trans_std_m", "relation_rot_mean_deg", "num_loop_closures")
+                          "relation_trans_std_m", "relation_rot_mean_deg", "map_consistency_mean_m",
+                          "num_loop_closures", "real_time_factor_cpu")
 
 
 def with_perturbation_report(output, plots: Path, metrics: Seq[str] = DEFAULT_REPORT_METRICS):

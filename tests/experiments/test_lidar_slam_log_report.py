@@ -105,9 +105,9 @@ def test_consistency_and_realtime_metrics(intel_60s):
     # the first 60 s: the robot turns on the spot in its start room and leaves it down one
     # corridor; no place is seen on two visits (more than 5 m of travel apart): no figure
     assert m["map_consistency_overlap"] == 0.0 and np.isnan(m["map_consistency_mean_m"])
-    assert m["realtime_factor_vs_cartographer"] == pytest.approx(m["realtime_factor"] / 15.0)
+    assert m["real_time_factor_vs_cartographer"] == pytest.approx(m["real_time_factor"] / 15.0)
     assert CARTOGRAPHER_REALTIME_FACTOR == {"intel": 15.0, "fr079": 17.0, "mit-csail": 12.0}
-    assert m["realtime_factor_cpu"] > 0 and m["time_cpu_s"] > 0
+    assert m["real_time_factor_cpu"] > 0 and m["time_cpu_s"] > 0
     # no revisit in the first 60 s: no closure, none of the log's revisits recalled (the revisits
     # are counted over the whole relations file, 1210 on Intel, not only those inside the slice)
     assert m["loop_closures"] == m["num_loop_closures"] == 0 and m["loop_recall"] == 0.0

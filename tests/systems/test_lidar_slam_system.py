@@ -188,7 +188,7 @@ def test_intel_slice(intel):
     # the trajectory of every scan at the scans' ipc stamps
     stamps = [e.stamp_s for e in piece if isinstance(e, Scan)]
     assert np.array_equal(res.scan_stamps_s, stamps)
-    assert m["num_scans"] == len(stamps) and m["realtime_factor"] > 0
+    assert m["num_scans"] == len(stamps) and m["real_time_factor"] > 0
 
 
 def test_speed_ups_change_nothing(intel, monkeypatch):

@@ -16,7 +16,7 @@ coincide) are injected before the final solve to show what the robust kernel is 
 
 Laser logs (``logs``: a registry name such as ``intel-log`` or ``{name, path, relations}``):
 the relation error of Kuemmerle et al. 2009 (``slamkit.metrics.relations``) of the trajectory of
-every scan, stamped with the scans' ipc timestamps, and of the raw odometry; ``realtime_factor``
+every scan, stamped with the scans' ipc timestamps, and of the raw odometry; ``real_time_factor``
 (log duration / processing time), ``time_total_s``, time per scan, the process's peak memory,
 loop-closure counts. The report sets them beside the published numbers (:data:`PUBLISHED`);
 ``plots/`` holds each map at the configured resolution with the trajectory over it and the time

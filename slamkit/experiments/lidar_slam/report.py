@@ -80,7 +80,7 @@ def _log_report(runs: list[RunRecord]) -> str:
                      f"{int(m['loop_closures_online'])} + {int(m['loop_closures_final'])}",
                      (f"{m['loop_precision']:.2f} ({int(m['loop_closures_verifiable'])}) / {m['loop_recall']:.2f} "
                       f"({int(m['revisit_relations'])})" if "loop_precision" in m else ""),
-                     f"{m['realtime_factor']:.1f} / {m.get('realtime_factor_cpu', float('nan')):.1f}",
+                     f"{m['real_time_factor']:.1f} / {m.get('real_time_factor_cpu', float('nan')):.1f}",
                      f"{m['time_total_s']:.1f}",
                      f"{m['time_per_scan_median_ms']:.1f} / {m['time_per_scan_p99_ms']:.1f}",
                      f"{m['peak_rss_mb']:.0f}"])
@@ -89,10 +89,10 @@ def _log_report(runs: list[RunRecord]) -> str:
     if timed:
         text += ("\nReal-time factor beside Cartographer's (Hess et al., ICRA 2016: one Xeon E5-1650; "
                  "issue 29's goal is twice it):\n\n")
-        rows = [[r.dataset, r.estimator, f"{r.metrics['realtime_factor']:.1f}",
-                 f"{r.metrics.get('realtime_factor_cpu', float('nan')):.1f}",
+        rows = [[r.dataset, r.estimator, f"{r.metrics['real_time_factor']:.1f}",
+                 f"{r.metrics.get('real_time_factor_cpu', float('nan')):.1f}",
                  f"{CARTOGRAPHER_REALTIME_FACTOR[r.dataset]:g}", f"{2 * CARTOGRAPHER_REALTIME_FACTOR[r.dataset]:g}",
-                 f"{r.metrics['realtime_factor'] / CARTOGRAPHER_REALTIME_FACTOR[r.dataset]:.2f}"] for r in timed]
+                 f"{r.metrics['real_time_factor'] / CARTOGRAPHER_REALTIME_FACTOR[r.dataset]:.2f}"] for r in timed]
         text += markdown_table(["log", "estimator", "slamkit (wall)", "slamkit (CPU)", "Cartographer", "goal",
                                 "slamkit / Cartographer"], rows) + "\n"
     names = sorted({r.dataset for r in runs if r.dataset in PUBLISHED})
@@ -172,7 +172,7 @@ def log_map_title(res: LidarSlamResult) -> str:
     cons = (f"map consistency {m.get('map_consistency_mean_m', float('nan')):.3f} m "
             f"(95%: {m.get('map_consistency_p95_m', float('nan')):.3f} m, "
             f"{100 * m.get('map_consistency_overlap', 0.0):.0f}% of end points seen twice); "
-            f"real-time factor {m.get('realtime_factor', float('nan')):.1f}")
+            f"real-time factor {m.get('real_time_factor', float('nan')):.1f}")
     return f"{head}\n{rel}\n{cons}"
 
 
@@ -245,7 +245,7 @@ def _plot_log(plt, plots, res: LidarSlamResult) -> None:
     ax.set_yscale("log")
     ax.set_xlabel("log time (s)")
     ax.set_ylabel("processing time (ms)")
-    ax.set_title(f"{res.label}: time per scan (real-time factor {res.metrics['realtime_factor']:.1f})")
+    ax.set_title(f"{res.label}: time per scan (real-time factor {res.metrics['real_time_factor']:.1f})")
     ax.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(file_in(plots, f"time_per_scan_{res.label}", ".png", "log name"), dpi=100)

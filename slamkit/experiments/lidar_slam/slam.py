@@ -241,8 +241,8 @@ def run_slam(sequence: Sequence, truth: OccupancyGrid | None = None,
     step = np.asarray(scan_step)
     tenth = max(1, len(step) // 10)
     metrics.update(time_total_s=total, time_finish_s=t_end - t_finish, time_map_s=time_map,
-                   realtime_factor=duration / total, log_duration_s=duration,
-                   time_cpu_s=cpu_s, realtime_factor_cpu=duration / cpu_s,
+                   real_time_factor=duration / total, log_duration_s=duration,
+                   time_cpu_s=cpu_s, real_time_factor_cpu=duration / cpu_s,
                    time_per_scan_median_ms=1e3 * float(np.median(step)),
                    time_per_scan_p99_ms=1e3 * float(np.percentile(step, 99)),
                    time_per_scan_last_over_first=float(np.mean(step[-tenth:]) / np.mean(step[:tenth])),
@@ -254,7 +254,7 @@ def run_slam(sequence: Sequence, truth: OccupancyGrid | None = None,
                        ate_frontend_m=before_m, ate_rmse_m=after_m, ate_reduction=before_m / max(after_m, 1e-12))
     if sequence.name in CARTOGRAPHER_REALTIME_FACTOR:
         # how many times faster than real time, against Cartographer's published factor
-        metrics["realtime_factor_vs_cartographer"] = metrics["realtime_factor"] / CARTOGRAPHER_REALTIME_FACTOR[sequence.name]
+        metrics["real_time_factor_vs_cartographer"] = metrics["real_time_factor"] / CARTOGRAPHER_REALTIME_FACTOR[sequence.name]
     # the map consistency figure (no ground truth) of the scans in the map's frame
     t_consistency = clock()
     consistency = map_consistency(se2.compose(map_poses, np.asarray(config.body_xytheta_lidar, float)), angles,
