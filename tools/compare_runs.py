@@ -15,7 +15,7 @@ datasets unless ``SLAMKIT_DATA`` says otherwise). ``compare`` accepts either two
 run folders (each with a ``results.json``) or two folders of such run folders, and compares
 
 * ``results.json``: every field, recursively, except wall-clock ones (``TIMING``: ``*_ms``,
-  ``*_ms_<statistic>`` such as visual odometry's ``frontend_ms_median``,
+  ``*_ms_<statistic>`` (visual odometry's ``frontend_ms_median`` of runs before its rename),
   ``time_*`` but simulated ``time_to_*``/``time_over_*``, real-time factors, peak memory,
   ``created``, the version) -- numbers must be
   equal (``--rtol`` loosens that, default 0: identical), lists equally long, keys the same;

@@ -53,7 +53,7 @@ def score(run: VoRun) -> dict[str, float]:
     metrics: dict[str, float] = {
         "inlier_ratio": float(np.mean([f.num_inliers / f.num_matches for f in with_matches])) if with_matches else 0.0,
         "time_per_frame_ms": float(np.median([f.frontend_ms + f.ba_ms for f in frames])),
-        "frontend_ms_median": float(np.median([f.frontend_ms for f in frames])),
+        "frontend_median_ms": float(np.median([f.frontend_ms for f in frames])),
         "keypoints_mean": float(np.mean([f.num_keypoints for f in frames])),
         "matches_mean": float(np.mean([f.num_matches for f in with_matches])) if with_matches else 0.0,
         "inliers_mean": float(np.mean([f.num_inliers for f in with_matches])) if with_matches else 0.0,
