@@ -17,7 +17,6 @@ A user's controller joins with :func:`register_controller` (from a module named 
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
@@ -28,6 +27,7 @@ from slamkit.control.mpc import MPCConfig, MPCController
 from slamkit.control.potential_fields import PotentialFieldConfig, PotentialFieldController
 from slamkit.control.protocols import Controller
 from slamkit.control.trajectory_rollout import RolloutConfig, RolloutController
+from slamkit.config import build
 from slamkit.errors import ConfigError
 from slamkit.naming import Registry
 
@@ -67,20 +67,11 @@ def register_controller(name: str, spec: ControllerSpec) -> None:
 
 def controller_config(name: str, params: Mapping[str, Any] | None = None) -> Any:
     """The config dataclass of controller ``name``: its defaults, the name's preset, then
-    ``params``. YAML has no tuples, so a list given for a tuple-valued field (the MPC's limits and
-    weights) becomes a tuple."""
+    ``params``, built by :func:`slamkit.config.build` (a list given for a tuple-valued field, the
+    MPC's limits and weights, becomes a tuple; an unknown key names the controller)."""
     key = CONTROLLERS.canonical(name)
     spec = CONTROLLERS[key]
-    values = {**spec.preset, **dict(params or {})}
-    fields = {f.name: f for f in dataclasses.fields(spec.config)}
-    unknown = set(values) - set(fields)
-    if unknown:
-        raise ConfigError(f"controller {key!r}: unknown config keys {sorted(unknown)}; known: {sorted(fields)}")
-    try:
-        values = {k: tuple(v) if isinstance(fields[k].default, tuple) else v for k, v in values.items()}
-        return spec.config(**values)
-    except TypeError as exc:
-        raise ConfigError(f"controller {key!r}: {exc}") from exc
+    return build(spec.config, {**spec.preset, **dict(params or {})}, f"controller {key!r}")
 
 
 def make_controller(name: str, params: Mapping[str, Any] | None = None, seed: int = 0) -> Controller:

@@ -14,7 +14,6 @@ with the closest suggestion.
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 from typing import Any, Mapping
 
@@ -23,6 +22,7 @@ import numpy as np
 from slamkit.data.estimate import Estimator
 from slamkit.data.noise import SENSOR_SIGMAS, NoiseParams
 from slamkit.data.sequence import Sequence
+from slamkit.config import build
 from slamkit.errors import ConfigError
 from slamkit.estimation.ekf import EKFLocalization, EKFLocalizationConfig
 from slamkit.estimation.ekf_slam import EKFSLAM, EKFSLAMConfig
@@ -77,12 +77,7 @@ INERTIAL_NAMES: tuple[str, ...] = tuple(n for n, f in REGISTRY.items() if f.sequ
 
 
 def _config(spec: FilterSpec, params: Mapping[str, Any]) -> Any:
-    fields = {f.name for f in dataclasses.fields(spec.config_cls)}
-    unknown = sorted(set(params) - fields)
-    if unknown:
-        raise ConfigError(f"filter {spec.name!r}: unknown parameter(s) {unknown}; "
-                          f"{spec.config_cls.__name__} has {sorted(fields)}")
-    return spec.config_cls(**params)
+    return build(spec.config_cls, params, f"filter {spec.name!r}")
 
 
 def make_estimator(name: str, sequence: Sequence, params: Mapping[str, Any] | None = None,

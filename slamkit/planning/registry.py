@@ -12,11 +12,11 @@ A user's planner joins with :func:`register_planner` (from a module named in a c
 
 from __future__ import annotations
 
-import dataclasses
 from typing import Any, NamedTuple
 
 import numpy as np
 
+from slamkit.config import build
 from slamkit.errors import ConfigError
 from slamkit.naming import Registry
 from slamkit.planning.astar import AStarConfig, AStarPlanner
@@ -67,11 +67,7 @@ def make_planner(name: str, rng: np.random.Generator | None = None, hook: Hook |
                  **config: Any) -> Planner:
     key = canonical(name)
     cls, cfg_cls, needs_rng = PLANNERS[key]
-    fields = {f.name for f in dataclasses.fields(cfg_cls)}
-    unknown = set(config) - fields
-    if unknown:
-        raise ConfigError(f"{key}: unknown config keys {sorted(unknown)}; known: {sorted(fields)}")
-    cfg = cfg_cls(**config)
+    cfg = build(cfg_cls, config, key)
     if needs_rng:
         return cls(cfg, rng=np.random.default_rng(0) if rng is None else rng, hook=hook)
     return cls(cfg, hook=hook)

@@ -86,7 +86,7 @@ def test_params_override_the_defaults_and_the_preset():
 def test_unknown_names_and_keys_are_config_errors_that_say_what_is_known():
     with pytest.raises(ConfigError, match=r"unknown controller 'mpc_osq' \(did you mean 'mpc_osqp'\?\)"):
         make_controller("mpc_osq")
-    with pytest.raises(ConfigError, match=r"controller 'dwa': unknown config keys \['v_max'\]"):
+    with pytest.raises(ConfigError, match=r"controller 'dwa': unknown parameter\(s\) \['v_max'\]"):
         make_controller("dwa", {"v_max": 1.0})
     with pytest.raises(ConfigError, match="controller 'mpc'"):
         make_controller("mpc", {"u_max": 0.8})  # a scalar where a pair is needed
