@@ -45,5 +45,10 @@ test-all: $(STAMP)
 docs: $(STAMP)
 	$(BIN)/mkdocs build --strict
 
+# every benchmark suite (slamkit.bench.SUITES), each against its same-run reference; QUICK=1 for smoke sizes
+bench: $(STAMP)
+	@for name in $$($(BIN)/python -c 'from slamkit.bench import SUITES; print(" ".join(SUITES))'); do \
+		$(BIN)/slamkit bench $$name $(if $(QUICK),--quick) || exit 1; done
+
 clean:
 	rm -rf $(VENV) runs site .pytest_cache
