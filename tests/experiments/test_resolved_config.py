@@ -64,3 +64,25 @@ def test_every_shipped_pipeline_runs_on_its_resolved_config_as_its_model():
         for name in type(model).model_fields:
             if name in resolved_config:
                 assert getattr(typed, name) is not None, (path.name, name)
+
+
+def test_the_outlier_and_visual_odometry_sections_are_resolved_as_their_dataclasses_build_them():
+    """pose_graph_outliers' ``outliers`` / ``solver`` and visual_odometry's ``vo`` sections come out
+    with every field of OutlierConfig / RobustSolveConfig / VisualOdometryConfig spelt out, less
+    the ones each cell sets (kind, count, backend), and build the same dataclasses again."""
+    from slamkit.backend.robust import RobustSolveConfig
+    from slamkit.config import build
+    from slamkit.sim.outliers import OutlierConfig
+    from slamkit.systems.visual_odometry import VisualOdometryConfig
+
+    config = {"pipeline": "pose_graph_outliers", "datasets": ["intel"], "outliers": {"extent_m": 5.0},
+              "solver": {"max_iterations": 7}}
+    out = with_defaults(config, check_pipeline(dict(config)))
+    assert out["outliers"] == {"extent_m": 5.0, "local_window": 50, "group_size": 10}
+    assert out["solver"]["max_iterations"] == 7 and "backend" not in out["solver"]
+    assert build(RobustSolveConfig, out["solver"]) == build(RobustSolveConfig, {"max_iterations": 7})
+    assert build(OutlierConfig, out["outliers"]) == build(OutlierConfig, config["outliers"])
+    vo = {"pipeline": "visual_odometry", "sequences": ["kitti-vo-a"], "vo": {"orb": {"fast_threshold": 12}}}
+    out = with_defaults(vo, check_pipeline(dict(vo)))
+    assert out["vo"]["orb"]["fast_threshold"] == 12 and len(out["vo"]) > 1
+    assert build(VisualOdometryConfig, out["vo"]) == build(VisualOdometryConfig, vo["vo"])

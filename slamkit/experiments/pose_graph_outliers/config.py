@@ -9,7 +9,7 @@ from typing import Annotated, Any, Literal
 from pydantic import Field
 
 from slamkit.backend.robust import RobustSolveConfig
-from slamkit.config import YamlDocument, model_of
+from slamkit.config import YamlDocument, model_of, resolved
 from slamkit.experiments.config_models import (PipelineConfig, _check_pose_graph_sources, _nested,
                                                _refuse_pipeline_keys)
 from slamkit.sim.outliers import OutlierConfig
@@ -34,3 +34,11 @@ class PoseGraphOutliersPipeline(PipelineConfig):
         _refuse_pipeline_keys(self.solver, "solver", {"backend": "backends"}, doc, source)
         _nested(model_of(OutlierConfig), self.outliers, doc, source, ("outliers",))
         _nested(model_of(RobustSolveConfig), self.solver, doc, source, ("solver",))
+
+    def resolve(self, config: dict[str, Any]) -> dict[str, Any]:
+        # every OutlierConfig / RobustSolveConfig field but those each cell sets (kind, count,
+        # backend), with its default spelt out: config.yaml says what every cell ran with
+        outliers = resolved(OutlierConfig, config.get("outliers"), "pose_graph_outliers.outliers",
+                            exclude=("kind", "count"))
+        solver = resolved(RobustSolveConfig, config.get("solver"), "pose_graph_outliers.solver", exclude=("backend",))
+        return {**config, "outliers": outliers, "solver": solver}

@@ -8,7 +8,7 @@ from typing import Annotated, Any, Literal, Union
 
 from pydantic import BaseModel, Field
 
-from slamkit.config import STRICT, YamlDocument, model_of
+from slamkit.config import STRICT, YamlDocument, model_of, resolved
 from slamkit.experiments.config_models import PipelineConfig, PlainName, _nested
 from slamkit.systems.visual_odometry import VisualOdometryConfig
 
@@ -36,3 +36,7 @@ class VisualOdometryPipeline(PipelineConfig):
 
     def check_options(self, config: dict[str, Any], doc: YamlDocument | None, source: str) -> None:
         _nested(model_of(VisualOdometryConfig), self.vo, doc, source, ("vo",))
+
+    def resolve(self, config: dict[str, Any]) -> dict[str, Any]:
+        # every VisualOdometryConfig field (ORB, bundle adjustment...) with its default spelt out
+        return {**config, "vo": resolved(VisualOdometryConfig, config.get("vo"), "visual_odometry.vo")}
