@@ -21,7 +21,20 @@ def test_defaults_are_filled_recursively_and_given_values_kept():
     assert resolved["controllers"] == ["dwa"]
     assert resolved["scenarios"] == {"kinds": ["open"], "seeds": 2, "n_obstacles": 3,
                                      "obstacle_speed_mps": [0.2, 0.5], "obstacle_min_side_m": 0.5}
-    assert resolved["record"] is True and resolved["record_scenarios"] == 1 and resolved["closed_loop"] == {}
+    assert resolved["record"] is True and resolved["record_scenarios"] == 1
+    # the closed loop's and the listed controller's every field, as the run builds them
+    from slamkit.config import build, dump
+    from slamkit.control.registry import controller_config
+    from slamkit.experiments.closed_loop.episode import ClosedLoopConfig
+
+    assert resolved["closed_loop"] == {k: v for k, v in dump(ClosedLoopConfig()).items() if v is not None}
+    assert set(resolved["controller_params"]) == {"dwa"}
+    assert controller_config("dwa", resolved["controller_params"]["dwa"]) == controller_config("dwa")
+    for name in ("potential_fields", "rollout", "mpc", "mpc_osqp"):   # presets and tuple-valued fields too
+        config = {"pipeline": "local_planning", "controllers": [name]}
+        params = with_defaults(config, check_pipeline(dict(config)))["controller_params"][name]
+        assert controller_config(name, params) == controller_config(name), name
+    assert build(ClosedLoopConfig, resolved["closed_loop"]) == ClosedLoopConfig()
     assert "name" not in resolved          # a None default means "not set": left out
     assert config == {"pipeline": "local_planning", "controllers": ["dwa"],
                       "scenarios": {"kinds": ["open"], "seeds": 2}}   # the input is not modified

@@ -9,8 +9,8 @@ from typing import Annotated, Any, Literal
 import pydantic
 from pydantic import BaseModel, Field
 
-from slamkit.control.registry import CONTROLLERS
-from slamkit.config import STRICT, YamlDocument, model_of, validate
+from slamkit.control.registry import CONTROLLERS, controller_config
+from slamkit.config import STRICT, YamlDocument, dump, model_of, resolved, validate
 from slamkit.errors import ConfigError
 from slamkit.experiments.closed_loop.episode import ClosedLoopConfig
 from slamkit.experiments.config_models import PipelineConfig, Seeds, _nested
@@ -50,3 +50,13 @@ class LocalPlanningPipeline(PipelineConfig):
                                                **{k: (dict, None) for k in CONTROLLERS}),
                          {name: params}, doc, source, ("controller_params",))
             _nested(model_of(CONTROLLERS.get(name).config), params, doc, source, ("controller_params", name))
+
+    def resolve(self, config: dict[str, Any]) -> dict[str, Any]:
+        # every ClosedLoopConfig field, and every field of each listed controller's config (its
+        # defaults, the name's preset, the given params: what make_controller builds), spelt out
+        params = dict(config.get("controller_params") or {})
+        for name in config.get("controllers") or type(self).model_fields["controllers"].default:
+            built = dump(controller_config(name, params.get(name)))
+            params[name] = {k: v for k, v in built.items() if v is not None}
+        return {**config, "closed_loop": resolved(ClosedLoopConfig, config.get("closed_loop"), "closed_loop"),
+                "controller_params": params}
