@@ -31,8 +31,8 @@ def test_defaults_are_filled_recursively_and_given_values_kept():
     assert set(resolved["controller_params"]) == {"dwa"}
     assert controller_config("dwa", resolved["controller_params"]["dwa"]) == controller_config("dwa")
     for name in ("potential_fields", "rollout", "mpc", "mpc_osqp"):   # presets and tuple-valued fields too
-        config = {"pipeline": "local_planning", "controllers": [name]}
-        params = with_defaults(config, check_pipeline(dict(config)))["controller_params"][name]
+        one = {"pipeline": "local_planning", "controllers": [name]}
+        params = with_defaults(one, check_pipeline(dict(one)))["controller_params"][name]
         assert controller_config(name, params) == controller_config(name), name
     assert build(ClosedLoopConfig, resolved["closed_loop"]) == ClosedLoopConfig()
     assert "name" not in resolved          # a None default means "not set": left out
