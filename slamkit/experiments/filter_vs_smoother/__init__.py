@@ -45,7 +45,6 @@ the :class:`~slamkit.experiments.pipeline.Pipeline` ``PIPELINE``.
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Any, Mapping
 
 from slamkit.experiments.filter_vs_smoother.config import (NAME, EstimatorChoice, FilterVsSmootherPipeline,

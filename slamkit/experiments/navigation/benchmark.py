@@ -27,7 +27,7 @@ import numpy as np
 
 from slamkit.errors import ConfigError
 from slamkit.experiments.results import markdown_table
-from slamkit.metrics.navigation import (OUTCOMES, bin_label, clearance_percentile_m, narrowest_passage_m,
+from slamkit.metrics.navigation import (bin_label, clearance_percentile_m, narrowest_passage_m,
                                         optimal_time_s, outcome, polyline_length_m, ratio_to_optimal)
 from slamkit.metrics.stats import RateInterval, rate_of
 from slamkit.planning.astar import AStarPlanner
