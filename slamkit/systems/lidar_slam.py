@@ -638,9 +638,7 @@ class LidarSlam:
             target = self._loop_targets.pop(key)
         else:
             target = self._submap_at(i, members, poses, self.config.loops.icp)
-        self._loop_targets[key] = target
-        while len(self._loop_targets) > self.LOOP_TARGET_CACHE:
-            self._loop_targets.pop(next(iter(self._loop_targets)))
+        _keep_newest(self._loop_targets, key, target, self.LOOP_TARGET_CACHE)
         return target
 
     def _accept(self, closure: LoopClosure, poses: np.ndarray) -> None:
@@ -827,9 +825,7 @@ class LidarSlam:
             if target is None:
                 return None
             pyramid = MaxGridPyramid(target.points, match)
-        self._pyramids[i] = pyramid
-        while len(self._pyramids) > self.PYRAMID_CACHE:
-            self._pyramids.pop(next(iter(self._pyramids)))
+        _keep_newest(self._pyramids, i, pyramid, self.PYRAMID_CACHE)
         source = voxel_downsample(pts_j, lc.global_resolution_m)
         found = branch_and_bound_search(source, pyramid, guess, match)
         if found is None:
@@ -977,3 +973,12 @@ def occupancy_map(world_xytheta_sensors: np.ndarray, angles_rad, ranges_m, max_r
     for p, a, r in zip(world_xytheta_sensors, angles_rad, ranges_m):
         m.update(p, a, r, max_range_m)
     return m
+
+
+def _keep_newest(cache: dict, key, value, capacity: int) -> None:
+    """Put ``value`` in ``cache`` as its newest entry (a dict keeps insertion order; the caller
+    popped ``key`` on a hit) and drop the oldest beyond ``capacity``: the system's two caches,
+    global-match pyramids and loop-verification targets."""
+    cache[key] = value
+    while len(cache) > capacity:
+        cache.pop(next(iter(cache)))
