@@ -36,6 +36,10 @@ from slamkit.maps.distance_field import distance_field_m
 from slamkit.maps.occupancy_grid import OccupancyGrid
 
 
+#: the correlative search's translation window, cells each side of the guess (at most)
+MAX_WINDOW_CELLS = 200
+
+
 @dataclass(frozen=True)
 class CorrelativeConfig:
     resolution_m: float = 0.05
@@ -54,6 +58,11 @@ class CorrelativeConfig:
             raise ConfigError("CorrelativeConfig: resolution_m, sigma_m and theta_step_rad must be > 0")
         if self.window_xy_m < 0 or not 0 <= self.window_theta_rad <= np.pi:
             raise ConfigError("CorrelativeConfig: window_xy_m must be >= 0 and window_theta_rad in [0, pi]")
+        if self.window_xy_m > MAX_WINDOW_CELLS * self.resolution_m:
+            # the search scores every cell of the window at every heading: 10 m at 5 cm is
+            # already 1.6e5 offsets a heading
+            raise ConfigError(f"CorrelativeConfig: window_xy_m {self.window_xy_m:g} m is more than "
+                              f"{MAX_WINDOW_CELLS} cells of {self.resolution_m:g} m each side")
         if self.coarse_factor < 1:
             raise ConfigError(f"CorrelativeConfig.coarse_factor must be >= 1, got {self.coarse_factor}")
 

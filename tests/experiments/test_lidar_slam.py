@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -29,7 +30,7 @@ from slamkit.experiments.lidar_slam import (
     trim_to_free_space,
 )
 from slamkit.systems.lidar_slam import LidarSlamConfig
-from slamkit.experiments.pipeline import run_pipeline
+from slamkit.experiments.pipeline import run_pipeline, validate_pipeline_config
 from slamkit.frontend.icp import IcpConfig
 from slamkit.sim.grid_world import simulate_grid_sequence
 from slamkit.viz.pipelines import observer_for
@@ -277,3 +278,17 @@ def test_log_pipeline_on_an_intel_slice(tmp_path, verify_rrd):
     for entity in ("world/trajectory/scans", "world/trajectory/optimised", "world/keyframes", "world/robot/scan",
                    "map/occupancy"):
         assert f"/intel/{entity}" in paths, entity
+
+
+def test_a_dataclass_bound_of_a_per_prior_section_is_refused_where_it_was_written(tmp_path):
+    """The dataclasses' own checks run on every config a run would build, before anything runs,
+    named by file and line: a correlative window of 100 m at 5 cm (2000 cells each side, a search
+    that would not end) in the lidar-only prior's section of the logs pipeline."""
+    text = (Path(__file__).resolve().parents[2] / "pipelines" / "lidar_slam_logs.yaml").read_text()
+    assert text.count("correlative: {window_xy_m: 2.0}") == 1
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(text.replace("correlative: {window_xy_m: 2.0}", "correlative: {window_xy_m: 100}"))
+    line = 1 + text.splitlines().index("  constant_velocity:")
+    with pytest.raises(ConfigError, match=rf"bad\.yaml:{line}: slam_by_motion_prior\.constant_velocity\.correlative: "
+                                          r"CorrelativeConfig: window_xy_m 100 m is more than 200 cells"):
+        validate_pipeline_config(bad)

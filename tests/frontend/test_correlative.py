@@ -91,6 +91,10 @@ def test_config_is_checked():
         CorrelativeConfig(coarse_factor=0)
     with pytest.raises(ConfigError):
         CorrelativeConfig(resolution_m=0.0)
+    # the window is searched cell by cell: 200 cells each side at most (10 m at 5 cm)
+    assert CorrelativeConfig(window_xy_m=10.0, resolution_m=0.05).window_xy_m == 10.0
+    with pytest.raises(ConfigError, match="more than 200 cells of 0.05 m"):
+        CorrelativeConfig(window_xy_m=10.1, resolution_m=0.05)
     with pytest.raises(ConfigError, match="grid"):
         correlative_search(room_scan(), CorrelativeGrid(room_scan(), CFG), np.zeros(3),
                            CorrelativeConfig(resolution_m=0.1))

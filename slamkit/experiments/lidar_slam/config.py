@@ -145,6 +145,17 @@ class LidarSlamPipeline(PipelineConfig):
         _nested(model_of(LidarSlamConfig), self.slam, doc, source, ("slam",))
         for prior, values in self.slam_by_motion_prior.items():
             _nested(model_of(LidarSlamConfig), values, doc, source, ("slam_by_motion_prior", prior))
+        # the dataclasses' own checks (bounds that tie two fields, such as a correlative window of
+        # at most 200 cells) on each config a run builds, named where the user wrote it
+        sections = [(("slam",), self.slam)] + [
+            (("slam_by_motion_prior", p), slam_section_for(self.slam, self.slam_by_motion_prior, p))
+            for p in self.slam_by_motion_prior]
+        for path, section in sections:
+            try:
+                build(LidarSlamConfig, section, ".".join(path))
+            except ConfigError as exc:
+                where = doc.where(path) if doc is not None else source
+                raise ConfigError(f"{where}: {exc}") from None
         if isinstance(self.mcl, dict):
             _nested(model_of(MclCheckConfig), self.mcl, doc, source, ("mcl",))
         _check_perturbations(self.perturbations, doc, source)
