@@ -245,37 +245,46 @@ def test_odometry_that_froze_then_jumped_is_checked_against_the_scans():
     assert turns[False].min() < -150.0
 
 
-def test_a_lidar_only_match_lost_in_a_fast_turn_is_found_again_by_the_correlative_search():
-    """MIT CSAIL lidar only, the pipeline's second perturbed twin (started 0.43 s later, ranges
-    jittered by 1e-6 m): at 51.9 s, in a wiggle of +-18 deg a scan, one match fits just under
-    ``min_match_fitness``; the scan is left where the previous one was, the robot drives on at
-    ~0.8 m/s, every next scan starts farther than ICP's 0.5 m gate from the truth and the match
-    is lost for 7 s (33 of the first 62 s's matches fall back; the estimate comes out 43 deg and
-    4 m off the log as given and the first loop is never closed: map consistency 0.110 m against
-    0.070 m over the whole log). With the logs pipeline's retry of a failing lidar-only match
-    from a correlative search (+-2 m, +-45 deg), 5 fall back and the twin ends within 1 deg and
-    0.4 m of the log as given; the log as given never fails a match, so it never searches."""
+def test_a_lidar_only_match_lost_in_a_fast_turn_is_found_again_by_the_correlative_search(monkeypatch):
+    """MIT CSAIL lidar only: the pipeline's second perturbed twin (started 0.43 s later, ranges
+    jittered by 1e-6 m) failed one match at 51.9 s, in a wiggle of +-18 deg a scan, where the log
+    as given fits just above ``min_match_fitness``. A failed match leaves the scan where the
+    previous one was; the robot drove on at ~0.8 m/s, every next scan started beyond ICP's 0.5 m
+    gate, 33 matches in a row fell back and the first loop was never closed (map consistency
+    0.110 m against 0.070 m). That knife edge depends on the last bits, so the test makes the loss
+    itself: the two scans from 51.8 s of the log as given are not matched. Measured: without the
+    retry 30 matches fall back and the first 62 s end 4.5 m / 54 deg off the run without the loss;
+    with the logs pipeline's retry of a failing lidar-only match from a correlative search (+-2 m,
+    +-45 deg) 4 fall back (3 searches won) and it ends 0.02 m / 0.1 deg off."""
     entry = registry.get("mit-csail-log")
     if not registry.is_available(entry):
         pytest.skip("mit-csail-log is not available locally")
     seq = registry.load_recording(entry.name)
-    twins = PerturbationConfig(count=5, kinds=("start_offset", "range_jitter"))
+    piece = first_seconds(seq, 62.0)
     cfg = config_for(seq, logs_config("constant_velocity"))
     assert cfg.correlative_below_fitness == cfg.min_match_fitness == 0.3 and cfg.correlative.window_xy_m == 2.0
-    given = LidarSlam(cfg).run(first_seconds(perturb(seq, 0, twins), 62.0)).estimate()
-    assert given.counters.match_fallbacks == 0 and given.counters.correlative_searches == 0
-    twin = first_seconds(perturb(seq, 2, twins), 62.0)
-    lost = LidarSlam(replace(cfg, correlative_below_fitness=0.0)).run(twin).estimate()
-    found = LidarSlam(cfg).run(twin).estimate()
-    assert lost.counters.match_fallbacks >= 25 and found.counters.match_fallbacks <= 8
+    kept = LidarSlam(cfg).run(piece).estimate()
+    assert kept.counters.match_fallbacks == 0 and kept.counters.correlative_searches == 0
+    t0, match = piece.events[0].stamp_s, LidarSlam._match
+
+    def lossy(self, pts, guess, hold=None, check=None):
+        if 51.8 <= self._last_stamp - t0 < 52.2:   # the previous scan's stamp: two scans lost
+            self._counts["match_fallbacks"] += 1
+            return guess, None
+        return match(self, pts, guess, hold, check)
+
+    monkeypatch.setattr(LidarSlam, "_match", lossy)
+    lost = LidarSlam(replace(cfg, correlative_below_fitness=0.0)).run(piece).estimate()
+    found = LidarSlam(cfg).run(piece).estimate()
+    assert lost.counters.match_fallbacks >= 20 and found.counters.match_fallbacks <= 8
     assert found.counters.correlative_wins >= 1
 
     def off(est):
-        d = se2.between(given.world_xytheta_body[-1], est.world_xytheta_body[-1])
+        d = se2.between(kept.world_xytheta_body[-1], est.world_xytheta_body[-1])
         return float(np.hypot(d[0], d[1])), float(np.rad2deg(abs(d[2])))
 
     assert off(lost)[0] > 2.0 and off(lost)[1] > 30.0
-    assert off(found)[0] < 0.6 and off(found)[1] < 3.0
+    assert off(found)[0] < 0.3 and off(found)[1] < 2.0
 
 
 def test_isam2_cholesky_giving_up_on_a_long_loop_free_chain_moves_the_graph_to_qr():
