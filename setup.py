@@ -15,6 +15,7 @@ KERNELS = {
     "slamkit.estimation._pfkernel": "slamkit/estimation/_pfkernel.c",
     "slamkit.estimation._eskfkernel": "slamkit/estimation/_eskfkernel.c",
     "slamkit.frontend._bnbkernel": "slamkit/frontend/_bnbkernel.c",
+    "slamkit.frontend._icpkernel": "slamkit/frontend/_icpkernel.c",
 }
 
 setup(ext_modules=[Extension(name, [source], extra_compile_args=["-O3"], libraries=["m"], optional=True)

@@ -28,6 +28,7 @@ KERNELS: dict[str, str] = {
     "slamkit.estimation._pfkernel": "particle-filter likelihood, motion and resampling",
     "slamkit.estimation._eskfkernel": "error-state EKF IMU step (inertial navigation)",
     "slamkit.frontend._bnbkernel": "branch-and-bound descent of the global scan matcher (loop closure)",
+    "slamkit.frontend._icpkernel": "k-d tree, normals and point-to-line ICP loop of the scan matcher",
 }
 
 _lock = threading.Lock()

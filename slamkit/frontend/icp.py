@@ -46,6 +46,13 @@ resulting pose-graph constraint.
   are not independent (they sample the same few walls), so the Hessian covariance is inflated
   by ``covariance_scale`` before it is used as a constraint.
 
+Compiled kernel (``_icpkernel.c``): when it is built, a target keeps a k-d tree of its own
+(exact nearest neighbours, as scipy's cKDTree) and its normals from it, and point-to-line ICP
+without the degeneracy-aware step runs its whole iteration loop and the final statistics in C;
+the numpy/cKDTree code below is the fallback (``SLAMKIT_NO_NATIVE=1``, no compiler) and the
+reference the tests compare it against (the same correspondences and iterations; the pose within
+the last bits: sums in another order, the 3x3 system by elimination instead of LAPACK).
+
 Conventions: ``target_T_source`` maps source points into the target frame,
 q ~ R(theta) p + (x, y). ``covariance`` is expressed in the tangent space of the *right*
 perturbation, target_T_source o exp(xi) -- the convention of GTSAM's BetweenFactor<Pose2> and of
@@ -55,10 +62,12 @@ perturbation, target_T_source o exp(xi) -- the convention of GTSAM's BetweenFact
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from scipy.spatial import cKDTree
 
+from slamkit._native import load_extension
 from slamkit.errors import ConfigError, DataError
 from slamkit.frontend.preprocess import voxel_downsample
 from slamkit.geometry import se2
@@ -126,15 +135,82 @@ class IcpResult:
         return np.linalg.inv(self.covariance)
 
 
+#: the compiled k-d tree and ICP loop (``_icpkernel.c``; the same algorithm as the numpy code here)
+KERNEL_MODULE = "slamkit.frontend._icpkernel"
+#: points per leaf of the compiled k-d tree
+KD_LEAF = 8
+#: the compiled normals take at most this many neighbours (more: the numpy normals)
+KD_MAX_NEIGHBOURS = 1024
+
+
+def _kernel():
+    """The compiled kernel (``slamkit.frontend._icpkernel``), or None: not built, or
+    ``SLAMKIT_NO_NATIVE`` set."""
+    return load_extension(KERNEL_MODULE)
+
+
+class _KdTree:
+    """The compiled kernel's k-d tree of a point set: the points reordered (``sorted``, with
+    ``perm`` their original indices) and the split axis and value of every internal node
+    (``dims``, ``splits``)."""
+
+    def __init__(self, kernel, points: np.ndarray):
+        m = len(points)
+        n, depth = m, 0
+        while n > KD_LEAF:
+            n, depth = (n + 1) // 2, depth + 1
+        self.kernel, self.m = kernel, m
+        self.perm = np.empty(m, dtype=np.int64)
+        self.sorted = np.empty((m, 2))
+        self.dims = np.empty(2 ** (depth + 1) - 1, dtype=np.int8)
+        self.splits = np.empty(len(self.dims))
+        kernel.build(np.ascontiguousarray(points, dtype=float), m, KD_LEAF, self.perm, self.sorted, self.dims,
+                     self.splits, len(self.dims))
+
+    def normals(self, k: int) -> np.ndarray:
+        """(M, 2) unit normals in the tree's order (``estimate_normals``' numbers)."""
+        out = np.empty((self.m, 2))
+        self.kernel.normals(self.sorted, self.m, KD_LEAF, self.dims, self.splits, len(self.dims), min(k, self.m), out)
+        return out
+
+    def query(self, points: np.ndarray, upper_bound: float) -> tuple[np.ndarray, np.ndarray]:
+        """cKDTree.query(points, k=1, distance_upper_bound=upper_bound)'s (dist, idx)."""
+        q = np.ascontiguousarray(points, dtype=float)
+        dist, idx = np.empty(len(q)), np.empty(len(q), dtype=np.int64)
+        self.kernel.nearest(self.sorted, self.m, KD_LEAF, self.dims, self.splits, len(self.dims), self.perm, q, len(q),
+                            float(upper_bound), dist, idx)
+        return dist, idx
+
+
 class IcpTarget:
     """A target point set prepared once: KD-tree and unit normals (N, 2); with ``voxel_m`` > 0
-    the points are first reduced to one per ``voxel_m`` cell."""
+    the points are first reduced to one per ``voxel_m`` cell. With the compiled kernel the tree
+    and the normals are the kernel's (scipy's ``tree`` is then built only if asked for)."""
 
     def __init__(self, points_xy: np.ndarray, normal_neighbours: int = 6, voxel_m: float = 0.0):
         pts = _check_points(voxel_downsample(_check_points(points_xy, "target"), voxel_m), "target")
         self.points = pts
-        self.tree = cKDTree(pts)
-        self.normals = estimate_normals(pts, self.tree, normal_neighbours)
+        kernel = _kernel()
+        self._kd = None if kernel is None else _KdTree(kernel, pts)
+        if self._kd is None or normal_neighbours > KD_MAX_NEIGHBOURS:
+            self._kd = None
+            self.normals = estimate_normals(pts, self.tree, normal_neighbours)
+        else:
+            self._normals_sorted = self._kd.normals(normal_neighbours)
+            self.normals = np.empty_like(self._normals_sorted)
+            self.normals[self._kd.perm] = self._normals_sorted
+
+    @cached_property
+    def tree(self) -> cKDTree:
+        return cKDTree(self.points)
+
+    def nearest(self, points: np.ndarray, upper_bound: float = np.inf) -> tuple[np.ndarray, np.ndarray]:
+        """Each point's nearest target point closer than ``upper_bound``: (distance, index) as
+        ``tree.query(points, k=1, distance_upper_bound=upper_bound)`` (inf and len(self.points) when
+        there is none), from the compiled tree when there is one."""
+        if self._kd is not None and _kernel() is not None:
+            return self._kd.query(points, upper_bound)
+        return self.tree.query(points, k=1, distance_upper_bound=upper_bound)
 
 
 def finite_points_xy(points: np.ndarray, what: str, min_points: int = 1) -> np.ndarray:
@@ -180,7 +256,7 @@ def estimate_normals(points: np.ndarray, tree: cKDTree, k: int) -> np.ndarray:
 
 
 def _correspondences(target: IcpTarget, moved: np.ndarray, config: IcpConfig):
-    dist, idx = target.tree.query(moved, k=1, distance_upper_bound=config.max_correspondence_m)
+    dist, idx = target.nearest(moved, config.max_correspondence_m)
     return _gated(dist, idx, config)
 
 
@@ -248,6 +324,33 @@ def icp(source_xy: np.ndarray, target: np.ndarray | IcpTarget,
     tgt = target if isinstance(target, IcpTarget) else IcpTarget(target, config.normal_neighbours,
                                                                  config.target_voxel_m)
     T = np.zeros(3) if initial_target_T_source is None else np.asarray(initial_target_T_source, float).reshape(3)
+    if config.method == "point_to_line" and config.degenerate_below <= 0 and tgt._kd is not None:
+        kernel = _kernel()
+        if kernel is not None:
+            res = _icp_compiled(kernel, src, tgt, T, config)
+            if res is not None:
+                return res
+    return _icp_python(src, tgt, T, config)
+
+
+def _icp_compiled(kernel, src: np.ndarray, tgt: IcpTarget, T: np.ndarray, config: IcpConfig) -> IcpResult | None:
+    """:func:`_icp_python` (point-to-line, no degeneracy-aware step) in the compiled kernel; None
+    when its 3x3 system was exactly singular (then the reference runs: numpy's least squares)."""
+    kd = tgt._kd
+    (status, x, y, theta, iterations, converged, fitness, n, a00, a01, a02, a11, a12, a22, ee, rss) = kernel.icp(
+        kd.sorted, kd.m, KD_LEAF, kd.dims, kd.splits, len(kd.dims), tgt._normals_sorted, np.ascontiguousarray(src),
+        len(src),
+        float(T[0]), float(T[1]), float(T[2]), config.max_iterations, config.max_correspondence_m,
+        config.min_correspondences, config.trim_fraction, config.translation_tol_m, config.rotation_tol_rad,
+        CYCLE_STEP_TOL_M, CYCLE_STEP_TOL_RAD, config.fitness_distance_m)
+    if status != 0:
+        return None
+    A = np.array([[a00, a01, a02], [a01, a11, a12], [a02, a12, a22]])
+    return _result(np.array([x, y, theta]), iterations, bool(converged), fitness, n, A, ee, rss, config)
+
+
+def _icp_python(src: np.ndarray, tgt: IcpTarget, T: np.ndarray, config: IcpConfig) -> IcpResult:
+    """The ICP loop in numpy: the fallback and the compiled kernel's reference."""
     converged = False
     iterations = 0
     recent: list[bytes] = []
@@ -284,21 +387,32 @@ def _finish(src: np.ndarray, tgt: IcpTarget, T: np.ndarray, iterations: int, con
     if config.fitness_distance_m < config.max_correspondence_m:
         # one query serves both: a point within the fitness distance of the target is within
         # the gate, so its nearest neighbour and distance are the gated query's (exact search)
-        dist, idx = tgt.tree.query(moved, k=1, distance_upper_bound=config.max_correspondence_m)
+        dist, idx = tgt.nearest(moved, config.max_correspondence_m)
         fitness = float(np.mean(dist <= config.fitness_distance_m))
         si, ti = _gated(dist, idx, config)
     else:
-        dist, _ = tgt.tree.query(moved, k=1)
+        dist, _ = tgt.nearest(moved)
         fitness = float(np.mean(dist <= config.fitness_distance_m))
         si, ti = _correspondences(tgt, moved, config)
     if len(si) < 3:
-        return IcpResult(T, np.diag([1e6, 1e6, 1e6]), iterations, False, fitness, float("inf"), len(si))
+        return _result(T, iterations, converged, fitness, len(si), None, 0.0, 0.0, config)
     n = tgt.normals[ti]
     e = np.einsum("ni,ni->n", n, moved[si] - tgt.points[ti])
     J = _point_to_line_jacobian(moved[si], n)
-    dof = max(len(e) - 3, 1)
-    s2 = max(float(e @ e) / dof, config.sigma_floor_m ** 2)
-    A = J.T @ J
+    residual = np.linalg.norm(moved[si] - tgt.points[ti], axis=1)
+    return _result(T, iterations, converged, fitness, len(si), J.T @ J, float(e @ e),
+                   float(np.sum(residual ** 2)), config)
+
+
+def _result(T: np.ndarray, iterations: int, converged: bool, fitness: float, n: int, A: np.ndarray | None,
+            ee: float, rss: float, config: IcpConfig) -> IcpResult:
+    """The result at ``T`` from the final correspondences' statistics (``n`` of them, the
+    point-to-line normal matrix ``A`` = J^T J, the squared residual ``ee`` along the normals and
+    ``rss`` of the point distances); fewer than 3: no constraint (huge covariance)."""
+    if n < 3:
+        return IcpResult(T, np.diag([1e6, 1e6, 1e6]), iterations, False, fitness, float("inf"), n)
+    dof = max(n - 3, 1)
+    s2 = max(ee / dof, config.sigma_floor_m ** 2)
     # a tiny ridge instead of a pseudo-inverse: a direction nothing constrains (all points on
     # one line) must get a huge variance, whereas pinv would report it as perfectly known
     cov_left = s2 * np.linalg.inv(A + 1e-9 * np.trace(A) * np.eye(3)) * config.covariance_scale
@@ -306,9 +420,7 @@ def _finish(src: np.ndarray, tgt: IcpTarget, T: np.ndarray, iterations: int, con
     Ad = se2.adjoint(se2.inverse(T))
     cov = Ad @ cov_left @ Ad.T
     cov = 0.5 * (cov + cov.T)
-    residual = np.linalg.norm(moved[si] - tgt.points[ti], axis=1)
-    return IcpResult(T, cov, iterations, converged, fitness,
-                     float(np.sqrt(np.mean(residual ** 2))), len(si))
+    return IcpResult(T, cov, iterations, converged, fitness, float(np.sqrt(rss / n)), n)
 
 
 def rotation_search(source_xy: np.ndarray, target: IcpTarget, guess: np.ndarray, half_window_rad: float,
@@ -334,7 +446,7 @@ def rotation_search(source_xy: np.ndarray, target: IcpTarget, guess: np.ndarray,
         moved = np.empty((len(poses), n, 2))
         moved[..., 0] = x0 + c * src[:, 0] - s * src[:, 1]
         moved[..., 1] = y0 + s * src[:, 0] + c * src[:, 1]
-        dist, _ = target.tree.query(moved.reshape(-1, 2), k=1, distance_upper_bound=cap_m)
+        dist, _ = target.nearest(moved.reshape(-1, 2), cap_m)
         scores = np.mean((np.minimum(dist, cap_m) ** 2).reshape(len(poses), n), axis=1)
         k = int(np.argmin(scores))
         return float(offsets[k]), float(scores[k])

@@ -106,7 +106,7 @@ def test_doctor_says_which_kernels_are_compiled() -> None:
     assert data["kernels"] == {"slamkit.data.formats._textscan": "compiled", "slamkit.maps._raycast": "compiled",
                                "slamkit.planning._gridsearch": "compiled", "slamkit.estimation._pfkernel": "compiled",
                                "slamkit.estimation._eskfkernel": "compiled",
-                               "slamkit.frontend._bnbkernel": "compiled"}
+                               "slamkit.frontend._bnbkernel": "compiled", "slamkit.frontend._icpkernel": "compiled"}
     assert [r["kind"] for r in data["data_roots"]][-1] == "cache"
 
 
