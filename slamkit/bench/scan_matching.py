@@ -19,6 +19,13 @@ off the guess, matched against the map of a scan from the guess's neighbourhood 
 branch and bound is exact), and the ratio is the time the pruning saves. The same branch and
 bound is also timed with its descent in Python (``SLAMKIT_NO_NATIVE=1``) against the compiled
 kernel (``_bnbkernel.c``): same optimum, score and nodes scored; the ratio is the kernel's gain.
+
+The lidar SLAM frontend's match (point-to-line, the logs pipeline's gate 0.5 m, trim 0.9, tolerances
+1e-4, against a submap of 8 stacked scans) is timed in the compiled kernel (``_icpkernel.c``: k-d
+tree, correspondences, trimming and the Gauss-Newton loop in C) against the numpy loop with
+scipy's cKDTree (``SLAMKIT_NO_NATIVE=1``) on the same prepared targets: same iterations and
+correspondences checked, the pose difference reported. Preparing such a target (tree and PCA
+normals) is timed the same way.
 """
 
 from __future__ import annotations
@@ -29,6 +36,7 @@ from contextlib import contextmanager
 import numpy as np
 
 from slamkit.frontend import branch_and_bound as bnb_mod
+from slamkit.frontend import icp as icp_mod
 from slamkit.frontend.branch_and_bound import (BranchAndBoundConfig, MaxGridPyramid, branch_and_bound_search,
                                                exhaustive_search)
 from slamkit.frontend.icp import IcpConfig, IcpTarget, _best_rigid, icp, rotation_search, scan_to_points
@@ -132,7 +140,52 @@ def run(quick: bool = False) -> list[BenchCase]:
         compare("icp_rotation_search_10deg", 1e3 * rot_s / len(pairs), "ms",
                 "a KD-tree query per heading (the previous rotation_search)", 1e3 * ref_s / len(pairs),
                 goal=">= 1.2", pairs=len(pairs), same_result=bool(same_rot)),
-    ] + global_match_cases(grid, caster, beams, rng, quick)
+    ] + submap_icp_cases(caster, poses, beams, rng, quick) + global_match_cases(grid, caster, beams, rng, quick)
+
+
+def submap_icp_cases(caster, poses, beams, rng, quick: bool) -> list[BenchCase]:
+    """The frontend's point-to-line match against an 8-scan submap and the preparation of that
+    submap, compiled kernel against the numpy/cKDTree reference (module docstring)."""
+    n = 3 if quick else len(poses)
+    cfg = IcpConfig(method="point_to_line", max_correspondence_m=0.5, trim_fraction=0.9, max_iterations=30,
+                    translation_tol_m=1e-4, rotation_tol_rad=1e-4)
+    submaps, sources = [], []
+    for pose in poses[:n]:
+        # 8 scans 5 cm / 1 deg apart, stacked in the first one's frame, as the frontend's submap
+        scans = []
+        for i in range(8):
+            step = np.array([0.05 * i, 0.0, np.deg2rad(1.0) * i])
+            r = caster.scan(se2.compose(pose, step), beams, 20.0)[0] + rng.normal(0, 0.02, len(beams))
+            scans.append(se2.transform_points(step, scan_to_points(r, beams)))
+        submaps.append(np.vstack(scans))
+        off = np.array([rng.normal(0.45, 0.05), rng.normal(0, 0.05), rng.normal(0.15, 0.02)])
+        r = caster.scan(se2.compose(pose, off), beams, 20.0)[0] + rng.normal(0, 0.02, len(beams))
+        # the guess a few cm / 1 deg off the truth (the odometry's error)
+        sources.append((scan_to_points(r, beams), off + np.array([0.03, -0.02, 0.017])))
+    compiled = icp_mod._kernel() is not None
+    prep_s, targets = best_of(lambda: [IcpTarget(m, cfg.normal_neighbours) for m in submaps], repeat=3)
+    with _no_native():
+        prep_py_s, _ = best_of(lambda: [IcpTarget(m, cfg.normal_neighbours) for m in submaps], repeat=3)
+
+    def match():
+        return [icp(s, t, g, cfg) for (s, g), t in zip(sources, targets)]
+
+    icp_s, fast = best_of(match, repeat=3)
+    for t in targets:  # the reference's cKDTree, built outside the timing as the targets are
+        t.tree
+    with _no_native():
+        py_s, ref = best_of(match, repeat=3)
+    same = all(a.iterations == b.iterations and a.num_correspondences == b.num_correspondences
+               and a.fitness == b.fitness for a, b in zip(fast, ref))
+    diff = float(max(np.max(np.abs(a.target_T_source - b.target_T_source)) for a, b in zip(fast, ref)))
+    return [compare("icp_point_to_line_submap_compiled", 1e3 * icp_s / n, "ms",
+                    "the numpy loop with scipy's cKDTree (SLAMKIT_NO_NATIVE=1), same targets", 1e3 * py_s / n,
+                    goal=">= 4", pairs=n, compiled=compiled, same_iterations_and_correspondences=bool(same),
+                    max_abs_difference=diff, iterations_mean=float(np.mean([r.iterations for r in fast]))),
+            compare("icp_submap_target_compiled", 1e3 * prep_s / n, "ms",
+                    "scipy cKDTree and numpy PCA normals (SLAMKIT_NO_NATIVE=1)", 1e3 * prep_py_s / n,
+                    goal=">= 1.5", targets=n, points_mean=float(np.mean([len(m) for m in submaps])))]
+
 
 def global_match_cases(grid, caster, beams, rng, quick: bool) -> list[BenchCase]:
     """Branch and bound against the exhaustive search of the same window (module docstring)."""
