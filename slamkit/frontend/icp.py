@@ -152,14 +152,14 @@ def _kernel():
 class _KdTree:
     """The compiled kernel's k-d tree of a point set: the points reordered (``sorted``, with
     ``perm`` their original indices) and the split axis and value of every internal node
-    (``dims``, ``splits``)."""
+    (``dims``, ``splits``): plain arrays, so a target pickles; the kernel is passed to each call."""
 
     def __init__(self, kernel, points: np.ndarray):
         m = len(points)
         n, depth = m, 0
         while n > KD_LEAF:
             n, depth = (n + 1) // 2, depth + 1
-        self.kernel, self.m = kernel, m
+        self.m = m
         self.perm = np.empty(m, dtype=np.int64)
         self.sorted = np.empty((m, 2))
         self.dims = np.empty(2 ** (depth + 1) - 1, dtype=np.int8)
@@ -167,17 +167,17 @@ class _KdTree:
         kernel.build(np.ascontiguousarray(points, dtype=float), m, KD_LEAF, self.perm, self.sorted, self.dims,
                      self.splits, len(self.dims))
 
-    def normals(self, k: int) -> np.ndarray:
+    def normals(self, kernel, k: int) -> np.ndarray:
         """(M, 2) unit normals in the tree's order (``estimate_normals``' numbers)."""
         out = np.empty((self.m, 2))
-        self.kernel.normals(self.sorted, self.m, KD_LEAF, self.dims, self.splits, len(self.dims), min(k, self.m), out)
+        kernel.normals(self.sorted, self.m, KD_LEAF, self.dims, self.splits, len(self.dims), min(k, self.m), out)
         return out
 
-    def query(self, points: np.ndarray, upper_bound: float) -> tuple[np.ndarray, np.ndarray]:
+    def query(self, kernel, points: np.ndarray, upper_bound: float) -> tuple[np.ndarray, np.ndarray]:
         """cKDTree.query(points, k=1, distance_upper_bound=upper_bound)'s (dist, idx)."""
         q = np.ascontiguousarray(points, dtype=float)
         dist, idx = np.empty(len(q)), np.empty(len(q), dtype=np.int64)
-        self.kernel.nearest(self.sorted, self.m, KD_LEAF, self.dims, self.splits, len(self.dims), self.perm, q, len(q),
+        kernel.nearest(self.sorted, self.m, KD_LEAF, self.dims, self.splits, len(self.dims), self.perm, q, len(q),
                             float(upper_bound), dist, idx)
         return dist, idx
 
@@ -196,7 +196,7 @@ class IcpTarget:
             self._kd = None
             self.normals = estimate_normals(pts, self.tree, normal_neighbours)
         else:
-            self._normals_sorted = self._kd.normals(normal_neighbours)
+            self._normals_sorted = self._kd.normals(kernel, normal_neighbours)
             self.normals = np.empty_like(self._normals_sorted)
             self.normals[self._kd.perm] = self._normals_sorted
 
@@ -208,8 +208,9 @@ class IcpTarget:
         """Each point's nearest target point closer than ``upper_bound``: (distance, index) as
         ``tree.query(points, k=1, distance_upper_bound=upper_bound)`` (inf and len(self.points) when
         there is none), from the compiled tree when there is one."""
-        if self._kd is not None and _kernel() is not None:
-            return self._kd.query(points, upper_bound)
+        kernel = None if self._kd is None else _kernel()
+        if kernel is not None:
+            return self._kd.query(kernel, points, upper_bound)
         return self.tree.query(points, k=1, distance_upper_bound=upper_bound)
 
 

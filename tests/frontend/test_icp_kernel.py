@@ -154,6 +154,19 @@ def test_python_fallback_without_the_kernel(monkeypatch, office_caster):
     assert calls == [1]
 
 
+def test_a_prepared_target_pickles(office_caster):
+    """A target with the kernel's tree holds plain arrays: it pickles, and the copy matches as
+    the original does."""
+    import pickle
+    pose = np.array([4.82, 17.53, 0.67])
+    pts = scan_to_points(office_caster.scan(pose, BEAMS, 20.0)[0], BEAMS)
+    target = IcpTarget(pts)
+    copy = pickle.loads(pickle.dumps(target))
+    source = se2.transform_points(se2.inverse(np.array([0.1, -0.05, 0.03])), pts)
+    a, b = icp(source, target, np.zeros(3), LOGS), icp(source, copy, np.zeros(3), LOGS)
+    assert np.array_equal(a.target_T_source, b.target_T_source) and a.iterations == b.iterations
+
+
 @pytest.fixture(scope="module")
 def fr079_scans():
     """Scans 200-359 of the FR079 log as points, with the odometry pose at each."""

@@ -196,7 +196,13 @@ def test_speed_ups_change_nothing(intel, monkeypatch):
     without the loop-verification target cache (``LOOP_TARGET_CACHE`` 0: every target rebuilt)
     and with the branch and bound's Python descent (``SLAMKIT_NO_NATIVE=1``) the system returns
     the same trajectory, keyframe poses, closures and counters, bit for bit (issue 29's speed-ups
-    must not change a result)."""
+    must not change a result). The compiled ICP is off in both runs: it is not bit for bit (its
+    pose is numpy's within 1e-15, tests/frontend/test_icp_kernel.py), and on this piece those last
+    bits already part the two runs (a match from starts 8e-5 m apart stops after 4 or 7
+    iterations at scan 230; 19 or 35 closures by 400 s) -- the same chaos as any perturbed twin,
+    so the kernel is judged over the twins (pipelines/lidar_slam_logs.yaml)."""
+    from slamkit.frontend import icp as icp_module
+    monkeypatch.setattr(icp_module, "_kernel", lambda: None)
     seq, _ = intel
     piece = first_seconds(seq, 400.0)
 
