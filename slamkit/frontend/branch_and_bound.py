@@ -294,3 +294,63 @@ def _descend_python(pyramid: MaxGridPyramid, p: _Problem, top_bounds: np.ndarray
 
     descend([(int(b), int(t), int(y), int(x)) for b, t, y, x in zip(top_bounds, tt, yy, xx)], top_h)
     return state["best"], state["sum"], state["scored"]
+
+
+def rival_search(source_xy: np.ndarray, pyramid: MaxGridPyramid, guess: np.ndarray, best_T_source: np.ndarray,
+                 min_score: float, exclusion_m: float, config: BranchAndBoundConfig | None = None,
+                 chunk: int = 4096) -> CorrelativeResult | None:
+    """The best candidate of the window around ``guess`` (every heading) whose translation lies
+    more than ``exclusion_m`` from ``best_T_source``'s and that scores at least ``min_score``, or
+    None: a second place the scan fits (almost) as well as at the optimum -- the optimum is then
+    one of several aliases (a row of equal doors, a corridor's repeated bays), not a place.
+
+    Breadth first over the same max-grid bounds as :func:`branch_and_bound_search`: a node is
+    dropped when its bound is below ``min_score`` or every candidate of its block lies within
+    ``exclusion_m`` of the optimum; at height 0 the survivors are exactly the qualifying
+    candidates (integer sums: exact, independent of order), and the best of them is returned
+    (ties: ``_rank``). ``candidates_scored`` counts the nodes scored."""
+    cfg = pyramid.config if config is None else config
+    cfg_min = BranchAndBoundConfig(resolution_m=cfg.resolution_m, sigma_m=cfg.sigma_m, window_xy_m=cfg.window_xy_m,
+                                   window_theta_rad=cfg.window_theta_rad, theta_step_rad=cfg.theta_step_rad,
+                                   depth=cfg.depth, min_score=float(np.clip(min_score, 0.0, 1.0)))
+    p = _problem(source_xy, pyramid, guess, cfg_min)
+    res = cfg.resolution_m
+    n, top_h = p.n, cfg.depth - 1
+    b = (np.asarray(best_T_source, float)[:2] - p.guess[:2]) / res
+    by, bx = float(b[1]), float(b[0])
+    r2 = (exclusion_m / res) ** 2
+    size = 2 ** top_h
+    starts = np.arange(-n, n + 1, size)
+    T = len(p.dthetas)
+    t, oy, ox = (a.ravel() for a in np.meshgrid(np.arange(T), starts, starts, indexing="ij"))
+    scored = 0
+    for h in range(top_h, -1, -1):
+        s = 2 ** h
+        # the block's farthest candidate from the optimum (blocks are clipped to the window)
+        hy, hx = np.minimum(oy + s - 1, n), np.minimum(ox + s - 1, n)
+        far_y = np.maximum(np.abs(oy - by), np.abs(hy - by))
+        far_x = np.maximum(np.abs(ox - bx), np.abs(hx - bx))
+        keep = far_y ** 2 + far_x ** 2 > r2
+        t, oy, ox = t[keep], oy[keep], ox[keep]
+        sums = np.empty(len(t), dtype=np.int64)
+        for a in range(0, len(t), chunk):
+            sl = slice(a, a + chunk)
+            sums[sl] = pyramid.sums(h, p.iy[t[sl]] + oy[sl, None], p.ix[t[sl]] + ox[sl, None])
+        scored += len(t)
+        keep = sums >= p.min_sum
+        t, oy, ox, sums = t[keep], oy[keep], ox[keep], sums[keep]
+        if h == 0:
+            keep = (oy - by) ** 2 + (ox - bx) ** 2 > r2
+            t, oy, ox, sums = t[keep], oy[keep], ox[keep], sums[keep]
+            break
+        half = s // 2
+        kids_y = np.concatenate([oy, oy, oy + half, oy + half])
+        kids_x = np.concatenate([ox, ox + half, ox, ox + half])
+        kids_t = np.concatenate([t, t, t, t])
+        inside = (kids_y <= n) & (kids_x <= n)
+        t, oy, ox = kids_t[inside], kids_y[inside], kids_x[inside]
+    if len(t) == 0:
+        return None
+    top = int(sums.max())
+    best = min((_rank(int(t[a]), int(oy[a]), int(ox[a]), p.k) for a in np.flatnonzero(sums == top)))
+    return _result(p, (best[1], best[2], best[3]), top, res, scored)

@@ -37,8 +37,9 @@ graph-based SLAM", IEEE ITS Magazine 2010; the local/global split of Cartographe
    (``loops.max_global_candidates_per_keyframe``, within ``loops.max_search_radius_m``) are
    matched globally: branch and bound over the region's window (metres, tens of degrees;
    ``slamkit.frontend.branch_and_bound``), its optimum seeding the same ICP verification, and the
-   closure kept only if it lies inside the region. When still none is accepted and
-   ``loops.scan_context`` is set (off by default), place recognition proposes candidates beyond
+   closure kept only if it lies inside the region (and, with ``loops.global_far_max_rival``, a far
+   one only if no other place of the window fits almost as well: off by default). When still none
+   is accepted and ``loops.scan_context`` is set (off by default), place recognition proposes candidates beyond
    any window: keyframe j's Scan Context (``slamkit.frontend.scan_context``; the scans of its
    last few metres stacked in its frame) against every earlier keyframe's, among those the drift
    region (uncapped) admits, matched by branch and bound around the place and the descriptor's
@@ -73,7 +74,7 @@ from slamkit.errors import ConfigError, DataError
 from slamkit.frontend.correlative import CorrelativeConfig, CorrelativeGrid, correlative_search
 from slamkit.frontend.icp import IcpConfig, IcpResult, IcpTarget, icp, rotation_search, scan_to_points
 from slamkit.frontend.keyframes import KeyframeConfig
-from slamkit.frontend.branch_and_bound import MaxGridPyramid, branch_and_bound_search
+from slamkit.frontend.branch_and_bound import MaxGridPyramid, branch_and_bound_search, rival_search
 from slamkit.frontend.loop_closure import (DriftRegion, LoopClosure, LoopClosureConfig, chi2_quantile, loop_candidates,
                                           verify_loop)
 from slamkit.frontend.preprocess import despeckle, voxel_downsample
@@ -215,7 +216,8 @@ class LidarSlamCounters:
     retry won, loop-closure candidates and closures by source (local ``loop_candidates`` /
     ``loop_closures_online``, the drift region's ``*_global``, Scan Context's ``*_place``), the
     closures of ``finish()``'s rounds (``loop_closures_final``) and those its consistency check
-    dropped (``loop_closures_rejected``), far global closures refused for low fitness, the largest
+    dropped (``loop_closures_rejected``), far global closures refused for low fitness or for a
+    rival place in their window (``loop_global_ambiguous_rejected``), the largest
     correction a global closure made (m) and iSAM2's QR fallbacks."""
 
     scans: int = 0
@@ -234,6 +236,7 @@ class LidarSlamCounters:
     loop_candidates_global: int = 0
     loop_closures_global: int = 0
     loop_global_far_rejected: int = 0
+    loop_global_ambiguous_rejected: int = 0
     loop_global_correction_max_m: float = 0.0
     loop_candidates_place: int = 0
     loop_closures_place: int = 0
@@ -784,8 +787,12 @@ class LidarSlam:
         if res is None:
             return None
         moved = se2.between(guess, res.target_T_source)
-        if np.hypot(moved[0], moved[1]) > lc.global_far_m and res.fitness < lc.global_far_min_fitness:
+        far = np.hypot(moved[0], moved[1]) > lc.global_far_m
+        if far and res.fitness < lc.global_far_min_fitness:
             self._counts["loop_global_far_rejected"] += 1
+            return None
+        if far and self._rivalled(i, j, guess, window_xy_m, window_theta_rad):
+            self._counts["loop_global_ambiguous_rejected"] += 1
             return None
         # the correction in the world frame, tested against the region (widened by the floor)
         q = chi2_quantile(lc.region_probability, 2)
@@ -836,6 +843,23 @@ class LidarSlam:
                 return None
         ok, res = verify_loop(target, pts_j, found.target_T_source, lc)
         return res if ok else None
+
+    def _rivalled(self, i: int, j: int, guess: np.ndarray, window_xy_m: float, window_theta_rad: float) -> bool:
+        """Whether keyframe j's scan fits another place of the window around ``guess`` (the
+        submap around i) almost as well as the branch-and-bound optimum: a candidate more than
+        ``loops.global_far_rival_m`` from it scoring more than ``loops.global_far_max_rival`` of
+        its score (``slamkit.frontend.branch_and_bound.rival_search``; never when that is >= 1).
+        The pyramid is the one the search just used (kept in the cache)."""
+        lc = self.config.loops
+        if lc.global_far_max_rival >= 1.0:
+            return False
+        pyramid = self._pyramids[i]
+        match = lc.global_match(window_xy_m, window_theta_rad)
+        source = voxel_downsample(self._kf.points[j], lc.global_resolution_m)
+        best = branch_and_bound_search(source, pyramid, guess, match)
+        rival = rival_search(source, pyramid, guess, best.target_T_source, lc.global_far_max_rival * best.score,
+                             lc.global_far_rival_m, match)
+        return rival is not None and rival.score > lc.global_far_max_rival * best.score
 
     def add_constraint(self, i: int, j: int, i_xytheta_j: np.ndarray, information: np.ndarray) -> None:
         """An edge between keyframes ``i`` and ``j`` from outside the system (a user's prior

@@ -11,8 +11,9 @@ import pytest
 from slamkit.data import registry
 from slamkit.data.sequence import Scan
 from slamkit.errors import ConfigError, DataError
-from slamkit.frontend.branch_and_bound import (LEVELS, BranchAndBoundConfig, MaxGridPyramid,
-                                               branch_and_bound_search, exhaustive_search, theta_step_for)
+from slamkit.frontend.branch_and_bound import (LEVELS, BranchAndBoundConfig, MaxGridPyramid, _problem,
+                                               branch_and_bound_search, exhaustive_search, rival_search,
+                                               theta_step_for)
 from slamkit.frontend.icp import IcpConfig, icp, scan_to_points
 from slamkit.frontend.preprocess import voxel_downsample
 from slamkit.geometry import se2
@@ -120,6 +121,79 @@ def test_config_is_checked():
         MaxGridPyramid(np.full((3, 2), np.nan))
     with pytest.raises(DataError):
         branch_and_bound_search(np.zeros((4, 3)), pyramid, np.zeros(3))
+
+
+def _rival_brute_force(source, pyramid, guess, best_xy, min_score, exclusion_m):
+    """Every candidate of the window scored: the best sum among those more than ``exclusion_m``
+    from ``best_xy`` reaching ``min_score`` (None if none)."""
+    cfg = BranchAndBoundConfig(**{**pyramid.config.__dict__, "min_score": min_score})
+    p = _problem(source, pyramid, guess, cfg)
+    off = np.arange(-p.n, p.n + 1)
+    res = cfg.resolution_m
+    oy, ox = np.meshgrid(off, off, indexing="ij")
+    b = (np.asarray(best_xy) - p.guess[:2]) / res
+    outside = (oy - b[1]) ** 2 + (ox - b[0]) ** 2 > (exclusion_m / res) ** 2
+    top = -1
+    for t in range(len(p.dthetas)):
+        sums = pyramid.sums(0, p.iy[t][None, None, :] + off[:, None, None], p.ix[t][None, None, :] + off[None, :, None])
+        top = max(top, int(sums[outside].max()))
+    return None if top < p.min_sum else top
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_rival_search_equals_scoring_every_candidate(seed):
+    """The rival beyond 0.3 m of the optimum, at 0.5 / 0.8 / 0.95 of its score: the same integer
+    sum as scoring all 41 x 41 x 21 candidates (None exactly when none reaches the threshold), and
+    its pose really is beyond the exclusion radius."""
+    rng = np.random.default_rng(seed)
+    truth = np.array([rng.uniform(-0.5, 0.5), rng.uniform(-0.5, 0.5), np.deg2rad(rng.uniform(-8, 8))])
+    target = room_scan()
+    source = se2.transform_points(se2.inverse(truth), target) + rng.normal(0, 0.02, target.shape)
+    cfg = BranchAndBoundConfig(window_xy_m=1.0, window_theta_rad=np.deg2rad(10.0),
+                               theta_step_rad=np.deg2rad(1.0), depth=5, min_score=0.1)
+    pyramid = MaxGridPyramid(target, cfg)
+    best = branch_and_bound_search(source, pyramid, np.zeros(3))
+    n_points = len(source)
+    for ratio in (0.5, 0.8, 0.95):
+        rival = rival_search(source, pyramid, np.zeros(3), best.target_T_source, ratio * best.score, 0.3)
+        brute = _rival_brute_force(source, pyramid, np.zeros(3), best.target_T_source[:2], ratio * best.score, 0.3)
+        assert (rival is None) == (brute is None)
+        if rival is not None:
+            assert round(rival.score * LEVELS * n_points) == brute
+            assert np.hypot(*(rival.target_T_source[:2] - best.target_T_source[:2])) > 0.3
+            assert rival.score <= best.score
+
+
+def test_rival_in_a_row_of_doors_not_in_a_room():
+    """A corridor whose wall has a door jamb every 1.0 m, seen over 6 m: moved one door along, the
+    scan fits again (the rival beyond 0.5 m scores >= 0.9 of the optimum, whole doors away); the L-shaped
+    room with its pillar has no place within +-1.5 m that fits half as well as the right one."""
+    def seg(a, b):
+        t = np.arange(0.0, 1.0, 0.023 / np.hypot(*(np.subtract(b, a))))
+        return np.asarray(a) + t[:, None] * (np.subtract(b, a))
+    walls = [seg((-8.0, -1.013), (8.0, -1.013))]
+    walls += [seg((x, 0.987), (x + 0.8, 0.987)) for x in np.arange(-8.0, 8.0, 1.0)]
+    walls += [seg((x + 0.8, 0.987), (x + 0.8, 1.387)) for x in np.arange(-8.0, 8.0, 1.0)]
+    corridor = np.concatenate(walls)
+    cfg = BranchAndBoundConfig(window_xy_m=1.5, window_theta_rad=np.deg2rad(5.0),
+                               theta_step_rad=np.deg2rad(1.0), depth=6, min_score=0.3)
+    for target, view, rival_expected in ((corridor, 3.0, True), (room_scan(), 10.0, False)):
+        source = target[np.abs(target[:, 0]) < view]
+        pyramid = MaxGridPyramid(target, cfg)
+        guess = np.array([0.4, -0.1, 0.0])
+        best = branch_and_bound_search(source, pyramid, guess)
+        ratio = 0.9 if rival_expected else 0.5
+        rival = rival_search(source, pyramid, guess, best.target_T_source, ratio * best.score, 0.5)
+        if rival_expected:
+            # the optimum itself is one of the aliases: a whole number of doors along
+            assert abs(best.target_T_source[0] - np.round(best.target_T_source[0])) <= 0.05
+            assert np.abs(best.target_T_source[1:]).max() <= 0.05
+            assert rival is not None and rival.score >= 0.9 * best.score
+            doors = abs(rival.target_T_source[0] - best.target_T_source[0])
+            assert doors >= 0.95 and abs(doors - np.round(doors)) <= 0.05 + 1e-9
+        else:
+            assert np.abs(best.target_T_source).max() <= 0.05
+            assert rival is None
 
 
 # ---- real scans ---------------------------------------------------------------------------------

@@ -128,3 +128,8 @@ def test_config_is_checked():
         LoopClosureConfig(global_far_min_fitness=0.0)
     with pytest.raises(ConfigError, match="global_far"):
         LoopClosureConfig(global_far_m=-0.1)
+    with pytest.raises(ConfigError, match="global_far_max_rival"):
+        LoopClosureConfig(global_far_max_rival=0.0)
+    with pytest.raises(ConfigError, match="global_far_max_rival"):
+        LoopClosureConfig(global_far_rival_m=0.0)
+    assert LoopClosureConfig().global_far_max_rival == 1.0     # off

@@ -235,6 +235,7 @@ def run_slam(sequence: Sequence, truth: OccupancyGrid | None = None,
         "odometry_check_wins": float(c.odometry_check_wins),
         "isam2_qr_fallbacks": float(c.isam2_qr_fallbacks),
         "loop_global_far_rejected": float(c.loop_global_far_rejected),
+        "loop_global_ambiguous_rejected": float(c.loop_global_ambiguous_rejected),
     }
     duration = float(est.stamps_s[-1] - est.stamps_s[0])
     total = t_end - t_start
