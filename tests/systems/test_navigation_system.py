@@ -566,3 +566,36 @@ def test_yield_turning_keeps_giving_way_to_a_shuttler_slowed_at_its_turn():
     # turning at the far end of its lane, 3 m from the path, it reaches no point of the path
     # within the slack of the robot's passing: no yield
     assert stack.yield_decision(pose, shuttler(-1.0)).v_max_mps == np.inf
+
+
+def test_escape_check_keeps_an_escape_from_a_person_turning_back():
+    # following a person (0.3 m, +0.25 m margin) who walks away along the robot's line at 0.5 m/s,
+    # in the 6 m x 4 m room, at 0.65 m/s. Were the person to turn back now, after the 0.3 s the
+    # tracker needs to see it, some ramped profile must stay clear of the walls and of the person
+    # both going on and coming back, for 3 s: 2.5 m ahead one does; 2.05 m ahead only after
+    # braking (the guard brakes one cycle, 0.65 -> 0.55 m/s); 1.6 m ahead not even then (contact
+    # 0.75 m, the gap closing at 1.15 m/s: the command stands, braking would not help either).
+    # Measured in 1 cm steps: braking keeps an escape from 1.99 m, the command from 2.10 m
+    stack = _straight_stack(1.0)
+    stack.config = dataclasses.replace(stack.config, safety=SafetyConfig(evasion="ramped", escape_reaction_s=0.3))
+    stack._last_cmd = np.array([0.65, 0.0])
+    pose, cmd = np.array([1.0, 2.0, 0.0]), np.array([0.65, 0.0])
+    expected = {2.5: ([0.65, 0.0], False), 2.05: ([0.55, 0.0], True), 1.6: ([0.65, 0.0], False)}
+    for ahead_m, (command, braked) in expected.items():
+        tracks = _tracks([[1.0 + ahead_m, 2.0]], [[0.5, 0.0]], [0.3])
+        out, did = stack.safety.keep_escapable(pose, cmd, stack.local_world(tracks), tracks)
+        assert out == pytest.approx(command, abs=1e-12) and did is braked, ahead_m
+    # the turned-back world: the track's disc twice, the second with the velocity reversed
+    tracks = _tracks([[3.0, 2.0]], [[0.5, 0.0]], [0.3])
+    turned = stack.safety.turned_back_world(stack.local_world(tracks), tracks)
+    np.testing.assert_allclose(turned.circles_at([2.0])[0], [[4.0, 2.0], [2.0, 2.0]])
+    np.testing.assert_allclose(turned.circle_radius_m, [0.55, 0.55])
+    # a slow track is no traffic: no second disc, and off (0 s) the command is never touched
+    slow = _tracks([[2.0, 2.0]], [[0.1, 0.0]], [0.3])
+    assert stack.safety.turned_back_world(stack.local_world(slow), slow).num_circles == 1
+    stack.config = dataclasses.replace(stack.config, safety=SafetyConfig(evasion="ramped"))
+    tracks = _tracks([[2.6, 2.0]], [[0.5, 0.0]], [0.3])
+    assert stack.safety.keep_escapable(pose, cmd, stack.local_world(tracks), tracks) == (pytest.approx(cmd), False)
+    for bad in (-0.1, 5.0, float("nan")):
+        with pytest.raises(ConfigError, match="escape_reaction_s"):
+            SafetyConfig(escape_reaction_s=bad)

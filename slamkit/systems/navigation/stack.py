@@ -10,8 +10,8 @@ responsible for it (see the package docstring for which module holds what):
   (:mod:`.goal`), unless the safety guard (:mod:`.safety`) sees the robot about to be run into;
   otherwise replan when due, blocked or stuck (:mod:`.global_planning`, :mod:`.recovery`),
   recover while a recovery lasts, else the local planner's command on the (chance-tightened)
-  local world, capped by yielding (:mod:`.yielding`) and the cruise speed, evaded and checked for
-  a safe stop by the safety guard.
+  local world, capped by yielding (:mod:`.yielding`) and the cruise speed, evaded, kept
+  escapable and checked for a safe stop by the safety guard.
 
 Each layer is timed per call (``timings_s``: ``localisation``, ``perception``,
 ``global_planner``, ``local_planner``).
@@ -247,8 +247,12 @@ class NavigationStack:
             out = self.controller.compute(state, Reference(self.path, speed_mps=c.cruise_speed_mps), world)
             cmd = out.command
             if c.safety.evade and (out.status is ControlStatus.FALLBACK_BRAKE or self.safety.chosen_hits(world, out)):
-                cmd = self.safety.evade(state, world, out)
+                cmd = self.safety.evade(state, self.safety.turned_back_world(world, tracks)
+                                        if c.safety.escape_reaction_s > 0 else world, out)
             cmd = speed_capped(cmd, min(c.cruise_speed_mps, v_yield))
+            cmd, braked = self.safety.keep_escapable(pose, cmd, world, tracks)
+            if braked:
+                v_yield = min(v_yield, abs(float(cmd[0])))  # waiting for traffic, not stuck
         cmd, safe = self.safety.keep_safe_stop(pose, cmd, world)
         self.timings_s["local_planner"].append(time.perf_counter() - t0)
         self.recovery.watch(t, v_yield, out, cmd)
