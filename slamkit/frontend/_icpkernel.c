@@ -112,29 +112,42 @@ static int build_node(int64_t *idx, const double *p, int8_t *dims, double *split
 
 /* ---- queries -------------------------------------------------------------------------------- */
 
+/* the subtrees a query still has to visit: node, point range and the squared distance to its plane */
+typedef struct {
+    Py_ssize_t node[MAX_DEPTH], lo[MAX_DEPTH], hi[MAX_DEPTH];
+    double plane[MAX_DEPTH];
+} kd_stack_t;
+
+/* From (node, lo, hi) down to the leaf on the query's side of every split, pushing the far
+ * subtrees; returns the new stack size. */
+static int descend(const tree_t *t, double qx, double qy, Py_ssize_t *node, Py_ssize_t *lo, Py_ssize_t *hi,
+                   kd_stack_t *st, int sp) {
+    while (*hi - *lo > t->leaf) {
+        int d = t->dims[*node];
+        Py_ssize_t mid = *lo + (*hi - *lo) / 2;
+        double diff = (d ? qy : qx) - t->splits[*node];
+        if (diff < 0) {   /* near: left; far: right */
+            st->node[sp] = 2 * *node + 2; st->lo[sp] = mid; st->hi[sp] = *hi; st->plane[sp] = diff * diff; sp++;
+            *node = 2 * *node + 1; *hi = mid;
+        } else {
+            st->node[sp] = 2 * *node + 1; st->lo[sp] = *lo; st->hi[sp] = mid; st->plane[sp] = diff * diff; sp++;
+            *node = 2 * *node + 2; *lo = mid;
+        }
+    }
+    return sp;
+}
+
 /* The nearest point to (qx, qy) with d^2 < *best_d2 (updated), its sorted index in *best (left
  * unchanged when there is none). Exact: a subtree is skipped only when the split plane alone is
  * at least as far as the best so far. */
 static void nn(const tree_t *t, double qx, double qy, double *best_d2, Py_ssize_t *best) {
-    Py_ssize_t st_node[MAX_DEPTH], st_lo[MAX_DEPTH], st_hi[MAX_DEPTH];
-    double st_plane[MAX_DEPTH];
+    kd_stack_t st;
     int sp = 0;
     Py_ssize_t node = 0, lo = 0, hi = t->M;
     double bd2 = *best_d2;
     Py_ssize_t b = *best;
     for (;;) {
-        while (hi - lo > t->leaf) {
-            int d = t->dims[node];
-            Py_ssize_t mid = lo + (hi - lo) / 2;
-            double diff = (d ? qy : qx) - t->splits[node];
-            if (diff < 0) {   /* near: left; far: right */
-                st_node[sp] = 2 * node + 2; st_lo[sp] = mid; st_hi[sp] = hi; st_plane[sp] = diff * diff; sp++;
-                node = 2 * node + 1; hi = mid;
-            } else {
-                st_node[sp] = 2 * node + 1; st_lo[sp] = lo; st_hi[sp] = mid; st_plane[sp] = diff * diff; sp++;
-                node = 2 * node + 2; lo = mid;
-            }
-        }
+        sp = descend(t, qx, qy, &node, &lo, &hi, &st, sp);
         for (Py_ssize_t i = lo; i < hi; i++) {
             double dx = qx - t->pts[2 * i], dy = qy - t->pts[2 * i + 1];
             double d2 = dx * dx + dy * dy;
@@ -143,31 +156,19 @@ static void nn(const tree_t *t, double qx, double qy, double *best_d2, Py_ssize_
         for (;;) {
             if (sp == 0) { *best_d2 = bd2; *best = b; return; }
             sp--;
-            if (st_plane[sp] < bd2) break;
+            if (st.plane[sp] < bd2) break;
         }
-        node = st_node[sp]; lo = st_lo[sp]; hi = st_hi[sp];
+        node = st.node[sp]; lo = st.lo[sp]; hi = st.hi[sp];
     }
 }
 
 /* The k nearest points of (qx, qy) (k <= M), ascending: d2[0..k), idx[0..k) sorted indices. */
 static void knn(const tree_t *t, double qx, double qy, Py_ssize_t k, double *d2, Py_ssize_t *idx) {
-    Py_ssize_t st_node[MAX_DEPTH], st_lo[MAX_DEPTH], st_hi[MAX_DEPTH];
-    double st_plane[MAX_DEPTH];
+    kd_stack_t st;
     int sp = 0;
     Py_ssize_t node = 0, lo = 0, hi = t->M, have = 0;
     for (;;) {
-        while (hi - lo > t->leaf) {
-            int d = t->dims[node];
-            Py_ssize_t mid = lo + (hi - lo) / 2;
-            double diff = (d ? qy : qx) - t->splits[node];
-            if (diff < 0) {
-                st_node[sp] = 2 * node + 2; st_lo[sp] = mid; st_hi[sp] = hi; st_plane[sp] = diff * diff; sp++;
-                node = 2 * node + 1; hi = mid;
-            } else {
-                st_node[sp] = 2 * node + 1; st_lo[sp] = lo; st_hi[sp] = mid; st_plane[sp] = diff * diff; sp++;
-                node = 2 * node + 2; lo = mid;
-            }
-        }
+        sp = descend(t, qx, qy, &node, &lo, &hi, &st, sp);
         for (Py_ssize_t i = lo; i < hi; i++) {
             double dx = qx - t->pts[2 * i], dy = qy - t->pts[2 * i + 1];
             double dd = dx * dx + dy * dy;
@@ -179,9 +180,9 @@ static void knn(const tree_t *t, double qx, double qy, Py_ssize_t k, double *d2,
         for (;;) {
             if (sp == 0) return;
             sp--;
-            if (have < k || st_plane[sp] < d2[k - 1]) break;
+            if (have < k || st.plane[sp] < d2[k - 1]) break;
         }
-        node = st_node[sp]; lo = st_lo[sp]; hi = st_hi[sp];
+        node = st.node[sp]; lo = st.lo[sp]; hi = st.hi[sp];
     }
 }
 
