@@ -30,7 +30,7 @@ inside the window.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -310,10 +310,7 @@ def rival_search(source_xy: np.ndarray, pyramid: MaxGridPyramid, guess: np.ndarr
     candidates (integer sums: exact, independent of order), and the best of them is returned
     (ties: ``_rank``). ``candidates_scored`` counts the nodes scored."""
     cfg = pyramid.config if config is None else config
-    cfg_min = BranchAndBoundConfig(resolution_m=cfg.resolution_m, sigma_m=cfg.sigma_m, window_xy_m=cfg.window_xy_m,
-                                   window_theta_rad=cfg.window_theta_rad, theta_step_rad=cfg.theta_step_rad,
-                                   depth=cfg.depth, min_score=float(np.clip(min_score, 0.0, 1.0)))
-    p = _problem(source_xy, pyramid, guess, cfg_min)
+    p = _problem(source_xy, pyramid, guess, replace(cfg, min_score=float(np.clip(min_score, 0.0, 1.0))))
     res = cfg.resolution_m
     n, top_h = p.n, cfg.depth - 1
     b = (np.asarray(best_T_source, float)[:2] - p.guess[:2]) / res
