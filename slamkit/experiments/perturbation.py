@@ -182,6 +182,7 @@ def plot_perturbation_spread(plots: Path, rows: list[dict[str, Any]], metrics: S
 #: metrics shown in the report's perturbation table when a pipeline names none
 DEFAULT_REPORT_METRICS = ("ate_rmse_m", "rpe_rmse_m", "nees_mean", "relation_trans_mean_m",
                           "relation_trans_std_m", "relation_rot_mean_deg", "map_consistency_mean_m",
+                          "map_consistency_same_pass_mean_m",
                           "num_loop_closures", "real_time_factor_cpu")
 
 

@@ -19,7 +19,9 @@ pipeline; the unit is the suffix):
 | ``ate_<trajectory>_m`` | ATE RMSE of another trajectory of the same run (lidar SLAM's ``ate_odometry_m``, ``ate_frontend_m``) |
 | ``nees_mean``, ``nis_mean`` | mean normalised estimation / innovation error squared (unitless) |
 | ``relation_trans_mean_m`` / ``_std_m``, ``relation_rot_mean_deg`` / ``_std_deg`` | the relation error of Kuemmerle et al. 2009 against a log's relations (:mod:`slamkit.metrics.relations`) |
-| ``map_consistency_mean_m`` / ``_p95_m`` | mean / 95th percentile distance of the scans' end points to the final map's nearest occupied cell (no ground truth needed) |
+| ``map_consistency_mean_m`` / ``_p95_m`` | mean / 95th percentile distance of the scans' end points to the surface other visits of the same place drew (no ground truth needed; :mod:`slamkit.metrics.map_consistency`) |
+| ``map_consistency_same_pass_mean_m`` | the same mean between scans of one pass (within 5 m of travel): the floor the surfaces and the scan matcher set |
+| ``map_consistency_overlap`` | share of the scored end points seen on more than one visit |
 | ``real_time_factor`` / ``_cpu`` | time the data spans over the wall-clock / process CPU time it took (larger is faster) |
 
 docs/reference/metrics.md renders this table; a results.json field not in it is a bug.

@@ -207,3 +207,23 @@ def test_hospital_revisit_after_15_m_of_drift_is_closed():
     p = old_est.keyframe_poses
     off = [np.hypot(*se2.between(se2.between(p[at[lc.i]], p[at[lc.j]]), lc.i_T_j)[:2]) for lc in closures]
     assert min(off) > 8.0
+
+
+def test_log_table_shows_the_consistency_floor_beside_the_figure():
+    """The laser-log table puts the same-pass floor of the map consistency figure beside it
+    (slamkit.metrics.map_consistency), so a log whose surfaces scatter can be read."""
+    from slamkit.experiments.lidar_slam.report import _log_report
+    from slamkit.experiments.results import RunRecord
+
+    metrics = {"map_consistency_mean_m": 0.2273, "map_consistency_p95_m": 0.746,
+               "map_consistency_same_pass_mean_m": 0.0887, "map_consistency_overlap": 0.83,
+               "num_keyframes": 3528.0, "loop_closures_online": 113.0, "loop_closures_final": 10.0,
+               "real_time_factor": 60.0, "real_time_factor_cpu": 82.5, "time_total_s": 80.0,
+               "time_per_scan_median_ms": 5.0, "time_per_scan_p99_ms": 40.0, "peak_rss_mb": 900.0}
+    text = _log_report([RunRecord("fr-clinic", "lidar_slam/cauchy", metrics)])
+    header = next(line for line in text.splitlines() if line.startswith("| log |"))
+    row = next(line for line in text.splitlines() if line.startswith("| fr-clinic |"))
+    cells = dict(zip([c.strip() for c in header.split("|")], [c.strip() for c in row.split("|")]))
+    assert cells["map consistency mean / p95 (m)"] == "0.227 / 0.746"
+    assert cells["same pass (m)"] == "0.089"
+    assert cells["seen twice"] == "83%"

@@ -62,6 +62,8 @@ def test_consistent_map_scores_the_range_noise(scans):
     # across the other visit's wall), every end point seen twice
     assert c.mean_m < 0.02 and c.p95_m < 0.06
     assert c.overlap > 0.99
+    # the same figure along one pass (pieces within 5 m of travel): measured 0.0102 m
+    assert c.same_pass_mean_m < 0.015
 
 
 def test_doubled_walls_raise_the_figure(scans):
@@ -74,6 +76,22 @@ def test_doubled_walls_raise_the_figure(scans):
     # 0.379 m): the pairs across the two laps see the 0.2 m, those within a lap the noise
     assert c.mean_m > 5 * c0.mean_m and 0.12 < c.mean_m < 0.2
     assert 0.18 < c.p95_m < 0.25
+    # along each lap nothing moved: the floor stays the range noise (measured 0.0133 m, 0.0102 m in
+    # place; the pairs across the laps' seam see the 0.2 m), so the doubling reads as 12x its floor
+    assert c.same_pass_mean_m < 0.02 and c.mean_m > 8 * c.same_pass_mean_m
+
+
+def test_rougher_surfaces_raise_the_figure_and_its_floor_together():
+    """A scene whose surfaces scatter the end points more (3 cm range noise instead of 1 cm, the
+    walls in place) raises the figure over different visits and the same-pass floor alike -- what
+    a hedge or a cluttered shelf does to a real log -- while doubled walls raise only the first."""
+    poses = tour()
+    rng = np.random.default_rng(0)
+    ranges = [cast(p) + rng.normal(0.0, 0.03, len(ANGLES)) for p in poses]
+    c = map_consistency(poses, [ANGLES] * len(poses), ranges)
+    # measured: 0.0185 m over visits, 0.0159 m along a pass (1 cm: 0.0125 / 0.0102 m)
+    assert 0.016 < c.mean_m < 0.022 and 0.013 < c.same_pass_mean_m < 0.019
+    assert c.mean_m / c.same_pass_mean_m < 1.4
 
 
 def test_larger_doubling_than_the_cap_lowers_overlap(scans):
