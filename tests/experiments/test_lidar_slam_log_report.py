@@ -254,3 +254,27 @@ def test_lidar_only_matches_are_refined_trimmed():
         off = run_slam(twin_seq, None, untrimmed, relations=relations).metrics
         assert on["relation_count"] == off["relation_count"] == 48
         assert on["relation_trans_mean_m"] < 0.023 and off["relation_trans_mean_m"] > 0.03
+
+
+def test_a_run_without_maps_scores_the_same(intel_60s):
+    """The logs pipeline builds maps for the log as given only (its plots); a twin is scored
+    without them and every figure but the timings is the one a run with maps gives."""
+    res, relations = intel_60s
+    seq = replace(first_seconds(registry.load_recording("intel-log"), 60.0), name="intel")
+    bare = run_slam(seq, None, _logs_slam_config("odometry"), relations=relations, label="intel", build_maps=False)
+    assert bare.map is None and bare.frontend_map is None and res.map is not None
+    timing = {"time_map_s", "peak_rss_mb"}
+    same = {k: v for k, v in res.metrics.items() if not (k.startswith(("time_", "real_time_factor")) or k in timing)}
+    assert {k: bare.metrics[k] for k in same} == pytest.approx(same, nan_ok=True)
+    assert "time_map_s" not in bare.metrics and "time_map_s" in res.metrics
+    np.testing.assert_array_equal(bare.optimised_poses, res.optimised_poses)
+
+
+def test_maps_scored_against_truth_cannot_be_left_out():
+    from slamkit.data.sequence import Sequence
+    from slamkit.errors import ConfigError
+    from slamkit.maps.occupancy_grid import OccupancyGrid
+
+    grid = OccupancyGrid(np.zeros((4, 4), bool), 0.1)
+    with pytest.raises(ConfigError, match="build_maps"):
+        run_slam(Sequence(name="empty", events=()), grid, build_maps=False)

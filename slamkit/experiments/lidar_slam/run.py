@@ -111,8 +111,10 @@ def run(config: LidarSlamPipeline, folder, progress, observer=None):
         for (robust, prior), twin in ((v, t) for v in variants for t in indices):
             suffix = (("" if len(robusts) == 1 else f"_{robust}") + ("" if prior == "odometry" else f"_{prior}")
                       + twin_suffix(twin))
+            # a twin is scored, not drawn: only the log as given builds its maps (for the plots)
             res = run_slam(perturb(seq, twin, twins), None, replace(slam_by_prior[prior], robust=robust),
-                           observer if twin == 0 else None, relations=relations, label=f"{entry.name}{suffix}")
+                           observer if twin == 0 else None, relations=relations, label=f"{entry.name}{suffix}",
+                           build_maps=twin == 0)
             if twin == 0:
                 results.append(res)
             runs.append(RunRecord(entry.name, _label(robust, prior), dict(res.metrics),
