@@ -116,8 +116,8 @@ class IcpConfig:
     #: ``refine_max_step_rad`` from the first pass, else the first pass's; ``fitness`` is the first
     #: pass's (whether to trust a match is not the refinement's to decide)
     refine_trim_fraction: float | None = None
-    refine_max_step_m: float = 0.05
-    refine_max_step_rad: float = float(np.deg2rad(1.0))
+    refine_max_step_m: float = 0.2
+    refine_max_step_rad: float = float(np.deg2rad(3.0))
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
