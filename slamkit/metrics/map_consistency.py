@@ -145,20 +145,25 @@ def map_consistency(world_xytheta_sensor: np.ndarray, angles_rad, ranges_m, max_
     query = np.zeros(len(xy), dtype=bool)
     query[::query_every] = True
 
-    def distances(pieces_apart) -> tuple[np.ndarray, np.ndarray] | None:
-        """The distances (m) of the query end points to the surface of every piece whose distance
-        in pieces ``pieces_apart`` admits (vectorised), seen from the same side and within the cap;
-        and which end points had at least one. None: no pair."""
-        per_pair: list[np.ndarray] = []
-        matched = np.zeros(len(xy), dtype=bool)
-        for q in np.unique(piece):
-            ref = np.flatnonzero(piece == q)
-            lo, hi = xy[ref].min(axis=0) - max_distance_m, xy[ref].max(axis=0) + max_distance_m
-            cand = np.flatnonzero(query & pieces_apart(np.abs(piece - q)) & np.all((xy >= lo) & (xy <= hi), axis=1))
+    # two sets of pairs: other visits (more than ``reach`` pieces apart), and the neighbouring
+    # pieces of the same pass (1 to ``reach`` apart): no drift builds up over so little travel, so
+    # the second is what the surfaces and the scan matcher give -- the floor the first is read against
+    kinds = (lambda apart: apart > reach, lambda apart: (apart >= 1) & (apart <= reach))
+    per_pair: tuple[list[np.ndarray], ...] = ([], [])
+    matched = np.zeros(len(xy), dtype=bool)
+    for q in np.unique(piece):
+        ref = np.flatnonzero(piece == q)
+        lo, hi = xy[ref].min(axis=0) - max_distance_m, xy[ref].max(axis=0) + max_distance_m
+        inside = np.flatnonzero(query & np.all((xy >= lo) & (xy <= hi), axis=1))
+        apart = np.abs(piece[inside] - q)
+        tree = None
+        for kind, pieces_apart in enumerate(kinds):
+            cand = inside[pieces_apart(apart)]
             if len(cand) == 0:
                 continue
+            tree = cKDTree(xy[ref]) if tree is None else tree
             # the nearest end point of the visit first (cheap): only points near it can pair with it
-            d, j = cKDTree(xy[ref]).query(xy[cand], distance_upper_bound=max_distance_m)
+            d, j = tree.query(xy[cand], distance_upper_bound=max_distance_m)
             near = np.isfinite(d)
             cand, d, j = cand[near], d[near], ref[j[near]]
             seen = np.zeros(len(cand), dtype=bool)
@@ -171,23 +176,16 @@ def map_consistency(world_xytheta_sensor: np.ndarray, angles_rad, ranges_m, max_
             asked, d, j = cand[seen], d[seen], j[seen]
             # to the other visit's surface: along the normal at its nearest end point where it has one
             across = np.abs(np.sum(normal[j] * (xy[asked] - xy[j]), axis=1))
-            per_pair.append(np.where(np.isfinite(across), across, d))
-            matched[asked] = True
-        if not per_pair or not matched.any():
-            return None
-        return np.concatenate(per_pair), matched
-
-    other_visits = distances(lambda apart: apart > reach)
-    if other_visits is None:
+            per_pair[kind].append(np.where(np.isfinite(across), across, d))
+            if kind == 0:
+                matched[asked] = True
+    if not matched.any():
         return MapConsistency(float("nan"), float("nan"), 0.0, 0)
-    d, matched = other_visits
-    # the same figure between a piece and its neighbours on the same pass (within exclude_path_m of
-    # travel): no drift builds up over so little travel, so it is what the surfaces and the scan
-    # matcher give -- the floor the figure over different visits is read against
-    same_pass = distances(lambda apart: (apart >= 1) & (apart <= reach))
+    d = np.concatenate(per_pair[0])
+    same_pass = np.concatenate(per_pair[1]) if per_pair[1] else np.zeros(0)
     return MapConsistency(float(np.mean(d)), float(np.percentile(d, 95)),
                           float(matched.sum() / query.sum()), int(len(d)),
-                          float("nan") if same_pass is None else float(np.mean(same_pass[0])))
+                          float(np.mean(same_pass)) if len(same_pass) else float("nan"))
 
 
 def _seen_from(pose: np.ndarray, angles_rad: np.ndarray, ranges_m: np.ndarray, xy: np.ndarray,

@@ -4,6 +4,8 @@ covariance that is honest (Monte Carlo) and exposes a degenerate corridor."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -286,10 +288,8 @@ def test_refinement_finishes_the_corridor_the_untrimmed_pass_left_short():
     source = _corridor_scan(np.array([0.3, 0.0, 0.0]), rng)
     untrimmed = IcpConfig(trim_fraction=1.0, max_correspondence_m=0.5, max_iterations=30, target_voxel_m=0.05)
     first = icp(source, target, np.zeros(3), untrimmed)
-    refined = icp(source, target, np.zeros(3), IcpConfig(**{**untrimmed.__dict__, "refine_trim_fraction": 0.9,
-                                                            "refine_max_step_m": 0.2}))
-    bounded = icp(source, target, np.zeros(3), IcpConfig(**{**untrimmed.__dict__, "refine_trim_fraction": 0.9,
-                                                            "refine_max_step_m": 0.05}))
+    refined = icp(source, target, np.zeros(3), replace(untrimmed, refine_trim_fraction=0.9, refine_max_step_m=0.2))
+    bounded = icp(source, target, np.zeros(3), replace(untrimmed, refine_trim_fraction=0.9, refine_max_step_m=0.05))
     # measured: first pass x = 0.204 m, refined 0.303 m (true 0.3), a 9.9 cm step: kept under a
     # 0.2 m bound (the logs pipeline's), refused under 0.05 m (the first pass returned as it is)
     assert 0.15 < first.target_T_source[0] < 0.25
