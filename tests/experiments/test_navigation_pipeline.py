@@ -142,36 +142,37 @@ def test_navigation_goals_30_seeds_per_world(navigation_30_seeds):
         assert np.mean([m["collision_moving"] for m in runs]) < max_moving_rate
 
 
-#: issue 33: pipelines/navigation.yaml's evaluation blocks (seeds 1000-1089 per world, never used
-#: while changing the code), measured 2026-11-28 on main at 8713452 (stack unchanged since issue
-#: 14): (world, block) -> (successes of 30, static, moving collisions, timeouts). Office
-#: 29/0/1/0, 29/0/1/0, 28/0/2/0; warehouse 27/0/3/0, 29/0/1/0, 29/0/1/0; Willow 30/0/0/0,
-#: 26/0/2/2, 28/0/1/1: 255/270 (0.944 [0.910, 0.966] Wilson), 0 static, 12 moving (0.044
-#: [0.026, 0.076]), 3 timeouts. Every moving hit grazes (2-34 mm deep), 11 of 12 in scenarios
-#: whose fastest agent does >= 0.45 m/s; two Willow timeouts (1056, 1083) have no crossing agent
-#: and 10-12 recoveries in a 0.72 m passage. The goals (>= 95% per block, moving < 2%) are not met
-#: yet; these are regression bounds.
+#: issue 33: pipelines/navigation.yaml's evaluation blocks (seeds 5000-5089 per world, never used
+#: while changing the code), measured once 2026-12-06 on main at 9c3d558 (the stack as it was;
+#: one process): (world, block) -> (successes of 30, static, moving collisions, timeouts). Office
+#: 30/0/0/0, 29/0/1/0, 25/0/5/0; warehouse 28/0/2/0, 28/0/2/0, 28/0/2/0; Willow 28/0/2/0,
+#: 28/0/2/0, 26/0/3/1: 250/270 (0.926 [0.888, 0.952] Wilson), 0 static (0.000 [0.000, 0.014]),
+#: 19 moving (0.070 [0.046, 0.107]), 1 timeout (0.004 [0.001, 0.021]). Failures not looked at.
+#: History: the blocks were 1000-1089 (2026-11-28 at 8713452: 255/270, 0 static, 12 moving,
+#: 3 timeouts) until stops 38-39 measured them repeatedly while choosing designs, which made
+#: them development seeds. The goals (>= 95% per block, moving < 2%) are not met; these are
+#: regression bounds.
 MEASURED_EVALUATION = {
-    ("office", "eval1"): (29, 0, 1, 0), ("office", "eval2"): (29, 0, 1, 0), ("office", "eval3"): (28, 0, 2, 0),
-    ("warehouse", "eval1"): (27, 0, 3, 0), ("warehouse", "eval2"): (29, 0, 1, 0),
-    ("warehouse", "eval3"): (29, 0, 1, 0), ("willow", "eval1"): (30, 0, 0, 0), ("willow", "eval2"): (26, 0, 2, 2),
-    ("willow", "eval3"): (28, 0, 1, 1),
+    ("office", "eval1"): (30, 0, 0, 0), ("office", "eval2"): (29, 0, 1, 0), ("office", "eval3"): (25, 0, 5, 0),
+    ("warehouse", "eval1"): (28, 0, 2, 0), ("warehouse", "eval2"): (28, 0, 2, 0),
+    ("warehouse", "eval3"): (28, 0, 2, 0), ("willow", "eval1"): (28, 0, 2, 0), ("willow", "eval2"): (28, 0, 2, 0),
+    ("willow", "eval3"): (26, 0, 3, 1),
 }
-#: over the 270: at least 255 successes, at most 12 moving collisions (a bound's slack per block
+#: over the 270: at least 250 successes, at most 19 moving collisions (a bound's slack per block
 #: cannot hide a loss elsewhere)
-MEASURED_EVALUATION_ALL = (255, 12)
+MEASURED_EVALUATION_ALL = (250, 19)
 
 
 @pytest.mark.slow
 def test_navigation_evaluation_blocks(tmp_path):
-    """The shipped pipeline's evaluation blocks (270 runs, ~30 min on 2 free cores) against the
+    """The shipped pipeline's evaluation blocks (270 runs, 14 min on one core) against the
     measured figures: per world and block no fewer successes, no more collisions or timeouts."""
     import yaml
     from pathlib import Path
 
     config = yaml.safe_load((Path(__file__).resolve().parents[2] / "pipelines" / "navigation.yaml").read_text())
     config["record"] = False
-    assert config["scenarios"]["evaluation"] == {"start": 1000, "blocks": 3, "block_size": 30}
+    assert config["scenarios"]["evaluation"] == {"start": 5000, "blocks": 3, "block_size": 30}
     res = run_pipeline(config, tmp_path / "out", progress=False).results
     rows = {(r["world"], r["block"]): r for r in res["benchmark"]["rows"]}
     for key, (successes, static, moving, timeouts) in MEASURED_EVALUATION.items():
@@ -187,17 +188,19 @@ def test_navigation_evaluation_blocks(tmp_path):
 
 
 #: issue 33's second traffic setting, pipelines/navigation_social.yaml (social-force people,
-#: reversing forklifts), first evaluation block (seeds 1000-1029 per world), measured 2026-11-28
-#: at 2ae0f36: (world -> successes of 30, static, moving collisions, timeouts). Beside it the
-#: constant-velocity shuttles on the same seeds gave 29/0/1/0, 27/0/3/0, 30/0/0/0 (above).
-#: Regression bounds: the goals are not met yet.
-MEASURED_SOCIAL_FORCE_EVAL1 = {"office": (27, 0, 3, 0), "warehouse": (30, 0, 0, 0), "willow": (28, 0, 2, 0)}
+#: reversing forklifts), first evaluation block (seeds 5000-5029 per world), measured once
+#: 2026-12-06 at 9c3d558: (world -> successes of 30, static, moving collisions, timeouts). Office
+#: 30/0/0/0, warehouse 30/0/0/0, Willow 30/0/0/0: 90/90 (1.000 [0.959, 1.000] Wilson), 0 moving
+#: (0.000 [0.000, 0.041]); beside it the constant-velocity shuttles on the same seeds gave
+#: 30/0/0/0, 28/0/2/0, 28/0/2/0 = 86/90, 4 moving (above). History: on 1000-1029 (2026-11-28,
+#: 2ae0f36) 27/0/3/0, 30/0/0/0, 28/0/2/0. One block of 30 per world: regression bounds, not a claim.
+MEASURED_SOCIAL_FORCE_EVAL1 = {"office": (30, 0, 0, 0), "warehouse": (30, 0, 0, 0), "willow": (30, 0, 0, 0)}
 
 
 @pytest.mark.slow
 def test_navigation_social_force_first_evaluation_block(tmp_path):
-    """pipelines/navigation_social.yaml on its first evaluation block (90 runs, ~15 min on 2 free
-    cores) against the measured figures."""
+    """pipelines/navigation_social.yaml on its first evaluation block (90 runs, 5 min on one core)
+    against the measured figures."""
     import yaml
     from pathlib import Path
 
@@ -205,7 +208,8 @@ def test_navigation_social_force_first_evaluation_block(tmp_path):
     config["record"] = False
     assert config["scenarios"]["agents"] == "social_force"
     config["scenarios"]["seeds"] = [0]
-    config["scenarios"]["evaluation"] = {"start": 1000, "blocks": 1, "block_size": 30}
+    assert config["scenarios"]["evaluation"] == {"start": 5000, "blocks": 3, "block_size": 30}
+    config["scenarios"]["evaluation"] = {"start": 5000, "blocks": 1, "block_size": 30}
     res = run_pipeline(config, tmp_path / "out", progress=False).results
     rows = {(r["world"], r["block"]): r for r in res["benchmark"]["rows"]}
     for world, (successes, static, moving, timeouts) in MEASURED_SOCIAL_FORCE_EVAL1.items():
