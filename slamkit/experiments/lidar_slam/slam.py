@@ -241,6 +241,7 @@ def run_slam(sequence: Sequence, truth: OccupancyGrid | None = None,
         "odometry_checks": float(c.odometry_checks),
         "odometry_check_wins": float(c.odometry_check_wins),
         "isam2_qr_fallbacks": float(c.isam2_qr_fallbacks),
+        "lost_restarts": float(c.lost_restarts),
         "loop_global_far_rejected": float(c.loop_global_far_rejected),
         "loop_global_ambiguous_rejected": float(c.loop_global_ambiguous_rejected),
     }
