@@ -21,7 +21,9 @@ graph-based SLAM", IEEE ITS Magazine 2010; the local/global split of Cartographe
    default). With odometry, a match that fits poorly or whose odometry disagrees with the
    constant-velocity prediction (``odometry_check_deg`` / ``_m``: odometry that froze, then jumped)
    is repeated from the best heading around the odometry, the prediction and the previous pose,
-   the fitter kept. A match whose fitness is below ``min_match_fitness`` keeps the prior instead.
+   the fitter kept. A match whose fitness is below ``min_match_fitness`` keeps the prior instead
+   (lidar only: the previous scan's pose; after ``lost_restart_s`` of failed matches in a row
+   the scan becomes a keyframe there anyway, on a weak edge, and the submap restarts from it).
 2. Keyframes by travelled distance/rotation (``slamkit.frontend.keyframes``) of the matched
    pose. A new keyframe becomes a pose-graph vertex with an edge from the previous keyframe
    (the ICP result and its covariance). Every other scan is stored relative to its keyframe, so

@@ -84,8 +84,8 @@ class SafetyConfig:
     #: 82 / 5 / 0 / 3; ramped 86 / 4 / 0 / 0; both 85 / 0 / 0 / 5 (the 4 hits turning had left
     #: were the held evasion backing into or driving along a returning shuttler's lane; the
     #: timeouts are turning's waits at short, fast shuttlers: warehouse 411-413). Office 430-459,
-    #: both: 29 / 1 / 0 / 0. The three evaluation blocks (seeds 1000-1089 per world, 270 runs, not
-    #: looked at): defaults 255 / 12 / 0 / 3 (tests/experiments/test_navigation_pipeline.py), ramped
+    #: both: 29 / 1 / 0 / 0. The three evaluation blocks of then (seeds 1000-1089 per world, 270 runs,
+    #: not looked at; development seeds since the blocks moved to 5000-5089): defaults 255 / 12 / 0 / 3, ramped
     #: 253 / 14 / 0 / 3 (office 7 hits against 4), both 257 / 9 / 0 / 4 (office 5, warehouse 1,
     #: Willow 3; first block paired with the defaults 3 runs better, 4 worse). No evidence that
     #: either helps off the development seeds: held. What the office hits left share (development

@@ -98,7 +98,8 @@ class YieldingConfig:
     #: seeds 400-429 (constant-velocity traffic), paired with off: moving hits office 1 -> 3,
     #: warehouse 4 -> 0, Willow 2 -> 2 (7 -> 5 of 90), failures 8 -> 8; the new office hits are
     #: other mechanisms (backing off at 0.3 m/s from a 0.48 m/s shuttler, a head-on approach).
-    #: On the first evaluation block (seeds 1000-1029 per world, never looked at), paired with
+    #: On the first evaluation block of then (seeds 1000-1029 per world; development seeds since the
+    #: blocks moved to 5000-5089), paired with
     #: off: moving hits 4 -> 2 of 90 (office 1 -> 0, warehouse 3 -> 1, Willow 0 -> 1), successes
     #: 86 -> 88, McNemar exact p 0.625 (3 pairs one way, 1 the other); on office's second and
     #: third blocks (35 of 60 seeds run) 4 moving hits against off's 3 in all 60. No evidence that
