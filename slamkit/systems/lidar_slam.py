@@ -208,10 +208,12 @@ class LidarSlamConfig:
                               "correlative_above_turn_deg in [0, 180]")
         if self.max_range_m is not None and not self.max_range_m > 0:
             raise ConfigError(f"lidar_slam.max_range_m must be > 0, got {self.max_range_m}")
-        if (len(self.body_xytheta_lidar) != 3 or len(self.fallback_sigmas) != 3 or min(self.fallback_sigmas) <= 0
-                or len(self.lost_sigmas) != 3 or not all(v > 0 for v in self.lost_sigmas)):
+        # a NaN or infinite sigma would give an edge no information (an indeterminate graph)
+        sigmas_ok = all(len(s) == 3 and all(0 < v < np.inf for v in s)
+                        for s in (self.fallback_sigmas, self.lost_sigmas))
+        if len(self.body_xytheta_lidar) != 3 or not sigmas_ok:
             raise ConfigError("lidar_slam: body_xytheta_lidar is (x, y, theta), fallback_sigmas and lost_sigmas "
-                              "three positive sigmas")
+                              "three positive finite sigmas")
         if not 0 <= self.lost_restart_s <= 3600:
             raise ConfigError(f"lidar_slam.lost_restart_s must lie in [0, 3600] s, got {self.lost_restart_s}")
 

@@ -150,9 +150,11 @@ def test_config_is_checked():
     for bad in ({"lost_restart_s": -1.0}, {"lost_restart_s": float("nan")}, {"lost_restart_s": 1e5}):
         with pytest.raises(ConfigError, match="lost_restart_s"):
             LidarSlamConfig(**bad)
-    for bad in ((1.0, 1.0), (1.0, 0.0, 0.2), (1.0, float("nan"), 0.2)):
+    for bad in ((1.0, 1.0), (1.0, 0.0, 0.2), (1.0, float("nan"), 0.2), (1.0, float("inf"), 0.2)):
         with pytest.raises(ConfigError, match="lost_sigmas"):
             LidarSlamConfig(lost_sigmas=bad)
+        with pytest.raises(ConfigError, match="fallback_sigmas"):
+            LidarSlamConfig(fallback_sigmas=bad)
     cfg = build(LidarSlamConfig, {"motion_prior": "identity", "body_xytheta_lidar": [-0.04, 0, 0],
                             "isam2": {"relinearize_threshold": 0.05}})
     assert cfg.body_xytheta_lidar == (-0.04, 0.0, 0.0) and cfg.isam2.relinearize_threshold == 0.05
