@@ -28,6 +28,7 @@ import difflib
 import enum
 import functools
 import math
+import numbers
 import types
 import typing
 from pathlib import Path
@@ -370,6 +371,31 @@ def _dataclass_in(hint: Any) -> type | None:
     return None
 
 
+def _numeric_hint(hint: Any) -> str | None:
+    """What a numeric field's type asks for: "number" (``float``, ``int``, either ``| None``),
+    "numbers" (a tuple of them), else None (any other type is the dataclass's to check)."""
+    args = [a for a in (typing.get_args(hint) if typing.get_origin(hint) in (typing.Union, types.UnionType)
+                        else (hint,)) if a is not type(None)]
+    if args and all(a in (int, float) for a in args):
+        return "number"
+    if len(args) == 1 and typing.get_origin(args[0]) is tuple:
+        items = [a for a in typing.get_args(args[0]) if a is not Ellipsis]
+        if items and all(a in (int, float) for a in items):
+            return "numbers"
+    return None
+
+
+def _is_number(value: Any) -> bool:
+    """A real number (numpy's scalars too), not a bool."""
+    return isinstance(value, numbers.Real) and not isinstance(value, bool)
+
+
+def _are_numbers(value: Any) -> bool:
+    """A sequence of real numbers (a list, tuple or numpy array)."""
+    return (not isinstance(value, (str, bytes, Mapping)) and hasattr(value, "__iter__")
+            and all(map(_is_number, value)))
+
+
 def build(cls: type[T], data: Mapping[str, Any] | None, where: str | None = None, base: T | None = None,
           moved: Mapping[str, str] | None = None, null_is_none: bool = False) -> T:
     """The frozen config dataclass ``cls`` from a validated mapping: the one dict-to-dataclass
@@ -388,7 +414,8 @@ def build(cls: type[T], data: Mapping[str, Any] | None, where: str | None = None
     * lists become tuples (frozen configs hold tuples), recursively;
     * an unknown key is a :class:`~slamkit.errors.ConfigError` naming ``where`` and the known
       fields ("unknown parameter(s)"; ``moved``: a former key -> the dotted path it moved to,
-      named in the message), as is a value the dataclass refuses by type (or by ValueError), and
+      named in the message), as is a value the dataclass refuses by type (or by ValueError), a
+      value that is not a number for a field typed as one (``float``, ``int``, a tuple of them), and
       a value that is not a mapping for a field holding a dataclass (a preset's name aside); the
       dataclass's own ConfigError is prefixed with ``where`` unless it starts with it.
 
@@ -439,6 +466,13 @@ def build(cls: type[T], data: Mapping[str, Any] | None, where: str | None = None
         else:
             if nested is not None and not isinstance(value, nested):
                 raise ConfigError(f"{here}: expected a mapping of {nested.__name__} fields, got {value!r}")
+            # a string where a number belongs would otherwise surface as the dataclass's
+            # comparison error ("'<=' not supported between 'int' and 'str'")
+            wants = _numeric_hint(hints.get(key))
+            if wants == "number" and not _is_number(value):
+                raise ConfigError(f"{here}: expected a number, got {value!r}")
+            if wants == "numbers" and not _are_numbers(value):
+                raise ConfigError(f"{here}: expected a list of numbers, got {value!r}")
             value = _tupled(value)
         kwargs[key] = value
     try:

@@ -75,6 +75,38 @@ def test_a_moved_key_names_where_it_went_and_a_section_needs_a_mapping():
     assert build(Outer, {"inner": Inner(b=9)}).inner == Inner(b=9)   # an instance is taken as it is
 
 
+def test_a_number_field_refuses_what_is_not_a_number_by_name():
+    @dataclass(frozen=True)
+    class Limits:
+        speed_mps: float = 1.0
+        count: int = 3
+        maybe_s: float | None = None
+        sigmas: tuple[float, float, float] = (1.0, 1.0, 0.2)
+        label: str = "a"
+
+        def __post_init__(self) -> None:
+            if not 0 <= self.speed_mps <= 5:   # a str would fail here with Python's comparison message
+                raise ConfigError("speed_mps must lie in [0, 5]")
+
+    with pytest.raises(ConfigError, match=r"^lim\.speed_mps: expected a number, got 'fast'$"):
+        build(Limits, {"speed_mps": "fast"}, "lim")
+    with pytest.raises(ConfigError, match=r"^lim\.count: expected a number, got True$"):   # a bool is no count
+        build(Limits, {"count": True}, "lim")
+    with pytest.raises(ConfigError, match=r"^lim\.maybe_s: expected a number, got '2 s'$"):
+        build(Limits, {"maybe_s": "2 s"}, "lim")
+    with pytest.raises(ConfigError, match=r"^lim\.sigmas: expected a list of numbers, got \[1, 'x', 0\.2\]$"):
+        build(Limits, {"sigmas": [1, "x", 0.2]}, "lim")
+    with pytest.raises(ConfigError, match=r"^lim\.sigmas: expected a list of numbers, got 0\.5$"):
+        build(Limits, {"sigmas": 0.5}, "lim")
+    # numbers of every kind pass (ints for floats, numpy scalars and arrays), other types are the dataclass's
+    import numpy as np
+
+    out = build(Limits, {"speed_mps": 2, "count": np.int64(4), "maybe_s": np.float32(0.5),
+                         "sigmas": np.array([0.1, 0.1, 0.05]), "label": "b"})
+    assert (out.speed_mps, out.count, out.maybe_s, out.label) == (2, 4, 0.5, "b")
+    np.testing.assert_array_equal(out.sigmas, [0.1, 0.1, 0.05])
+
+
 def test_a_value_error_of_the_dataclass_is_a_config_error_naming_where():
     @dataclass(frozen=True)
     class Picky:
