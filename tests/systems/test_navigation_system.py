@@ -217,6 +217,55 @@ def test_local_world_hedges_the_prediction_of_tracks_seen_reversing():
     np.testing.assert_allclose(plain.circle_growth_mps, [0.0, 0.0])
 
 
+def test_wall_turns_predict_a_track_turning_back_short_of_a_wall():
+    # the room's bottom wall has its surface at y = 0.1. A 0.3 m person at (3, 1.02) walking at it
+    # at 0.5 m/s: its centre would come within half its radius (0.15 m) of the wall at
+    # t = 1.54 s (sampled every 0.05 s: 1.55); it turns 0.15 + 0.2 (wall_turn_clearance_m) = 0.35 m
+    # of its way earlier, at 1.55 - 0.7 = 0.85 s (its disc then 0.195 m off the wall)
+    stack = _straight_stack(1.0)
+    toward = _tracks([[3.0, 1.02]], [[0.0, -0.5]], [0.3])
+    assert stack.local_world(toward).num_circles == 1  # off by default
+    stack.config = dataclasses.replace(stack.config, wall_turn_horizon_s=6.0)
+    k, t_turn = stack.wall_turns(toward.xy_m, toward.velocity_mps, toward.radius_m, np.array([True]))
+    assert k.tolist() == [0] and t_turn == pytest.approx([0.85], abs=1e-9)
+    # the turn back is the prediction mirrored there: a second disc (with the 0.25 m moving margin)
+    # from (3, 1.02 - 2 * 0.85 * 0.5) = (3, 0.17) at +0.5 m/s, where the first is at 0.85 s
+    world = stack.local_world(toward)
+    np.testing.assert_allclose(world.circle_xy_m, [[3.0, 1.02], [3.0, 0.17]], atol=1e-12)
+    np.testing.assert_allclose(world.circle_velocity_mps, [[0.0, -0.5], [0.0, 0.5]])
+    np.testing.assert_allclose(world.circle_radius_m, [0.55, 0.55])
+    np.testing.assert_allclose(world.circles_at([0.85])[0, 1], [3.0, 0.595], atol=1e-12)
+    assert stack.moving_discs(toward, world).tolist() == [True, True]
+    # walking along that wall (its disc 2 cm into it) at 0.3 m/s towards the east wall (surface
+    # x = 5.9), which it would run into after 12.5 s: no turn within the 6 s horizon; nor for a
+    # slow track (not traffic) or a standing one
+    along = _tracks([[2.0, 0.38]], [[0.3, 0.0]], [0.3])
+    assert len(stack.wall_turns(along.xy_m, along.velocity_mps, along.radius_m, np.array([True]))[0]) == 0
+    slow = _tracks([[3.0, 1.02]], [[0.0, -0.1]], [0.3])
+    assert stack.local_world(slow).num_circles == 1
+    with pytest.raises(ConfigError):
+        dataclasses.replace(stack.config, wall_turn_horizon_s=-1.0)
+    with pytest.raises(ConfigError):
+        dataclasses.replace(stack.config, wall_turn_clearance_m=float("nan"))
+
+
+def test_yielding_to_a_track_that_will_turn_back_at_a_wall():
+    # the person of test_wall_turns_... walks away from the path towards the wall; constant
+    # velocity says no yield. Its turn back (wall_turn_horizon_s 6) is on the path (y = 2, reach
+    # 0.3 + 0.25 + 0.2 = 0.75 m) from 2.16 s, 0.7 s after the robot at cruise speed would be at
+    # x = 3: a conflict. Within the 3 s waiting horizon it comes up to (3, 1.67), so the path is no
+    # waiting place from x = 3 - sqrt(0.8^2 - 0.33^2) = 2.271 m (0.8: with the 5 cm waiting margin),
+    # sampled at 2.05 + 0.075 k: 2.275, a gap of 0.225 m: v = sqrt(2 * 0.5 * 0.175) m/s
+    stack = _straight_stack(2.05)
+    pose = np.array([2.05, 2.0, 0.0])
+    away = _tracks([[3.0, 1.02]], [[0.0, -0.5]], [0.3])
+    assert stack.yield_decision(pose, away).v_max_mps == np.inf
+    stack.config = dataclasses.replace(stack.config, wall_turn_horizon_s=6.0)
+    decision = stack.yield_decision(pose, away)
+    assert decision.v_max_mps == pytest.approx(np.sqrt(0.175), abs=1e-9)
+    assert decision.wait_gap_m == pytest.approx(0.225, abs=1e-9)
+
+
 def test_yielding_to_a_shuttler_that_may_turn_back():
     from slamkit.estimation.obstacle_tracker import Tracks
 

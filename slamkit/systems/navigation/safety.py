@@ -179,8 +179,10 @@ class SafetyGuard:
             return False
         dt = stack.controller.config.rollout_dt_s
         tau = np.arange(0.0, float(getattr(stack.controller.config, "horizon_s", 2.0)) + c.rest_check_s + 1e-9, dt)
-        centres = stack.local_world(tracks, t_s).circles_at(tau)[:, moving]
-        reach = stack.local_world(tracks, t_s).radii_at(tau)[:, moving] + stack.config.robot_radius_m
+        world = stack.local_world(tracks, t_s)
+        discs = stack.moving_discs(tracks, world)
+        centres = world.circles_at(tau)[:, discs]
+        reach = world.radii_at(tau)[:, discs] + stack.config.robot_radius_m
         return bool((np.linalg.norm(centres - pose[:2], axis=-1) <= reach).any())
 
     def escape(self, pose: np.ndarray, tracks: Tracks, t_s: float) -> NavigationCommand:

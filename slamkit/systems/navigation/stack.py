@@ -278,7 +278,10 @@ class NavigationStack:
         before; ``hedges``: other values for the two) -- the stack's only prediction of the tracks.
         ``turning``: a track slower than its typical speed is turning or stopping, so its way on
         is unknown: the missing fraction of its typical speed, 1 - |v| / typical, is the least
-        hedge it gets (a shuttler at its turn, |v| ~ 0, is predicted by its reachable set)."""
+        hedge it gets (a shuttler at its turn, |v| ~ 0, is predicted by its reachable set).
+        A moving track whose prediction runs into a wall within ``wall_turn_horizon_s`` is also
+        predicted turning back there (:meth:`wall_turns`): one more disc per such track, after
+        the tracks' own (:meth:`moving_discs`)."""
         c = self.config
         moving = self.moving(tracks)
         plain, reversed_ = (c.prediction_hedge, c.reversed_prediction_hedge) if hedges is None else hedges
@@ -287,8 +290,41 @@ class NavigationStack:
         speed = np.maximum(speed_now, tracks.speed_typical_mps)
         if turning:
             lam = np.maximum(lam, np.clip(1.0 - speed_now / np.maximum(speed, 1e-9), 0.0, 1.0))
-        return LocalWorld(tracks.xy_m, tracks.radius_m + c.moving_margin_m * moving,
-                          (1.0 - lam)[:, None] * tracks.velocity_mps, self.distance, t_s, lam * speed)
+        xy, radius = tracks.xy_m, tracks.radius_m + c.moving_margin_m * moving
+        velocity, growth = (1.0 - lam)[:, None] * tracks.velocity_mps, lam * speed
+        k, t_wall = self.wall_turns(xy, velocity, tracks.radius_m, moving)
+        if len(k):
+            # the turn back is the predicted path mirrored at the wall: a disc that starts as far
+            # beyond the wall point as the track is before it and comes back at the same speed
+            xy = np.vstack([xy, xy[k] + 2.0 * t_wall[:, None] * velocity[k]])
+            radius, velocity = np.concatenate([radius, radius[k]]), np.vstack([velocity, -velocity[k]])
+            growth = np.concatenate([growth, growth[k]])
+        return LocalWorld(xy, radius, velocity, self.distance, t_s, growth)
+
+    def wall_turns(self, xy_m: np.ndarray, velocity_mps: np.ndarray, radius_m: np.ndarray,
+                   moving: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Which moving tracks' predicted paths run into a wall within ``wall_turn_horizon_s``
+        and when they turn: (indices (J,), times (J,) s). Running into a wall means the predicted
+        centre gets within half the track's radius of it (a track walking along a wall does not
+        count); it turns ``wall_turn_clearance_m`` short of touching it, measured along its way
+        (exact for a wall across it; 0 for one that close already)."""
+        c = self.config
+        k = np.flatnonzero(moving)
+        if c.wall_turn_horizon_s <= 0 or len(k) == 0:
+            return np.zeros(0, int), np.zeros(0)
+        tau = np.arange(0.0, c.wall_turn_horizon_s + 1e-9, 0.05)
+        path = xy_m[k][:, None, :] + tau[None, :, None] * velocity_mps[k][:, None, :]  # (J, T, 2)
+        into = self.distance.query(path)[0] <= 0.5 * radius_m[k][:, None]
+        hits = into.any(axis=1)
+        speed = np.maximum(np.linalg.norm(velocity_mps[k], axis=1), 1e-9)
+        t_turn = tau[np.argmax(into, axis=1)] - (0.5 * radius_m[k] + c.wall_turn_clearance_m) / speed
+        return k[hits], np.maximum(t_turn[hits], 0.0)
+
+    def moving_discs(self, tracks: Tracks, world: LocalWorld, typical: bool = False) -> np.ndarray:
+        """(D,) which discs of ``world`` (:meth:`local_world` of ``tracks``) are moving traffic:
+        the moving tracks' discs and every wall turn's (only moving tracks turn at walls)."""
+        moving = self.moving(tracks, typical)
+        return np.concatenate([moving, np.ones(world.num_circles - len(moving), bool)])
 
     def _send(self, cmd: np.ndarray, status: CommandStatus, output: ControlOutput | None = None,
               safe: bool = True) -> NavigationCommand:

@@ -180,8 +180,9 @@ class Yielding:
         c, stack = self.config, self.stack
         moving = np.flatnonzero(self.moving(tracks))
         world = stack.local_world(tracks, stack.now_s, hedges=(c.hedge, c.reversed_hedge), turning=c.turning)
-        centres = world.circles_at(tau_s)[:, moving]
-        reach = world.radii_at(tau_s)[:, moving] + stack.config.robot_radius_m
+        discs = np.flatnonzero(stack.moving_discs(tracks, world, typical=c.turning))
+        centres = world.circles_at(tau_s)[:, discs]
+        reach = world.radii_at(tau_s)[:, discs] + stack.config.robot_radius_m
         if c.span_shuttle:
             span = tracks.span_xy_m[moving]
             shuttle = (tracks.reversals[moving] > 0) & (np.linalg.norm(span[:, 1] - span[:, 0], axis=1)
@@ -190,7 +191,7 @@ class Yielding:
             speed = np.maximum(np.linalg.norm(tracks.velocity_mps[k], axis=1), tracks.speed_typical_mps[k])
             centres = np.concatenate([centres, shuttle_centres(tracks.xy_m[k], tracks.velocity_mps[k], speed,
                                                                span[shuttle], tau_s)], axis=1)
-            reach = np.concatenate([reach, reach[:, shuttle]], axis=1)
+            reach = np.concatenate([reach, reach[:, :len(moving)][:, shuttle]], axis=1)
         return centres, reach
 
     def wait_clearance_m(self, xy_m: np.ndarray, tracks: Tracks, centres: np.ndarray,
