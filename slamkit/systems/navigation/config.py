@@ -127,7 +127,12 @@ class NavigationConfig:
     #: (successes / moving / static / timeouts): 240 / 17 / 3 / 10 against 245 / 21 / 3 / 1 --
     #: 13 hits removed, 9 new (the same crossing behind a shuttler, turning where no wall is, or
     #: evasions among the extra discs), successes 10 better and 15 worse (sign test p 0.42), and
-    #: the robot waits out the 90 s between two short shuttlers (Willow 6 timeouts): off
+    #: the robot waits out the 90 s between two short shuttlers (Willow 6 timeouts). With
+    #: ``yielding.span_shuttle`` too (turns where they were seen, else at walls), same seeds:
+    #: moving hits 21 -> 11 (14 removed, 4 new, p 0.03; Willow 7 -> 0) but timeouts 1 -> 28,
+    #: successes 228 (p 0.003 worse); with ``yielding.slack_s`` 1.0 / 0.5 as well: 236 / 11 / 3 / 20
+    #: and 234 / 11 / 4 / 21. The better prediction removes half the hits; yielding's crossing rule
+    #: then finds no window to cross in (Willow 3002: 80 of 90 s yielding): off
     wall_turn_horizon_s: float = 0.0
     #: how far short of a wall it turns: the wall range of the social-force model (Helbing &
     #: Molnar 1995, ``slamkit.sim.social_force``: people keep about this far from walls)

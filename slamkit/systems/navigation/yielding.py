@@ -65,7 +65,10 @@ class YieldingConfig:
     #: constant-velocity guess (a span end may not be a turning point yet). Measured and off:
     #: over the 30 x 3 seeds with the waiting places below, success .967/.867/.800, moving
     #: collisions 0/1/2 (off: .967/.900/.900, 0/1/1) -- a short, fast shuttler's return leaves
-    #: no crossing window 2 s wide (warehouse 5, Willow 14/15 waited to the 90 s limit)
+    #: no crossing window 2 s wide (warehouse 5, Willow 14/15 waited to the 90 s limit). Again on
+    #: development seeds 3000-3089 (270 runs, paired with off: successes / moving / static /
+    #: timeouts): 232 / 23 / 3 / 12 against 245 / 21 / 3 / 1; with the stack's wall turns
+    #: (``NavigationConfig.wall_turn_horizon_s``, where the rest are) 228 / 11 / 3 / 28
     span_shuttle: bool = False
     #: where yielding waits: outside every moving track's predicted sweep and its seen span, each
     #: grown by the track's radius, ``moving_margin_m``, the robot radius and this margin; a robot
