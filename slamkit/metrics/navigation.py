@@ -10,7 +10,8 @@ Per episode (pure functions of arrays; the experiment supplies the series and th
   social-navigation benchmarks' "time near obstacles" in one number);
 * time to goal over the optimal time, optimal path length / maximum speed, and path length over
   the optimal path (:func:`ratio_to_optimal`); both >= 1 for a robot that cannot beat the bound;
-* difficulty: the narrowest free width along a path (:func:`narrowest_passage_m`).
+* difficulty: the narrowest free width along a path (:func:`narrowest_passage_m`), and how long
+  the traffic holds up a robot that knows its future (:func:`path_velocity_arrival_s`).
 
 Over episodes: rates with binomial intervals (:func:`slamkit.metrics.stats.rate_of`) and
 difficulty bins (:func:`bin_label`).
@@ -19,6 +20,7 @@ difficulty bins (:func:`bin_label`).
 from __future__ import annotations
 
 import math
+from typing import Callable
 
 import numpy as np
 
@@ -103,6 +105,45 @@ def narrowest_passage_m(path_xy_m, distance_field_m: np.ndarray, origin_xy_m, re
         raise DataError("narrowest_passage_m: the path lies outside the distance field")
     d = distance_field_m[ij[inside, 1], ij[inside, 0]]
     return float(2.0 * d.min())
+
+
+def path_velocity_arrival_s(path_xy_m, discs_at: Callable[[float], tuple[np.ndarray, np.ndarray]],
+                            clearance_m: float, speed_mps: float, horizon_s: float, step_m: float = 0.05) -> float:
+    """The earliest time a robot that knows the traffic's future reaches the end of a path: the
+    path-velocity decomposition (Kant & Zucker, "Toward efficient trajectory planning: the
+    path-velocity decomposition", IJRR 5(3), 1986) -- it keeps to the path, at any speed in
+    [0, ``speed_mps``] along it (no reversing; accelerations unbounded, so it is a bound: no robot on
+    that path with that top speed arrives earlier), and its centre stays more than ``clearance_m``
+    (robot radius plus any margin) from the surface of every disc; ``discs_at(t)`` -> (centres
+    (K, 2), radii (K,)) at time t. Exact on a lattice: ``step_m`` along the path, time steps of
+    ``step_m / speed_mps``. +inf when it cannot arrive within ``horizon_s``."""
+    p = np.asarray(path_xy_m, dtype=float).reshape(-1, 2)
+    if len(p) < 2 or not speed_mps > 0 or not step_m > 0:
+        raise DataError("path_velocity_arrival_s: a path of >= 2 points, speed_mps > 0 and step_m > 0")
+    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))])
+    if s[-1] <= 0.0:
+        raise DataError("path_velocity_arrival_s: the path has no length")
+    along = np.linspace(0.0, s[-1], int(math.ceil(s[-1] / step_m)) + 1)
+    xy = np.column_stack([np.interp(along, s, p[:, 0]), np.interp(along, s, p[:, 1])])
+    dt = (along[1] - along[0]) / speed_mps
+
+    def free(t: float) -> np.ndarray:
+        centres, radii = discs_at(t)
+        centres = np.asarray(centres, float).reshape(-1, 2)
+        if not len(centres):
+            return np.ones(len(xy), bool)
+        d = np.linalg.norm(xy[:, None, :] - centres[None], axis=-1) - np.asarray(radii, float)[None]
+        return (d > clearance_m).all(axis=1)
+
+    reach = np.zeros(len(xy), bool)  # where the robot can be at time i dt
+    reach[0] = bool(free(0.0)[0])
+    for i in range(1, int(math.floor(horizon_s / dt + 1e-9)) + 1):
+        if not reach.any():
+            break
+        reach = (reach | np.concatenate([[False], reach[:-1]])) & free(i * dt)
+        if reach[-1]:
+            return i * dt
+    return math.inf
 
 
 def bin_label(value: float, edges: tuple[float, ...], unit: str = "") -> str:

@@ -71,6 +71,37 @@ def test_optimal_path_is_straight_in_the_open_and_bends_round_a_wall():
     assert optimal_path_xy_m(closed, (2.0, 5.0), (8.0, 5.0), 0.2, distance_field_m(closed)).shape == (0, 2)
 
 
+def test_oracle_delay_of_a_shuttle_crossing_the_path():
+    from slamkit.experiments.navigation.benchmark import scenario_difficulty
+    from slamkit.sim.moving_obstacles import MovingObstacles
+    from slamkit.sim.navigation_world import NavigationScenario
+
+    # the open room, path (2, 5) -> (8, 5), robot 0.2 m at up to 0.65 m/s; a 0.3 m shuttle crossing
+    # x = 5 upwards at 0.65 m/s, at the path (phase 0 from (5, 2)) at 3 / 0.65 s -- when a robot at
+    # top speed would be there. In (x, 0.65 t) the forbidden set is a disc of radius 0.5 round
+    # (5, 5) and the fastest way passes behind it on the tangent: 0.5 sqrt(2) m later, a delay of
+    # 0.5 sqrt(2) / 0.65 = 1.088 s (plus at most two lattice steps of 0.05 / 0.65 s)
+    grid = _room(None)
+    field = distance_field_m(grid)
+    path = np.array([[2.0, 5.0], [8.0, 5.0]])
+
+    def scenario(obstacles: MovingObstacles) -> NavigationScenario:
+        return NavigationScenario("room_0", 0, grid, np.array([2.0, 5.0, 0.0]), np.array([8.0, 5.0, 0.0]), path,
+                                  obstacles)
+
+    crossing = scenario(MovingObstacles([[5.0, 2.0]], [[5.0, 8.0]], [0.65], [0.3], [0.0]))
+    d = scenario_difficulty(crossing, 0.2, field, 0.65, 90.0)
+    assert d["oracle_feasible"] == 1.0
+    assert 0.5 * math.sqrt(2.0) / 0.65 <= d["oracle_delay_s"] <= 0.5 * math.sqrt(2.0) / 0.65 + 2 * 0.05 / 0.65
+    # a disc standing on the path: no arrival, the delay is the whole horizon
+    parked = scenario(MovingObstacles([[5.0, 5.0]], [[5.0, 5.0]], [0.0], [0.3], [0.0]))
+    d = scenario_difficulty(parked, 0.2, field, 0.65, 90.0)
+    assert (d["oracle_feasible"], d["oracle_delay_s"]) == (0.0, 90.0)
+    # no traffic: no delay; without the robot's speed it is not computed
+    assert scenario_difficulty(scenario(MovingObstacles.empty()), 0.2, field, 0.65)["oracle_delay_s"] == 0.0
+    assert math.isnan(scenario_difficulty(crossing, 0.2, field)["oracle_delay_s"])
+
+
 def test_episode_metrics_of_a_hand_episode():
     difficulty = {"optimal_path_length_m": 13.0, "narrowest_passage_m": 1.2, "crossing_agents": 2.0,
                   "agent_speed_max_mps": 0.5}

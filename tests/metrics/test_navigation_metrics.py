@@ -7,6 +7,7 @@ import pytest
 
 from slamkit.errors import DataError
 from slamkit.metrics.navigation import (bin_label, clearance_percentile_m, narrowest_passage_m, optimal_time_s,
+                                        path_velocity_arrival_s,
                                         outcome, polyline_length_m, ratio_to_optimal)
 
 
@@ -63,3 +64,27 @@ def test_bin_labels():
     assert bin_label(float("nan"), edges) == "n/a"
     with pytest.raises(DataError):
         bin_label(1.0, (2.0, 1.0))
+
+
+def test_path_velocity_arrival_waits_behind_a_crossing_disc():
+    path = np.array([[0.0, 0.0], [10.0, 0.0]])
+    none = lambda t: (np.zeros((0, 2)), np.zeros(0))  # noqa: E731
+    # nothing in the way: 10 m at 1 m/s (200 lattice steps of 0.05 m and 0.05 s)
+    assert path_velocity_arrival_s(path, none, 0.2, 1.0, 90.0) == pytest.approx(10.0)
+    # a 0.3 m disc crossing x = 5 at 1 m/s, on the path at t = 5 s: with clearance 0.2 the robot's
+    # (x, t) may not enter the disc of radius 0.5 around (5, 5); at top speed (slope 1) the earliest
+    # way passes behind it, on the tangent x = t - 0.5 sqrt(2): arrival 10.707 s (the lattice's
+    # waits come in 0.05 s steps: 10.75)
+    crossing = lambda t: (np.array([[5.0, t - 5.0]]), np.array([0.3]))  # noqa: E731
+    t = path_velocity_arrival_s(path, crossing, 0.2, 1.0, 90.0)
+    assert t == pytest.approx(10.75) and t >= 10.0 + 0.5 * np.sqrt(2.0)
+    # a disc standing on the path, or on the start: never
+    assert path_velocity_arrival_s(path, lambda t: (np.array([[5.0, 0.0]]), np.array([0.3])), 0.2, 1.0, 90.0) == np.inf
+    assert path_velocity_arrival_s(path, lambda t: (np.array([[0.0, 0.4]]), np.array([0.3])), 0.2, 1.0, 90.0) == np.inf
+    # ... unless the clearance lets it pass beside: 0.35 m off the path, 0.3 m radius, clearance 0.04
+    assert path_velocity_arrival_s(path, lambda t: (np.array([[5.0, 0.35]]), np.array([0.3])), 0.04, 1.0, 90.0) \
+        == pytest.approx(10.0)
+    # a horizon shorter than the way: never
+    assert path_velocity_arrival_s(path, none, 0.2, 1.0, 9.0) == np.inf
+    with pytest.raises(DataError):
+        path_velocity_arrival_s(np.array([[1.0, 1.0], [1.0, 1.0]]), none, 0.2, 1.0, 9.0)

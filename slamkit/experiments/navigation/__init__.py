@@ -28,7 +28,9 @@ truth, without a collision), ``final_position_error_m``, ``final_heading_error_r
 stack's compute time), and the benchmark's (:mod:`.benchmark`):
 ``timeout``, ``off_goal``, ``clearance_static_p5_m`` / ``clearance_moving_p5_m``,
 ``optimal_path_length_m``, ``optimal_time_s``, ``time_over_optimal``, ``path_over_optimal``,
-``crossing_agents``, ``agent_speed_max_mps``, ``narrowest_passage_m``.
+``crossing_agents``, ``agent_speed_max_mps``, ``narrowest_passage_m``, ``oracle_delay_s`` /
+``oracle_feasible`` (shuttle traffic: how much later a robot that knows the traffic's future
+reaches the end of the path).
 
 Seeds: ``scenarios.seeds`` are the development seeds, ``scenarios.evaluation`` the blocks a claim
 is measured on; every run records its ``block`` (:mod:`.benchmark`).

@@ -15,7 +15,8 @@ static and moving obstacles, the optimal path (A* on the *true* map at the robot
 pulled taut along lines of sight: the shortest path a disc of that radius has on the grid) with
 time to goal over optimal time (optimal length / the stack's speed cap) and path length over the
 optimal length, and the difficulty: number of crossing agents, their fastest speed, the
-narrowest free width on the scenario's path.
+narrowest free width on the scenario's path, and how long the traffic holds up a robot that
+knows its future on that path (``oracle_delay_s``, :func:`scenario_difficulty`).
 """
 
 from __future__ import annotations
@@ -28,10 +29,12 @@ import numpy as np
 from slamkit.errors import ConfigError
 from slamkit.experiments.results import markdown_table
 from slamkit.metrics.navigation import (bin_label, clearance_percentile_m, narrowest_passage_m,
-                                        optimal_time_s, outcome, polyline_length_m, ratio_to_optimal)
+                                        optimal_time_s, outcome, path_velocity_arrival_s, polyline_length_m,
+                                        ratio_to_optimal)
 from slamkit.metrics.stats import RateInterval, rate_of
 from slamkit.planning.astar import AStarPlanner
 from slamkit.planning.protocols import PlanningProblem
+from slamkit.sim.moving_obstacles import MovingObstacles
 
 
 #: the block of the development seeds
@@ -101,17 +104,38 @@ def optimal_path_xy_m(grid, start_xy_m, goal_xy_m, robot_radius_m: float, field_
     return np.asarray(taut)
 
 
-def scenario_difficulty(scenario, robot_radius_m: float, field_m: np.ndarray) -> dict[str, float]:
-    """The scenario's optimal path length and its difficulty (the module docstring)."""
+def scenario_difficulty(scenario, robot_radius_m: float, field_m: np.ndarray, speed_mps: float | None = None,
+                        horizon_s: float = 90.0) -> dict[str, float]:
+    """The scenario's optimal path length and its difficulty (the module docstring). With the
+    robot's top speed ``speed_mps`` and traffic whose future does not depend on the robot (the
+    shuttles, :class:`MovingObstacles`), also ``oracle_delay_s``: how much later than on an
+    empty path a robot that knows that future reaches the end of the scenario's path, touching
+    nothing (:func:`path_velocity_arrival_s`; ``horizon_s`` when it cannot arrive within
+    ``horizon_s``, and ``oracle_feasible`` 0) -- a bound no robot on that path beats, so it says
+    how much of a run's time the traffic costs anyway. nan for reactive traffic (social force)."""
     g = scenario.grid
     opt = optimal_path_xy_m(g, scenario.start_xytheta[:2], scenario.goal_xytheta[:2], robot_radius_m, field_m)
     obstacles = scenario.obstacles
     speeds = np.asarray(getattr(obstacles, "speed_mps", []), float).reshape(-1)
+    delay, feasible = math.nan, math.nan
+    if speed_mps is not None and isinstance(obstacles, MovingObstacles):
+        def discs_at(t_s: float) -> tuple[np.ndarray, np.ndarray]:
+            return obstacles.position_at(t_s), obstacles.radius_m
+
+        def empty(t_s: float) -> tuple[np.ndarray, np.ndarray]:
+            return np.zeros((0, 2)), np.zeros(0)
+
+        arrival = path_velocity_arrival_s(scenario.path_xy_m, discs_at, robot_radius_m, speed_mps, horizon_s)
+        free = path_velocity_arrival_s(scenario.path_xy_m, empty, robot_radius_m, speed_mps, horizon_s)
+        feasible = float(math.isfinite(arrival))
+        delay = arrival - free if math.isfinite(arrival) else float(horizon_s)
     return {
         "optimal_path_length_m": polyline_length_m(opt) if len(opt) else float("nan"),
         "narrowest_passage_m": narrowest_passage_m(scenario.path_xy_m, field_m, g.origin_xy_m, g.resolution_m),
         "crossing_agents": float(len(obstacles)),
         "agent_speed_max_mps": float(speeds.max()) if speeds.size else 0.0,
+        "oracle_delay_s": delay,
+        "oracle_feasible": feasible,
     }
 
 
@@ -145,7 +169,7 @@ RATE_METRICS = ("success", "collision_static", "collision_moving", "timeout")
 MEAN_METRICS = ("time_over_optimal", "path_over_optimal", "clearance_static_p5_m", "clearance_moving_p5_m")
 #: difficulty factors: (metric, bin edges, unit); crossing agents are counted exactly
 DIFFICULTY = (("crossing_agents", None, ""), ("agent_speed_max_mps", (0.3, 0.45), " m/s"),
-              ("narrowest_passage_m", (1.0, 1.5, 2.0), " m"))
+              ("narrowest_passage_m", (1.0, 1.5, 2.0), " m"), ("oracle_delay_s", (1.0, 5.0), " s"))
 #: the issue's goals: success >= 95% in every world and evaluation block, no static collision,
 #: moving collisions < 2% over all evaluation runs
 GOALS = {"min_success_rate": 0.95, "max_static_collisions": 0, "max_moving_collision_rate": 0.02}
@@ -321,7 +345,10 @@ def benchmark_markdown(rows: list[dict[str, Any]], difficulty: list[dict[str, An
         text += ("### By difficulty (" + ("evaluation" if ev else "development") + " runs, all worlds)\n\n"
                  "Crossing agents: how many crossed the path (fewer than asked where the map left no room); "
                  "agent speed: the fastest one; narrowest passage: twice the smallest wall distance along "
-                 "the scenario's costmap path, its first and last 0.5 m left out.\n\n")
+                 "the scenario's costmap path, its first and last 0.5 m left out; oracle delay: how much "
+                 "later than on an empty path a robot that knows the traffic's future reaches the end of "
+                 "that path at the stack's top speed, touching nothing (the whole time limit where it cannot; "
+                 "shuttles only) -- a bound no robot on the path beats.\n\n")
         text += markdown_table((["variant"] if multi else []) + ["factor", "bin", "runs", "success [95% CI]",
                                                                   "moving hits", "static hits", "timeouts"],
                                [([d["variant"]] if multi else []) + [d["factor"], d["bin"], d["episodes"],

@@ -180,6 +180,7 @@ def run_episode(scenario: NavigationScenario, nav_config: NavigationConfig = Nav
         if c_static < 0.0 or c_moving < 0.0:
             hit_static, hit_moving = c_static < 0.0, c_moving < 0.0
             break
+    difficulty = scenario_difficulty(scenario, r, field_m, nav_config.cruise_speed_mps, config.max_time_s)
     true = np.array(xs)
     est = np.array(es)
     final_err = float(np.linalg.norm(true[-1, :2] - scenario.goal_xytheta[:2]))
@@ -221,7 +222,7 @@ def run_episode(scenario: NavigationScenario, nav_config: NavigationConfig = Nav
         **episode_benchmark_metrics(
             success=success, collision_static=hit_static, collision_moving=hit_moving,
             reached_by_belief=stack.reached, clearance_static_m=clear_static, clearance_moving_m=clear_moving,
-            time_s=time_s, path_length_m=path_length_m, difficulty=scenario_difficulty(scenario, r, field_m),
+            time_s=time_s, path_length_m=path_length_m, difficulty=difficulty,
             max_speed_mps=nav_config.cruise_speed_mps),
     }
     return Episode(scenario.name, scenario.name.rsplit("_", 1)[0], scenario.seed, variant,
