@@ -294,8 +294,8 @@ class NavigationStack:
         velocity, growth = (1.0 - lam)[:, None] * tracks.velocity_mps, lam * speed
         k, t_wall = self.wall_turns(xy, velocity, tracks.radius_m, moving)
         if len(k):
-            # the turn back is the predicted path mirrored at the wall: a disc that starts as far
-            # beyond the wall point as the track is before it and comes back at the same speed
+            # the turn back is the predicted path mirrored where it turns: a disc that starts as far
+            # beyond that point as the track is before it and comes back at the same speed
             xy = np.vstack([xy, xy[k] + 2.0 * t_wall[:, None] * velocity[k]])
             radius, velocity = np.concatenate([radius, radius[k]]), np.vstack([velocity, -velocity[k]])
             growth = np.concatenate([growth, growth[k]])
