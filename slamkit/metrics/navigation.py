@@ -112,8 +112,9 @@ def path_velocity_arrival_s(path_xy_m, discs_at: Callable[[float], tuple[np.ndar
     """The earliest time a robot that knows the traffic's future reaches the end of a path: the
     path-velocity decomposition (Kant & Zucker, "Toward efficient trajectory planning: the
     path-velocity decomposition", IJRR 5(3), 1986) -- it keeps to the path, at any speed in
-    [0, ``speed_mps``] along it (no reversing; accelerations unbounded, so it is a bound: no robot on
-    that path with that top speed arrives earlier), and its centre stays more than ``clearance_m``
+    [0, ``speed_mps``] along it, never backing up, accelerations unbounded (so, up to the lattice, no
+    robot that keeps to the path and never backs up arrives earlier at that top speed; one it finds
+    a way for can be done), and its centre stays more than ``clearance_m``
     (robot radius plus any margin) from the surface of every disc; ``discs_at(t)`` -> (centres
     (K, 2), radii (K,)) at time t. Exact on a lattice: ``step_m`` along the path, time steps of
     ``step_m / speed_mps``. +inf when it cannot arrive within ``horizon_s``."""

@@ -111,8 +111,9 @@ def scenario_difficulty(scenario, robot_radius_m: float, field_m: np.ndarray, sp
     shuttles, :class:`MovingObstacles`), also ``oracle_delay_s``: how much later than on an
     empty path a robot that knows that future reaches the end of the scenario's path, touching
     nothing (:func:`path_velocity_arrival_s`; ``horizon_s`` when it cannot arrive within
-    ``horizon_s``, and ``oracle_feasible`` 0) -- a bound no robot on that path beats, so it says
-    how much of a run's time the traffic costs anyway. nan for reactive traffic (social force)."""
+    ``horizon_s``, and ``oracle_feasible`` 0) -- what the traffic costs a run anyway (a bound for
+    a robot that keeps to the path and does not back up along it). nan for reactive traffic
+    (social force)."""
     g = scenario.grid
     opt = optimal_path_xy_m(g, scenario.start_xytheta[:2], scenario.goal_xytheta[:2], robot_radius_m, field_m)
     obstacles = scenario.obstacles
@@ -348,7 +349,7 @@ def benchmark_markdown(rows: list[dict[str, Any]], difficulty: list[dict[str, An
                  "the scenario's costmap path, its first and last 0.5 m left out; oracle delay: how much "
                  "later than on an empty path a robot that knows the traffic's future reaches the end of "
                  "that path at the stack's top speed, touching nothing (the whole time limit where it cannot; "
-                 "shuttles only) -- a bound no robot on the path beats.\n\n")
+                 "shuttles only): what the traffic costs any robot on that path that does not back up.\n\n")
         text += markdown_table((["variant"] if multi else []) + ["factor", "bin", "runs", "success [95% CI]",
                                                                   "moving hits", "static hits", "timeouts"],
                                [([d["variant"]] if multi else []) + [d["factor"], d["bin"], d["episodes"],
