@@ -119,8 +119,11 @@ def path_velocity_arrival_s(path_xy_m, discs_at: Callable[[float], tuple[np.ndar
     (K, 2), radii (K,)) at time t. Exact on a lattice: ``step_m`` along the path, time steps of
     ``step_m / speed_mps``. +inf when it cannot arrive within ``horizon_s``."""
     p = np.asarray(path_xy_m, dtype=float).reshape(-1, 2)
-    if len(p) < 2 or not speed_mps > 0 or not step_m > 0:
-        raise DataError("path_velocity_arrival_s: a path of >= 2 points, speed_mps > 0 and step_m > 0")
+    if (len(p) < 2 or not 0 < speed_mps < math.inf or not 0 < step_m < math.inf
+            or not 0 <= clearance_m < math.inf or not 0 <= horizon_s < math.inf or not np.isfinite(p).all()):
+        raise DataError("path_velocity_arrival_s: a finite path of >= 2 points, speed_mps and step_m finite and "
+                        f"> 0, clearance_m and horizon_s finite and >= 0 (got speed {speed_mps}, step {step_m}, "
+                        f"clearance {clearance_m}, horizon {horizon_s})")
     s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))])
     if s[-1] <= 0.0:
         raise DataError("path_velocity_arrival_s: the path has no length")

@@ -88,3 +88,10 @@ def test_path_velocity_arrival_waits_behind_a_crossing_disc():
     assert path_velocity_arrival_s(path, none, 0.2, 1.0, 9.0) == np.inf
     with pytest.raises(DataError):
         path_velocity_arrival_s(np.array([[1.0, 1.0], [1.0, 1.0]]), none, 0.2, 1.0, 9.0)
+    for bad in (dict(speed_mps=float("nan")), dict(speed_mps=-1.0), dict(horizon_s=float("nan")),
+                dict(horizon_s=float("inf")), dict(clearance_m=-0.1), dict(clearance_m=float("nan"))):
+        args = {"clearance_m": 0.2, "speed_mps": 1.0, "horizon_s": 9.0, **bad}
+        with pytest.raises(DataError, match="path_velocity_arrival_s"):
+            path_velocity_arrival_s(path, none, **args)
+    with pytest.raises(DataError):
+        path_velocity_arrival_s(np.array([[0.0, 0.0], [np.nan, 0.0]]), none, 0.2, 1.0, 9.0)
