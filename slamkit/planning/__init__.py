@@ -8,7 +8,8 @@ Grid (OccupancyGrid, optional per-cell cost multipliers from a costmap): ``astar
 :class:`.worlds.SE2World` for a rigid polygonal body): ``prm``, ``rrt``, ``rrt_connect``,
 ``rrt_star``, ``informed_rrt_star``. Build any of them by name with
 :func:`.registry.make_planner`; post-process paths with :mod:`.postprocess`;
-``slamkit bench planning`` runs :mod:`.benchmark`.
+``slamkit bench planning`` runs :mod:`slamkit.bench.planning`. Along a fixed path, the speed against moving
+obstacles: :func:`.speed_profile.plan_speed_along_path` (the navigation stack's yielding uses it).
 """
 
 from slamkit.planning.protocols import (PlanEvent, Planner, PlanningProblem, PlanResult, PlanStats,
