@@ -247,6 +247,11 @@ def test_wall_turns_predict_a_track_turning_back_short_of_a_wall():
         dataclasses.replace(stack.config, wall_turn_horizon_s=-1.0)
     with pytest.raises(ConfigError):
         dataclasses.replace(stack.config, wall_turn_clearance_m=float("nan"))
+    for key, bad in (("wall_turn_horizon_s", -1.0), ("wall_turn_horizon_s", float("nan")), ("plan_dt_s", 0.0),
+                     ("plan_dt_s", float("nan")), ("plan_slack_s", -0.1), ("plan_slack_s", float("nan")),
+                     ("plan_margin_m", -0.1), ("plan_margin_m", float("nan"))):
+        with pytest.raises(ConfigError, match=f"YieldingConfig.{key}"):
+            dataclasses.replace(stack.config.yielding, **{key: bad})
 
 
 def test_yielding_to_a_track_that_will_turn_back_at_a_wall():
@@ -261,6 +266,14 @@ def test_yielding_to_a_track_that_will_turn_back_at_a_wall():
     away = _tracks([[3.0, 1.02]], [[0.0, -0.5]], [0.3])
     assert stack.yield_decision(pose, away).v_max_mps == np.inf
     stack.config = dataclasses.replace(stack.config, wall_turn_horizon_s=6.0)
+    decision = stack.yield_decision(pose, away)
+    assert decision.v_max_mps == pytest.approx(np.sqrt(0.175), abs=1e-9)
+    assert decision.wait_gap_m == pytest.approx(0.225, abs=1e-9)
+    # the same turn for yielding alone (yielding.wall_turn_horizon_s): the local planner's world
+    # keeps the track's one disc, yielding's sweep has the turn and the same decision
+    stack.config = dataclasses.replace(stack.config, wall_turn_horizon_s=0.0,
+                                       yielding=dataclasses.replace(stack.config.yielding, wall_turn_horizon_s=6.0))
+    assert stack.local_world(away).num_circles == 1
     decision = stack.yield_decision(pose, away)
     assert decision.v_max_mps == pytest.approx(np.sqrt(0.175), abs=1e-9)
     assert decision.wait_gap_m == pytest.approx(0.225, abs=1e-9)
@@ -288,6 +301,43 @@ def test_yielding_to_a_shuttler_that_may_turn_back():
     assert stack.yield_decision(pose, Tracks(**away, reversals=np.array([1]))).v_max_mps == 0.0
     # one never seen reversing is still predicted with its constant velocity
     assert stack.yield_decision(pose, Tracks(**away)).v_max_mps == np.inf
+
+def test_speed_plan_creeps_to_its_waiting_place_and_falls_back_to_the_gate_when_it_cannot_stop():
+    # the person of the yielding example, on the path (x = 3) from 1.5 to 4.5 s; its sweep (grown by
+    # 0.5 s each way) covers the path from x = 2.25 m, and within the 3 s waiting horizon the path
+    # is no waiting place from x = 2.25 - 0.05 m. From rest at x = 2.05 the robot cannot pass in
+    # front (past x = 3 by 1 s, when the grown sweep first touches it), so it waits: its plan
+    # starts at one speed level (0.65 / 7 m/s, the
+    # fewest levels a step of <= 0.5 m/s^2 * 0.2 s apart), creeping to its waiting place
+    stack = _straight_stack(2.05)
+    stack.config = dataclasses.replace(stack.config, yielding=dataclasses.replace(stack.config.yielding,
+                                                                                  speed_plan=True))
+    pose = np.array([2.05, 2.0, 0.0])
+    crossing = _tracks([[3.0, 3.5]], [[0.0, -0.5]], [0.3])
+    assert stack.yield_decision(pose, crossing).v_max_mps == pytest.approx(0.65 / 7, abs=1e-12)
+    # at cruise speed it needs 0.42 m to stop, the waiting place ends 0.15 m ahead: no plan keeps
+    # clear, so the gate's rule decides -- stop short of the first covered sample, sqrt(0.175) m/s
+    stack._last_cmd = np.array([0.65, 0.0])
+    decision = stack.yield_decision(pose, crossing)
+    assert decision.v_max_mps == pytest.approx(np.sqrt(0.175), abs=1e-9) and decision.wait_gap_m == pytest.approx(0.225)
+    # a person reaching the path at 4.4 s, after the robot at cruise speed has passed x = 3.75
+    # (2.6 s; the sweep, 0.5 s early, covers x in [2.63, 3.37] at 2.6 s): nothing to yield to
+    assert stack.yield_decision(pose, _tracks([[3.0, 4.2]], [[0.0, -0.5]], [0.3])).v_max_mps == np.inf
+    # gone past, or beyond the horizon: nothing either
+    assert stack.yield_decision(pose, _tracks([[3.0, 1.0]], [[0.0, -0.5]], [0.3])).v_max_mps == np.inf
+    assert stack.yield_decision(pose, _tracks([[3.0, 8.0]], [[0.0, -0.5]], [0.3])).v_max_mps == np.inf
+    # a 0.3 m track walking along the path 0.6 m beside it at 0.3 m/s, 0.85 m ahead of a robot at
+    # cruise speed: within the local planner's margin (0.3 + 0.2 + 0.25 m) it covers the path at
+    # [2.45, 3.35] m and drifts on, the robot must slow at once and nowhere ahead (covered within 3 s)
+    # may it wait -- no plan, the gate stops it short of 2.425 m: sqrt(2 * 0.5 * 0.325) m/s. With
+    # plan_margin_m 0 (the speed plan keeps only both radii clear, 0.5 m) it does not hold the robot
+    beside = _tracks([[2.9, 2.6]], [[0.3, 0.0]], [0.3])
+    decision = stack.yield_decision(pose, beside)
+    assert decision.v_max_mps == pytest.approx(np.sqrt(0.325), abs=1e-9) and decision.wait_gap_m == pytest.approx(0.375)
+    stack.config = dataclasses.replace(stack.config, yielding=dataclasses.replace(stack.config.yielding,
+                                                                                  plan_margin_m=0.0))
+    assert stack.yield_decision(pose, beside).v_max_mps == np.inf
+
 
 def test_speed_cap_keeps_the_arc():
     from slamkit.systems.navigation import speed_capped

@@ -271,7 +271,7 @@ class NavigationStack:
         return speed >= self.config.blocking_speed_mps
 
     def local_world(self, tracks: Tracks, t_s: float = 0.0, hedges: tuple[float, float] | None = None,
-                    turning: bool = False) -> LocalWorld:
+                    turning: bool = False, wall_turn_horizon_s: float | None = None) -> LocalWorld:
         """What the local planner, the evasion, yielding and the safe-stop check see: the walls
         and every track, moving ones grown by ``moving_margin_m``, predicted with the hedge of
         ``prediction_hedge`` (``reversed_prediction_hedge`` for a track that has reversed
@@ -280,8 +280,9 @@ class NavigationStack:
         is unknown: the missing fraction of its typical speed, 1 - |v| / typical, is the least
         hedge it gets (a shuttler at its turn, |v| ~ 0, is predicted by its reachable set).
         A moving track whose prediction runs into a wall within ``wall_turn_horizon_s`` is also
-        predicted turning back there (:meth:`wall_turns`): one more disc per such track, after
-        the tracks' own (:meth:`moving_discs`)."""
+        predicted turning back there (:meth:`wall_turns`; ``wall_turn_horizon_s``: another
+        horizon than the config's): one more disc per such track, after the tracks' own
+        (:meth:`moving_discs`)."""
         c = self.config
         moving = self.moving(tracks)
         plain, reversed_ = (c.prediction_hedge, c.reversed_prediction_hedge) if hedges is None else hedges
@@ -292,7 +293,7 @@ class NavigationStack:
             lam = np.maximum(lam, np.clip(1.0 - speed_now / np.maximum(speed, 1e-9), 0.0, 1.0))
         xy, radius = tracks.xy_m, tracks.radius_m + c.moving_margin_m * moving
         velocity, growth = (1.0 - lam)[:, None] * tracks.velocity_mps, lam * speed
-        k, t_wall = self.wall_turns(xy, velocity, tracks.radius_m, moving)
+        k, t_wall = self.wall_turns(xy, velocity, tracks.radius_m, moving, wall_turn_horizon_s)
         if len(k):
             # the turn back is the predicted path mirrored where it turns: a disc that starts as far
             # beyond that point as the track is before it and comes back at the same speed
@@ -302,17 +303,18 @@ class NavigationStack:
         return LocalWorld(xy, radius, velocity, self.distance, t_s, growth)
 
     def wall_turns(self, xy_m: np.ndarray, velocity_mps: np.ndarray, radius_m: np.ndarray,
-                   moving: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Which moving tracks' predicted paths run into a wall within ``wall_turn_horizon_s``
-        and when they turn: (indices (J,), times (J,) s). Running into a wall means the predicted
+                   moving: np.ndarray, horizon_s: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Which moving tracks' predicted paths run into a wall within ``horizon_s`` (default the
+        config's ``wall_turn_horizon_s``) and when they turn: (indices (J,), times (J,) s). Running into a wall means the predicted
         centre gets within half the track's radius of it (a track walking along a wall does not
         count); it turns ``wall_turn_clearance_m`` short of touching it, measured along its way
         (exact for a wall across it; 0 for one that close already)."""
         c = self.config
+        horizon_s = c.wall_turn_horizon_s if horizon_s is None else horizon_s
         k = np.flatnonzero(moving)
-        if c.wall_turn_horizon_s <= 0 or len(k) == 0:
+        if horizon_s <= 0 or len(k) == 0:
             return np.zeros(0, int), np.zeros(0)
-        tau = np.arange(0.0, c.wall_turn_horizon_s + 1e-9, 0.05)
+        tau = np.arange(0.0, horizon_s + 1e-9, 0.05)
         path = xy_m[k][:, None, :] + tau[None, :, None] * velocity_mps[k][:, None, :]  # (J, T, 2)
         into = self.distance.query(path)[0] <= 0.5 * radius_m[k][:, None]
         hits = into.any(axis=1)

@@ -10,6 +10,9 @@ outside every track's predicted sweep and seen span (the next shuttler's line is
 stop); standing inside one, it goes on when it gets clear in time, or backs off along the way it
 came (its ``trail``, :meth:`record_trail`; :meth:`back_off_place`, :meth:`back_off_aim`,
 :meth:`drive_to`).
+With ``speed_plan`` the crossing is decided by a speed plan along the path against the
+predicted sweeps instead (:meth:`Yielding.planned_speed`), the rules above deciding only where
+no plan keeps clear.
 
 The prediction of the tracks is the stack's (:meth:`NavigationStack.local_world`, with this
 section's hedges); the stack applies the cap (:mod:`.stack`).
@@ -28,6 +31,7 @@ from slamkit.errors import ConfigError
 from slamkit.estimation.obstacle_tracker import Tracks
 from slamkit.geometry.angles import wrap_angle
 from slamkit.geometry.segments import point_segment_distance
+from slamkit.planning.speed_profile import plan_speed_along_path
 
 if TYPE_CHECKING:
     from slamkit.systems.navigation.stack import NavigationStack
@@ -110,9 +114,41 @@ class YieldingConfig:
     #: (``safety.evasion``, where the figures of both are) 9 moving hits in the 270 evaluation runs
     #: against the defaults' 12, 257 successes against 255: off, still no evidence.
     turning: bool = False
+    #: the crossing decision as a speed plan along the path (issue 33): instead of the
+    #: +-``slack_s`` gate at cruise speed, the fastest way along the stretch ahead, at any speed
+    #: up to cruise changing by at most ``decel_mps2``, that keeps ``plan_slack_s`` before or after
+    #: every predicted sweep (:meth:`sweep`) and stands still only at waiting places
+    #: (:func:`~slamkit.planning.speed_profile.plan_speed_along_path`); its next speed caps the
+    #: command. Where no such plan exists the gate's rules (wait, leave, back off) decide.
+    #: Why: with turns predicted (``span_shuttle`` and the stack's ``wall_turn_horizon_s``) the gate
+    #: halved the moving hits but found no window to cross in (timeouts 1 -> 28 of 270). Measured on
+    #: development seeds 3000-3089 x 3 worlds, paired with the defaults' 245 / 21 / 3 / 1
+    #: (successes / moving / static / timeouts), all with both turn predictions and
+    #: ``reversed_hedge`` 0 (a hedge growing with the look-ahead covers the whole future: no plan):
+    #: ``plan_margin_m`` None 243 / 11 / 1 / 15 (hits 16 removed, 6 new, sign test p 0.05; Willow
+    #: 12 timeouts: a track walking beside the path inside the 0.25 m margin blocks the robot's own
+    #: place); ``plan_slack_s`` 1.0 241 / 16 / 1 / 12; no wall turns 244 / 20 / 1 / 5; wall turns for
+    #: yielding only 242 / 13 / 3 / 12; ``plan_margin_m`` 0 248 / 17 / 1 / 4; **0.1: 249 / 15 / 1 / 5**
+    #: (hits 17 removed, 11 new, p 0.35; successes 15 better, 11 worse, p 0.56)
+    speed_plan: bool = False
+    plan_slack_s: float = 0.5
+    #: the speed plan's time step
+    plan_dt_s: float = 0.2
+    #: the clearance the speed plan keeps from a moving track beyond both radii (None: the local
+    #: planner's ``moving_margin_m``); ``plan_slack_s`` is its margin in time
+    plan_margin_m: float | None = None
+    #: yielding's sweep predicts tracks turning back short of walls over this horizon
+    #: (``NavigationConfig.wall_turn_horizon_s`` for yielding alone; None: the stack's)
+    wall_turn_horizon_s: float | None = None
 
     def __post_init__(self) -> None:
-        for name in ("wait_margin_m", "back_off_m", "escape_slack_s", "wait_horizon_s"):
+        if self.wall_turn_horizon_s is not None and not 0.0 <= self.wall_turn_horizon_s <= 20.0:
+            raise ConfigError(f"YieldingConfig.wall_turn_horizon_s must lie in [0, 20] s, got {self.wall_turn_horizon_s}")
+        if self.plan_margin_m is not None and not 0.0 <= self.plan_margin_m <= 2.0:
+            raise ConfigError(f"YieldingConfig.plan_margin_m must lie in [0, 2] m, got {self.plan_margin_m}")
+        if not 0.0 < self.plan_dt_s <= 1.0:
+            raise ConfigError(f"YieldingConfig.plan_dt_s must lie in (0, 1] s, got {self.plan_dt_s}")
+        for name in ("wait_margin_m", "back_off_m", "escape_slack_s", "wait_horizon_s", "plan_slack_s"):
             if not getattr(self, name) >= 0:
                 raise ConfigError(f"YieldingConfig.{name} must be >= 0, got {getattr(self, name)}")
         for name in ("reversed_hedge", "hedge"):
@@ -182,7 +218,8 @@ class Yielding:
         robot radius: closer, the robot touches it)."""
         c, stack = self.config, self.stack
         moving = np.flatnonzero(self.moving(tracks))
-        world = stack.local_world(tracks, stack.now_s, hedges=(c.hedge, c.reversed_hedge), turning=c.turning)
+        world = stack.local_world(tracks, stack.now_s, hedges=(c.hedge, c.reversed_hedge), turning=c.turning,
+                                  wall_turn_horizon_s=c.wall_turn_horizon_s)
         discs = np.flatnonzero(stack.moving_discs(tracks, world, typical=c.turning))
         centres = world.circles_at(tau_s)[:, discs]
         reach = world.radii_at(tau_s)[:, discs] + stack.config.robot_radius_m
@@ -257,6 +294,12 @@ class Yielding:
         n = max(int(np.sum(s - s0 < c.lookahead_m)), min(next_place + 1, len(s)))
         s, ahead = s[:n], ahead[:n]
         occupied = np.linalg.norm(ahead[:, None, None, :] - centres[None], axis=-1) <= reach[None]  # (S, T, M)
+        if c.speed_plan and occupied.any():
+            closer = 0.0 if c.plan_margin_m is None else nav.moving_margin_m - c.plan_margin_m
+            near = np.linalg.norm(ahead[:, None, None, :] - centres[None], axis=-1) <= reach[None] - closer
+            planned = self.planned_speed(s - s0, near.any(axis=2), place[:n], tau)
+            if planned is not None:
+                return planned
         lag = tau[None, :, None] - ((s - s0) / nav.cruise_speed_mps)[:, None, None]  # sweep time - robot time
         conflict = (occupied & (np.abs(lag) <= c.slack_s)).any(axis=(0, 1))  # (M,)
         if not conflict.any():
@@ -277,6 +320,37 @@ class Yielding:
         first = np.argmax(occupied[:, :, conflict].any(axis=1), axis=0)  # first occupied point per sweep
         gap = float(s[first.min()] - s0)
         return YieldDecision(math.sqrt(2.0 * c.decel_mps2 * max(gap - 0.05, 0.0)), gap)
+
+    def planned_speed(self, arc_m: np.ndarray, occupied: np.ndarray, place: np.ndarray,
+                      tau_s: np.ndarray) -> YieldDecision | None:
+        """The speed plan's decision (``speed_plan``): ``occupied`` (S, T) where the sweep (its
+        discs with ``plan_margin_m`` for the local planner's margin) covers the stretch's points at
+        ``arc_m`` (S,) ahead at the look-ahead times ``tau_s`` (T,, 0.1 s apart), ``place`` (S,)
+        where the robot may wait. The blocked table is the sweep grown by
+        ``plan_slack_s`` each way in time, sampled every ``plan_dt_s``; the plan is to get past
+        the stretch's end (at most as far as cruise speed gets in the horizon less 1 s).
+        +inf when the plan is a free path's (full acceleration to cruise), its next speed
+        otherwise; None when no plan exists."""
+        c, nav = self.config, self.stack.config
+        if len(tau_s) < 2 or len(arc_m) < 2:  # no look-ahead to plan over
+            return None
+        dtau = float(tau_s[1] - tau_s[0])
+        grow = int(round(c.plan_slack_s / dtau))
+        occ = occupied.T  # (T, S)
+        blocked = occ.copy()
+        for shift in range(1, grow + 1):
+            blocked[shift:] |= occ[:-shift]
+            blocked[:-shift] |= occ[shift:]
+        stride = max(int(round(c.plan_dt_s / dtau)), 1)
+        blocked = blocked[::stride]
+        dt = stride * dtau
+        v0 = min(max(float(self.stack.last_command[0]), 0.0), nav.cruise_speed_mps)
+        horizon = (len(blocked) - 1) * dt
+        goal = min(float(arc_m[-1]), nav.cruise_speed_mps * max(horizon - 1.0, dt))
+        plan = plan_speed_along_path(blocked, place, float(arc_m[1] - arc_m[0]), dt, v0, nav.cruise_speed_mps, c.decel_mps2, goal)
+        if not plan.feasible:
+            return None
+        return YieldDecision(math.inf if plan.unhindered else plan.next_speed_mps)
 
     def back_off_place(self, pose: np.ndarray, tracks: Tracks, centres: np.ndarray, reach: np.ndarray,
                        tau_s: np.ndarray, wait: np.ndarray) -> np.ndarray | None:
