@@ -293,11 +293,11 @@ class Yielding:
         next_place = first_not + int(np.argmax(place[first_not:])) if place[first_not:].any() else len(s)
         n = max(int(np.sum(s - s0 < c.lookahead_m)), min(next_place + 1, len(s)))
         s, ahead = s[:n], ahead[:n]
-        occupied = np.linalg.norm(ahead[:, None, None, :] - centres[None], axis=-1) <= reach[None]  # (S, T, M)
+        distance = np.linalg.norm(ahead[:, None, None, :] - centres[None], axis=-1)  # (S, T, M)
+        occupied = distance <= reach[None]
         if c.speed_plan and occupied.any():
             closer = 0.0 if c.plan_margin_m is None else nav.moving_margin_m - c.plan_margin_m
-            near = np.linalg.norm(ahead[:, None, None, :] - centres[None], axis=-1) <= reach[None] - closer
-            planned = self.planned_speed(s - s0, near.any(axis=2), place[:n], tau)
+            planned = self.planned_speed(s - s0, (distance <= reach[None] - closer).any(axis=2), place[:n], tau)
             if planned is not None:
                 return planned
         lag = tau[None, :, None] - ((s - s0) / nav.cruise_speed_mps)[:, None, None]  # sweep time - robot time
