@@ -45,11 +45,12 @@ def plan_speed_along_path(blocked: np.ndarray, rest: np.ndarray, spacing_m: floa
     """The earliest way along a path past ``goal_m`` that keeps off blocked cells.
 
     ``blocked`` (K + 1, S): cell i (the path point at arc length i ``spacing_m`` from the robot)
-    is covered at time k ``dt_s``. ``rest`` (S,): the robot may stand still at point i. The robot
-    starts at arc 0 at ``speed0_mps``; each step of ``dt_s`` its speed changes by at most
-    ``accel_mps2 dt_s`` (speed levels ``speed_max_mps`` / n, n the fewest with a level step <=
-    that), within [0, ``speed_max_mps``], never backing up; it moves the step's mean speed times
-    ``dt_s``. A state (arc, speed) at step k is allowed when its point is not blocked at k and
+    is covered at time k ``dt_s`` (an arc past the last point counts as the last point). ``rest``
+    (S,): the robot may stand still at point i. The robot starts at arc 0 at ``speed0_mps``
+    (clipped to [0, ``speed_max_mps``], on the nearest level); each step of ``dt_s`` its speed
+    changes by at most ``accel_mps2 dt_s`` (speed levels ``speed_max_mps`` / n, n the fewest with
+    a level step <= that), within [0, ``speed_max_mps``], never backing up; it moves the step's
+    mean speed times ``dt_s``. A state (arc, speed) at step k is allowed when its point is not blocked at k and
     -- at speed 0 -- it may rest there. It ends the horizon past ``goal_m``, or where it can
     still stop (at ``accel_mps2``) before the next point it may not rest on.
 
