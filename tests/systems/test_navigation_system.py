@@ -565,6 +565,29 @@ def test_yielding_waits_outside_every_sweep_and_seen_span_and_backs_off_to_such_
     assert d.back_off_xy_m is None and d.wait_gap_m == pytest.approx(1.275, abs=1e-9)
 
 
+def test_speed_plan_may_wait_where_it_stands_inside_a_span_when_nothing_is_predicted_there():
+    # the robot stands at x = 2 inside B's seen span (|x - 2.2| <= 0.7 of the path, no waiting
+    # place), A (r 0.3) crossing x = 3 downwards at 0.5 m/s covers the path from x = 2.25 m between
+    # 1.5 and 4.5 s (1 and 5 s with the plan's 0.5 s slack); the next waiting place is past A. The
+    # robot cannot stop in B's span, and creeping on at the lowest speed level (0.65 / 7 m/s) it
+    # reaches x = 2.25 within A's sweep and no waiting place by 6 s: no plan, so the gate stops it short of A, at x = 2.3 less
+    # 5 cm: sqrt(2 * 0.5 * 0.25) = 0.5 m/s. With plan_rest_in_place it may wait where it stands
+    # (nothing is predicted at x = 2 within the horizon): the plan inches within its own 7.5 cm
+    # cell and waits there, one speed level now
+    b = ([2.2, 3.5], [0.0, 0.3], 0.25, [[2.2, 0.5], [2.2, 3.5]])
+    a = ([3.0, 3.5], [0.0, -0.5], 0.3, [[3.0, 3.5], [3.0, 3.5]])
+    tracks = _line_tracks([b[0], a[0]], [b[1], a[1]], [b[2], a[2]], [b[3], a[3]])
+    stack = _straight_stack(0.8)
+    stack.path = np.array([[0.8, 2.0], [5.5, 2.0]])
+    pose = np.array([2.0, 2.0, 0.0])
+    yielding = dataclasses.replace(stack.config.yielding, speed_plan=True)
+    stack.config = dataclasses.replace(stack.config, yielding=yielding)
+    d = stack.yield_decision(pose, tracks)
+    assert d.v_max_mps == pytest.approx(0.5, abs=1e-9) and d.wait_gap_m == pytest.approx(0.3, abs=1e-9)
+    stack.config = dataclasses.replace(stack.config, yielding=dataclasses.replace(yielding, plan_rest_in_place=True))
+    assert stack.yield_decision(pose, tracks).v_max_mps == pytest.approx(0.65 / 7, abs=1e-12)
+
+
 def test_a_rollout_held_at_its_end_meets_a_track_walking_into_where_it_stops():
     from slamkit.control.protocols import ControlOutput, ControlStatus, RobotState
 
