@@ -50,9 +50,9 @@ def plan_speed_along_path(blocked: np.ndarray, rest: np.ndarray, spacing_m: floa
     (clipped to [0, ``speed_max_mps``], on the nearest level); each step of ``dt_s`` its speed
     changes by at most ``accel_mps2 dt_s`` (speed levels ``speed_max_mps`` / n, n the fewest with
     a level step <= that), within [0, ``speed_max_mps``], never backing up; it moves the step's
-    mean speed times ``dt_s``. A state (arc, speed) at step k is allowed when its point is not blocked at k and
-    -- at speed 0 -- it may rest there. It ends the horizon past ``goal_m``, or where it can
-    still stop (at ``accel_mps2``) before the next point it may not rest on.
+    mean speed times ``dt_s``. A state (arc, speed) at step k is allowed when its point is not
+    blocked at k and -- at speed 0 -- it may rest there. It ends the horizon past ``goal_m``, or
+    where it can still stop (at ``accel_mps2``) before the next point it may not rest on.
 
     The search keeps one state per (``bucket_m`` of arc, speed level) each step -- the one whose
     first step is fastest -- so it is exact up to that bucket. Of the plans that get past

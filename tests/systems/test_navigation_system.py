@@ -532,17 +532,25 @@ def _line_tracks(xy, velocity, radius, span, reversals=(0, 0)):
                   np.tile(np.eye(4), (n, 1, 1)), reversals=np.asarray(reversals), span_xy_m=np.asarray(span, float))
 
 
+def _span_and_crossing(crossing_x_m: float):
+    """Track B (r 0.25) seen walking up x = 2.2 from y = 0.5 to 3.5 and walking on, away; track A
+    (r 0.3) at (crossing_x_m, 3.5) walking down at 0.5 m/s; a stack at x = 0.8 whose path runs along
+    y = 2 to x = 5.5. Returns (stack, tracks)."""
+    b = ([2.2, 3.5], [0.0, 0.3], 0.25, [[2.2, 0.5], [2.2, 3.5]])
+    a = ([crossing_x_m, 3.5], [0.0, -0.5], 0.3, [[crossing_x_m, 3.5], [crossing_x_m, 3.5]])
+    tracks = _line_tracks([b[0], a[0]], [b[1], a[1]], [b[2], a[2]], [b[3], a[3]])
+    stack = _straight_stack(0.8)
+    stack.path = np.array([[0.8, 2.0], [5.5, 2.0]])
+    return stack, tracks
+
+
 def test_yielding_waits_outside_every_sweep_and_seen_span_and_backs_off_to_such_a_place():
     # the path along y = 2 from x = 0.8. Track B (r 0.25) has been seen walking up x = 2.2 from
     # y = 0.5 to 3.5 and walks on, away: its sweep is no conflict, but its seen span grown by
     # r + 0.25 (moving margin) + 0.2 (robot) covers |x - 2.2| <= 0.7 of the path. Track A (r 0.3,
     # at (4, 3.5), walking down at 0.5 m/s) crosses the path at x = 4 when the robot would get
     # there: a conflict, whose sweep starts at x = 3.25
-    b = ([2.2, 3.5], [0.0, 0.3], 0.25, [[2.2, 0.5], [2.2, 3.5]])
-    a = ([4.0, 3.5], [0.0, -0.5], 0.3, [[4.0, 3.5], [4.0, 3.5]])
-    tracks = _line_tracks([b[0], a[0]], [b[1], a[1]], [b[2], a[2]], [b[3], a[3]])
-    stack = _straight_stack(0.8)
-    stack.path = np.array([[0.8, 2.0], [5.5, 2.0]])
+    stack, tracks = _span_and_crossing(4.0)
     # standing at x = 0.8 (a waiting place) it stops short of B's span, not between B and A: the
     # path is sampled every 0.075 m, x = 1.475 is the first sample within the 5 cm wait margin
     # (0.025 m clear), gap 0.675 m, stop 5 cm short: v = sqrt(2 * 0.5 * 0.625)
@@ -570,15 +578,11 @@ def test_speed_plan_may_wait_where_it_stands_inside_a_span_when_nothing_is_predi
     # place), A (r 0.3) crossing x = 3 downwards at 0.5 m/s covers the path from x = 2.25 m between
     # 1.5 and 4.5 s (1 and 5 s with the plan's 0.5 s slack); the next waiting place is past A. The
     # robot cannot stop in B's span, and creeping on at the lowest speed level (0.65 / 7 m/s) it
-    # reaches x = 2.25 within A's sweep and no waiting place by 6 s: no plan, so the gate stops it short of A, at x = 2.3 less
-    # 5 cm: sqrt(2 * 0.5 * 0.25) = 0.5 m/s. With plan_rest_in_place it may wait where it stands
+    # reaches x = 2.25 within A's sweep and no waiting place by 6 s: no plan, so the gate stops it
+    # short of A, at x = 2.3 less 5 cm: sqrt(2 * 0.5 * 0.25) = 0.5 m/s. With plan_rest_in_place it may wait where it stands
     # (nothing is predicted at x = 2 within the horizon): the plan inches within its own 7.5 cm
     # cell and waits there, one speed level now
-    b = ([2.2, 3.5], [0.0, 0.3], 0.25, [[2.2, 0.5], [2.2, 3.5]])
-    a = ([3.0, 3.5], [0.0, -0.5], 0.3, [[3.0, 3.5], [3.0, 3.5]])
-    tracks = _line_tracks([b[0], a[0]], [b[1], a[1]], [b[2], a[2]], [b[3], a[3]])
-    stack = _straight_stack(0.8)
-    stack.path = np.array([[0.8, 2.0], [5.5, 2.0]])
+    stack, tracks = _span_and_crossing(3.0)
     pose = np.array([2.0, 2.0, 0.0])
     yielding = dataclasses.replace(stack.config.yielding, speed_plan=True)
     stack.config = dataclasses.replace(stack.config, yielding=yielding)

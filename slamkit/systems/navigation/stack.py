@@ -307,8 +307,9 @@ class NavigationStack:
         """Which moving tracks' predicted paths run into a wall within ``horizon_s`` (default the
         config's ``wall_turn_horizon_s``) and when they turn: (indices (J,), times (J,) s).
         Running into a wall means the predicted centre gets within half the track's radius of it
-        (a track walking along a wall does not count); it turns ``wall_turn_clearance_m`` short of touching it, measured along its way
-        (exact for a wall across it; 0 for one that close already)."""
+        (a track walking along a wall does not count); it turns ``wall_turn_clearance_m`` short of
+        touching it, measured along its way (exact for a wall across it; 0 for one that close
+        already)."""
         c = self.config
         horizon_s = c.wall_turn_horizon_s if horizon_s is None else horizon_s
         k = np.flatnonzero(moving)

@@ -362,7 +362,8 @@ class Yielding:
         if c.plan_rest_in_place and not place[0] and not blocked[:, 0].any():
             place = place.copy()
             place[0] = True  # nothing predicted where it stands: it may wait there for a window
-        plan = plan_speed_along_path(blocked, place, float(arc_m[1] - arc_m[0]), dt, v0, nav.cruise_speed_mps, c.decel_mps2, goal)
+        plan = plan_speed_along_path(blocked, place, float(arc_m[1] - arc_m[0]), dt, v0, nav.cruise_speed_mps,
+                                     c.decel_mps2, goal)
         if not plan.feasible:
             return None
         return YieldDecision(math.inf if plan.unhindered else plan.next_speed_mps)
