@@ -592,6 +592,28 @@ def test_speed_plan_may_wait_where_it_stands_inside_a_span_when_nothing_is_predi
     assert stack.yield_decision(pose, tracks).v_max_mps == pytest.approx(0.65 / 7, abs=1e-12)
 
 
+def test_the_goal_approach_slows_in_proportion_to_the_distance():
+    # the regulator drives within 0.35 m of the goal: at 0.2 m, straight ahead, the approach speed
+    # 0.15 m/s (0.8 / s * 0.2 m = 0.16 is more); at 0.1 m, 0.8 * 0.1 = 0.08 m/s; with
+    # approach_gain_per_s 3, 0.15 again (0.3); within the 1 cm stop tolerance it turns instead
+    def approach_v(d_m: float, gain: float = 0.8) -> float:
+        stack = _straight_stack(1.0)
+        stack.config = dataclasses.replace(stack.config, goal=dataclasses.replace(stack.config.goal,
+                                                                                  approach_gain_per_s=gain))
+        stack.set_goal([1.0 + d_m, 2.0, 0.0])
+        out = stack.regulator.regulate(np.array([1.0, 2.0, 0.0]), d_m, _tracks(np.zeros((0, 2)), np.zeros((0, 2)), []))
+        assert out.status == "approach" and out.command[1] == 0.0
+        return float(out.command[0])
+
+    assert approach_v(0.2) == pytest.approx(0.15, abs=1e-9)
+    assert approach_v(0.1) == pytest.approx(0.08, abs=1e-9)
+    assert approach_v(0.1, 3.0) == pytest.approx(0.15, abs=1e-9)
+    assert approach_v(0.03, 3.0) == pytest.approx(0.09, abs=1e-9)
+    for bad in (0.0, -1.0, float("nan")):
+        with pytest.raises(ConfigError, match="approach_gain_per_s"):
+            dataclasses.replace(NavigationConfig().goal, approach_gain_per_s=bad)
+
+
 def test_a_rollout_held_at_its_end_meets_a_track_walking_into_where_it_stops():
     from slamkit.control.protocols import ControlOutput, ControlStatus, RobotState
 

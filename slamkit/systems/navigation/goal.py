@@ -33,12 +33,16 @@ REGULATOR_PHASES = (CommandStatus.APPROACH, CommandStatus.ALIGNING, CommandStatu
 class GoalConfig:
     approach_radius_m: float = 0.35
     approach_speed_mps: float = 0.15
+    #: within ``approach_speed_mps / approach_gain_per_s`` of the goal the approach speed falls in
+    #: proportion to the distance (1 / s; the approach then closes exponentially, with this
+    #: rate: from 0.19 m to ``stop_tolerance_m`` takes ln(19) / 0.8 = 3.7 s at 0.8)
+    approach_gain_per_s: float = 0.8
     #: the regulator stops driving when the estimate is this close, then turns in place
     stop_tolerance_m: float = 0.01
     heading_tolerance_rad: float = 0.05
 
     def __post_init__(self) -> None:
-        for name in ("approach_radius_m", "stop_tolerance_m", "heading_tolerance_rad"):
+        for name in ("approach_radius_m", "stop_tolerance_m", "heading_tolerance_rad", "approach_gain_per_s"):
             if not getattr(self, name) > 0:
                 raise ConfigError(f"GoalConfig.{name} must be > 0, got {getattr(self, name)}")
 
@@ -83,7 +87,7 @@ class GoalRegulator:
                 if abs(bearing) > 0.4:
                     cmd = np.array([0.0, float(np.clip(1.5 * bearing, -0.8, 0.8))])
                 else:
-                    v = min(c.approach_speed_mps, 0.8 * d_goal) * math.cos(bearing)
+                    v = min(c.approach_speed_mps, c.approach_gain_per_s * d_goal) * math.cos(bearing)
                     cmd = np.array([v, float(np.clip(2.0 * bearing, -0.8, 0.8))])
         if self.phase in (CommandStatus.ALIGNING, CommandStatus.GOAL_REACHED):
             e = float(wrap_angle(goal[2] - pose[2]))
