@@ -592,6 +592,34 @@ def test_speed_plan_may_wait_where_it_stands_inside_a_span_when_nothing_is_predi
     assert stack.yield_decision(pose, tracks).v_max_mps == pytest.approx(0.65 / 7, abs=1e-12)
 
 
+def test_yielding_back_off_goes_no_deeper_into_a_lane_with_back_off_outward():
+    # the scene of the waiting-places test, the robot at x = 2.6 having come along y = 2 from
+    # x = 0.98 (trail every 5 cm): it has crossed B's line (x = 2.2) and stands 0.4 m past it, still
+    # inside its span grown by the margins (0.7 m). Going on would meet A: it backs off along its
+    # trail to the nearest place 5 cm clear of B's span, x = 1.43 -- back across B's line. With
+    # back_off_outward that way goes deeper into the span (clearance -0.7 m on the line against
+    # -0.3 m where it stands): no back-off, the gate stops it short of A's sweep (from x = 3.25,
+    # first covered sample 2.6 + 9 * 0.075 = 3.275): gap 0.675 m, v = sqrt(2 * 0.5 * 0.625)
+    stack, tracks = _span_and_crossing(4.0)
+    pose = np.array([2.6, 2.0, 0.0])
+    trail = [np.array([x, 2.0]) for x in 0.98 + 0.05 * np.arange(33)]
+    stack.yielding.trail = list(trail)
+    d = stack.yield_decision(pose, tracks)
+    assert d.v_max_mps == 0.0
+    np.testing.assert_allclose(d.back_off_xy_m, [1.43, 2.0], atol=1e-9)
+    stack.config = dataclasses.replace(stack.config, yielding=dataclasses.replace(stack.config.yielding,
+                                                                                  back_off_outward=True))
+    stack.yielding.trail = list(trail)
+    d = stack.yield_decision(pose, tracks)
+    assert d.back_off_xy_m is None and d.wait_gap_m == pytest.approx(0.675, abs=1e-9)
+    assert d.v_max_mps == pytest.approx(np.sqrt(0.625), abs=1e-9)
+    # standing inside the span on the side it came from (x = 2), the way back leads out of it:
+    # the same back-off to x = 1.42 as without
+    stack.yielding.trail = [np.array([x, 2.0]) for x in 0.82 + 0.05 * np.arange(24)]
+    np.testing.assert_allclose(stack.yield_decision(np.array([2.0, 2.0, 0.0]), tracks).back_off_xy_m, [1.42, 2.0],
+                               atol=1e-9)
+
+
 def test_the_goal_approach_slows_in_proportion_to_the_distance():
     # the regulator drives within 0.35 m of the goal: at 0.2 m, straight ahead, the approach speed
     # 0.15 m/s (0.8 / s * 0.2 m = 0.16 is more); at 0.1 m, 0.8 * 0.1 = 0.08 m/s; with

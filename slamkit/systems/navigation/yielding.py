@@ -152,6 +152,19 @@ class YieldingConfig:
     #: yielding's sweep predicts tracks turning back short of walls over this horizon
     #: (``NavigationConfig.wall_turn_horizon_s`` for yielding alone; None: the stack's)
     wall_turn_horizon_s: float | None = None
+    #: a back-off goes no deeper into any sweep or seen span than where the robot stands (a
+    #: trail that crossed a lane leads back across it: issue 33, Willow development seed 3016, the
+    #: robot 0.66 m beside a shuttler's line -- clear of it, inside its span grown by the margins --
+    #: backed along its trail onto the line as the shuttler turned back at its end; 6 of the speed
+    #: plan's 15 moving hits on development seeds 3000-3089 were the robot backing, by the back-off
+    #: or the held evasion, into a lane). Measured with the speed plan (``plan_margin_m`` 0.1, both
+    #: turn predictions), paired with it without on those seeds (successes / moving / static /
+    #: timeouts of 270; both with a goal rule since dropped, which changed 2 of the 270 outcomes):
+    #: 246 / 13 / 1 / 10 against 248 / 15 / 1 / 6 -- hits 7 removed (the 5 traced ones still hit
+    #: without it among them), 5 new, Willow timeouts 6 -> 9 (refused a back-off, the robot stands); with the
+    #: gate (the defaults, and that goal rule) 242 / 24 / 3 / 1 against 245 / 21 / 3 / 1. Off: no
+    #: evidence that it helps
+    back_off_outward: bool = False
 
     def __post_init__(self) -> None:
         if self.wall_turn_horizon_s is not None and not 0.0 <= self.wall_turn_horizon_s <= 20.0:
@@ -372,18 +385,22 @@ class Yielding:
                        tau_s: np.ndarray, wait: np.ndarray) -> np.ndarray | None:
         """The nearest place on the way the robot came (its trail, newest first, within
         ``back_off_m``) that is ``wait_margin_m`` clear of every sweep and span, if the
-        robot gets there at ``back_off_speed_mps`` without touching the predicted sweep."""
+        robot gets there at ``back_off_speed_mps`` without touching the predicted sweep (and,
+        with ``back_off_outward``, without going deeper into a sweep or span on the way)."""
         c, stack = self.config, self.stack
         if not self.trail:
             return None
         way = np.vstack([pose[None, :2], np.asarray(self.trail)[::-1]])
         arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(way, axis=0), axis=1))])
         way, arc = way[arc <= c.back_off_m], arc[arc <= c.back_off_m]
-        ok = self.wait_clearance_m(way, tracks, centres[wait], reach[wait]) > c.wait_margin_m
+        clear = self.wait_clearance_m(way, tracks, centres[wait], reach[wait])
+        ok = clear > c.wait_margin_m
         ok[0] = False
         if not ok.any():
             return None
         j = int(np.argmax(ok))
+        if c.back_off_outward and (clear[1:j] < clear[0] - 0.02).any():  # 2 cm: the trail's wiggle
+            return None
         # on the way there: first the stop from the current speed (at the controller's
         # acceleration, on along the path), then back at the back-off speed; against the sweep
         # at each time (its last past the horizon)
