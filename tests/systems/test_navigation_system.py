@@ -642,6 +642,38 @@ def test_the_goal_approach_slows_in_proportion_to_the_distance():
             dataclasses.replace(NavigationConfig().goal, approach_gain_per_s=bad)
 
 
+def test_lane_cost_makes_the_global_path_leave_a_moving_tracks_line():
+    from slamkit.geometry.segments import point_segment_distance
+
+    # a 0.3 m person at (3, 2) walking +x at 0.5 m/s, along the straight path from (1, 2) to the
+    # goal (5, 2): its lane is its way over 6 s, (3, 2)-(6, 2), grown by its radius, the 0.25 m
+    # moving margin and the robot's 0.2 m (0.75 m). Without lane_cost the path runs 2.75 m inside
+    # it (x from 2.25 to the goal); with lane_cost 1 (those cells cost twice) it keeps beside the
+    # lane (y ~ 2.78) and enters it only for the goal: under 1 m inside, 0.6 m longer in all
+    def plan(lane_cost: float):
+        stack = NavigationStack(_room())
+        stack.config = dataclasses.replace(stack.config, planning=dataclasses.replace(stack.config.planning,
+                                                                                      lane_cost=lane_cost))
+        stack.reset([1.0, 2.0, 0.0], np.diag([1e-4, 1e-4, 1e-4]))
+        stack.set_goal([5.0, 2.0, 0.0])
+        person = _tracks([[3.0, 2.0]], [[0.5, 0.0]], [0.3])
+        assert stack.planning.plan(np.array([1.0, 2.0, 0.0]), np.diag([1e-4] * 3), person, np.zeros(0, int))
+        inside = point_segment_distance(stack.path, np.array([[3.0, 2.0]]), np.array([[6.0, 2.0]]))[:, 0] <= 0.75
+        step = np.linalg.norm(np.diff(stack.path, axis=0), axis=1)
+        return stack, person, float(step.sum()), float(step[inside[1:] & inside[:-1]].sum())
+
+    _, _, length, in_lane = plan(0.0)
+    assert length == pytest.approx(4.0, abs=0.06) and in_lane == pytest.approx(2.75, abs=0.06)
+    stack, person, length_lane, in_lane = plan(1.0)
+    assert in_lane < 1.0 and length_lane - length == pytest.approx(0.6, abs=0.1)
+    lanes = stack.planning.lane_cells(person)
+    cells = stack.grid.world_to_cell(np.array([[4.0, 2.0], [4.0, 2.8], [2.2, 2.0], [5.9 - 0.05, 2.7]]))
+    assert lanes[cells[:, 1], cells[:, 0]].tolist() == [True, False, False, True]
+    assert plan(0.0)[0].planning.lane_cells(person) is None
+    with pytest.raises(ConfigError, match="lane_cost"):
+        dataclasses.replace(stack.config.planning, lane_cost=float("nan"))
+
+
 def test_a_rollout_held_at_its_end_meets_a_track_walking_into_where_it_stops():
     from slamkit.control.protocols import ControlOutput, ControlStatus, RobotState
 
