@@ -54,11 +54,16 @@ class DetectorConfig:
 
 @dataclass(frozen=True)
 class Detection:
-    """Discs found in one scan: ``xy_m`` (K, 2) centres, ``radius_m`` (K,), ``n_points`` (K,)."""
+    """Discs found in one scan: ``xy_m`` (K, 2) centres, ``radius_m`` (K,), ``n_points`` (K,);
+    with the points each was found from, ``points_xy_m`` (K arrays (N_k, 2); empty: not kept)
+    and the sensor's position ``sensor_xy_m`` (2,), a tracker may place the centres again with
+    a better radius (:func:`fit_centre_known_radius`)."""
 
     xy_m: np.ndarray
     radius_m: np.ndarray
     n_points: np.ndarray
+    points_xy_m: tuple[np.ndarray, ...] = ()
+    sensor_xy_m: np.ndarray | None = None
 
 
 def unexplained_points(world_xytheta_body: np.ndarray, angles_rad: np.ndarray, ranges_m: np.ndarray,
@@ -85,11 +90,12 @@ def cluster_points(points_xy_m: np.ndarray, sensor_xy_m: np.ndarray, config: Det
     # a full 360-degree scan wraps: the last cluster may continue the first
     if labels[-1] > 0 and np.linalg.norm(pts[-1] - pts[0]) <= config.cluster_gap_m:
         labels[labels == labels[-1]] = 0
-    centres, radii, counts = [], [], []
+    centres, radii, counts, members = [], [], [], []
     for k in np.unique(labels):
         c = pts[labels == k]
         if len(c) < config.min_points:
             continue
+        members.append(c)
         extent = float(np.linalg.norm(c.max(axis=0) - c.min(axis=0)))
         radius = float(np.clip(0.5 * extent, config.min_radius_m, config.max_radius_m))
         rel = c - np.asarray(sensor_xy_m, float)
@@ -101,14 +107,18 @@ def cluster_points(points_xy_m: np.ndarray, sensor_xy_m: np.ndarray, config: Det
         counts.append(len(c))
     if not centres:
         return Detection(np.zeros((0, 2)), np.zeros(0), np.zeros(0, dtype=int))
-    return merge_overlapping(np.array(centres), np.array(radii), np.array(counts), config.max_radius_m)
+    merged = merge_overlapping(np.array(centres), np.array(radii), np.array(counts), config.max_radius_m, members)
+    return Detection(merged.xy_m, merged.radius_m, merged.n_points, merged.points_xy_m,
+                     np.asarray(sensor_xy_m, float).reshape(2).copy())
 
 
 def merge_overlapping(xy_m: np.ndarray, radius_m: np.ndarray, n_points: np.ndarray,
-                      max_radius_m: float) -> Detection:
+                      max_radius_m: float, points_xy_m: list[np.ndarray] | None = None) -> Detection:
     """Discs that overlap are one obstacle seen in pieces (a wall or another obstacle hid part
-    of it): merged into the smallest disc around both (capped at ``max_radius_m``), repeatedly."""
+    of it): merged into the smallest disc around both (capped at ``max_radius_m``), repeatedly;
+    their points (``points_xy_m``, one array per disc) are joined."""
     xy, r, n = [p for p in xy_m], list(radius_m), list(n_points)
+    pts = list(points_xy_m) if points_xy_m is not None else []
     merged = True
     while merged and len(xy) > 1:
         merged = False
@@ -123,11 +133,40 @@ def merge_overlapping(xy_m: np.ndarray, radius_m: np.ndarray, n_points: np.ndarr
                         c = xy[i] + (rad - r[i]) * (xy[j] - xy[i]) / max(d, 1e-12)
                     xy[i], r[i], n[i] = c, min(rad, max_radius_m), n[i] + n[j]
                     del xy[j], r[j], n[j]
+                    if pts:
+                        pts[i] = np.vstack([pts[i], pts[j]])
+                        del pts[j]
                     merged = True
                     break
             if merged:
                 break
-    return Detection(np.array(xy).reshape(-1, 2), np.array(r, float), np.array(n, dtype=int))
+    return Detection(np.array(xy).reshape(-1, 2), np.array(r, float), np.array(n, dtype=int), tuple(pts))
+
+
+def fit_centre_known_radius(points_xy_m: np.ndarray, radius_m: float, centre0_xy_m: np.ndarray,
+                            sensor_xy_m: np.ndarray, iterations: int = 10) -> np.ndarray:
+    """The centre of a circle of known ``radius_m`` through a lidar's points (N, 2) on its near
+    side: least squares on the points' distances to the circle, sum (|p - c| - R)^2, by
+    Gauss-Newton from ``centre0_xy_m``. A short arc pins the centre along the line of sight by
+    the radius rather than by the arc's own (noisy, too flat) extent. The mirror solution in
+    front of the arc (nearer the sensor than the nearest point) is refused: ``centre0_xy_m``."""
+    p = np.asarray(points_xy_m, float).reshape(-1, 2)
+    x = np.asarray(centre0_xy_m, float).reshape(2).copy()
+    for _ in range(iterations):
+        d = p - x
+        n = np.maximum(np.linalg.norm(d, axis=1), 1e-9)
+        J = -d / n[:, None]
+        A = J.T @ J
+        if len(p) < 2 or np.linalg.cond(A) > 1e8:
+            break
+        step = -np.linalg.solve(A, J.T @ (n - radius_m))
+        x = x + step
+        if np.linalg.norm(step) < 1e-6:
+            break
+    sensor = np.asarray(sensor_xy_m, float).reshape(2)
+    if not np.all(np.isfinite(x)) or np.linalg.norm(x - sensor) < np.linalg.norm(p - sensor, axis=1).min():
+        return np.asarray(centre0_xy_m, float).reshape(2).copy()
+    return x
 
 
 @dataclass(frozen=True)
@@ -164,8 +203,23 @@ class TrackerConfig:
     #: either way. Earlier, handing the history only to a younger track alive at the deletion
     #: (with the stack hedging more tracks as shuttlers) was hit at warehouse 5 and 29.
     lane_memory_s: float | None = None
+    #: a track's radius follows the ``radius_quantile`` quantile of its detections' radii (a
+    #: stochastic quantile estimate, moving ``radius_step_m`` per scan), and each detection
+    #: assigned to it is centred again on its points with that radius
+    #: (:func:`fit_centre_known_radius`). Why (issue 33): a disc's visible arc is short and its
+    #: edge beams graze it, so its extent under-states the radius -- by 0.10 m on average over the
+    #: shuttlers of six development episodes (0.28-0.41 m, seen at 4507 detections) -- and the
+    #: centre, the radius behind the nearest point, is off by 0.184 m RMS; the known-radius fit
+    #: with the 0.9 quantile puts it 0.080 m RMS off, and the constant-velocity filter's velocity
+    #: error away from turns falls from 0.279 to 0.139 m/s RMS. Off: the detection radius,
+    #: smoothed (0.7 / 0.3), and the arc's centre
+    known_radius_fit: bool = False
+    radius_quantile: float = 0.9
+    radius_step_m: float = 0.01
 
     def __post_init__(self) -> None:
+        if not 0.0 < self.radius_quantile < 1.0 or not self.radius_step_m > 0:
+            raise ConfigError("TrackerConfig: radius_quantile in (0, 1) and radius_step_m > 0")
         if not 0 < self.speed_smoothing <= 1 or min(self.reverse_speed_mps, self.reverse_span_m) <= 0:
             raise ConfigError("TrackerConfig: speed_smoothing in (0, 1], reverse_speed_mps and reverse_span_m > 0")
         if min(self.gate_m, self.accel_psd, self.sigma_detection_m, self.initial_speed_sigma_mps) <= 0:
@@ -270,9 +324,15 @@ class ConstantVelocityTracker:
             P = self._P[i]
             S = H @ P @ H.T + R
             K = P @ H.T @ np.linalg.inv(S)
-            self._x[i] = self._x[i] + K @ (z[j] - self._x[i, :2])
+            zj = z[j]
+            if c.known_radius_fit and len(detection.points_xy_m) == n_det and detection.sensor_xy_m is not None:
+                below = float(zr[j] < self._r[i])
+                self._r[i] = max(self._r[i] + c.radius_step_m * (c.radius_quantile - below), 1e-3)
+                zj = fit_centre_known_radius(detection.points_xy_m[j], float(self._r[i]), zj, detection.sensor_xy_m)
+            else:
+                self._r[i] = 0.7 * self._r[i] + 0.3 * zr[j]
+            self._x[i] = self._x[i] + K @ (zj - self._x[i, :2])
             self._P[i] = (np.eye(4) - K @ H) @ P
-            self._r[i] = 0.7 * self._r[i] + 0.3 * zr[j]
         self._hits[assigned_tr >= 0] += 1
         self._misses[assigned_tr >= 0] = 0
         self._misses[assigned_tr < 0] += 1

@@ -236,3 +236,70 @@ def test_lane_memory_and_span_restart_refuse_nan_and_non_positive_values():
         with pytest.raises(ConfigError):
             TrackerConfig(span_restart_m=bad)
     assert TrackerConfig(lane_memory_s=None).lane_memory_s is None
+
+
+def test_the_known_radius_fit_recovers_a_circle_from_its_near_arc():
+    from slamkit.estimation.obstacle_tracker import fit_centre_known_radius
+
+    # noise-free points on the near side (+-40 degrees about the line of sight) of a 0.35 m
+    # circle centred at (3, 1), seen from the origin: from a start 0.2 m short and 0.1 m aside
+    # (where an under-stated radius puts it) the fit lands on the centre
+    centre = np.array([3.0, 1.0])
+    back = math.atan2(-1.0, -3.0)  # the direction from the centre to the sensor
+    phi = back + np.deg2rad(np.linspace(-40.0, 40.0, 9))
+    arc = centre + 0.35 * np.column_stack([np.cos(phi), np.sin(phi)])
+    fit = fit_centre_known_radius(arc, 0.35, centre + [-0.2, 0.1], np.zeros(2))
+    np.testing.assert_allclose(fit, centre, atol=1e-9)
+    # from a start in front of the arc it would find the mirror circle, nearer the sensor than the
+    # arc: refused, the start is kept
+    start = np.array([2.0, 2.0 / 3.0])
+    np.testing.assert_allclose(fit_centre_known_radius(arc, 0.35, start, np.zeros(2)), start)
+
+
+def _passing_disc_errors(seed: int, fit: bool) -> tuple[float, float, float]:
+    """A 0.35 m disc passing 2 m in front of a lidar at the origin (1 degree beams, 2 cm range
+    noise) along y = 2 at 0.5 m/s for 6 s: the RMS centre and velocity errors of its track from
+    1 s on, and its mean radius."""
+    rng = np.random.default_rng(seed)
+    angles = np.deg2rad(np.arange(-180.0, 180.0, 1.0))
+    tracker = ConstantVelocityTracker(TrackerConfig(known_radius_fit=fit))
+    centre_err, velocity_err, radius = [], [], []
+    for k in range(60):
+        t = 0.1 * k
+        centre = np.array([-1.5 + 0.5 * t, 2.0])
+        r = cast_circles(np.zeros((len(angles), 2)), angles, centre[None], np.array([0.35]), 10.0)
+        r = r + 0.02 * rng.standard_normal(len(r))
+        pts = unexplained_points([0.0, 0.0, 0.0], angles, r, 10.0, lambda p: np.full(len(p), 10.0), 0.25)
+        tracker.update(t, cluster_points(pts, np.zeros(2), DetectorConfig()))
+        tracks = tracker.tracks()
+        if t >= 1.0:
+            assert len(tracks.ids) == 1
+            centre_err.append(tracks.xy_m[0] - centre)
+            velocity_err.append(tracks.velocity_mps[0] - [0.5, 0.0])
+            radius.append(tracks.radius_m[0])
+    rms = lambda e: float(np.sqrt(np.mean(np.sum(np.square(e), axis=1))))  # noqa: E731
+    return rms(centre_err), rms(velocity_err), float(np.mean(radius))
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_the_known_radius_fit_halves_a_passing_discs_centre_and_velocity_errors(seed):
+    # measured over seeds 0-9: centre RMS 0.036-0.042 m without the fit, 0.006-0.016 m with it;
+    # velocity RMS 0.039-0.051 against 0.019-0.023 m/s; the radius 0.334-0.335 m (the arc's
+    # extent under-states it) against 0.352-0.362 m (its 0.9 quantile)
+    centre, velocity, radius = _passing_disc_errors(seed, fit=False)
+    assert centre > 0.03 and velocity > 0.035 and radius < 0.34
+    centre, velocity, radius = _passing_disc_errors(seed, fit=True)
+    assert centre < 0.02 and velocity < 0.03 and 0.345 < radius < 0.37
+
+
+def test_a_detection_keeps_the_points_it_was_found_from():
+    # one cluster of 3 points: its points and the sensor are kept; two overlapping discs merged
+    # join their points
+    pts = np.array([[3.0, -0.1], [3.0, 0.0], [3.0, 0.1]])
+    det = cluster_points(pts, np.array([0.5, 0.0]), DetectorConfig())
+    assert len(det.points_xy_m) == 1
+    np.testing.assert_allclose(det.points_xy_m[0], pts)
+    np.testing.assert_allclose(det.sensor_xy_m, [0.5, 0.0])
+    merged = merge_overlapping(np.array([[0.0, 0.0], [0.3, 0.0]]), np.array([0.2, 0.2]), np.array([2, 3]), 1.0,
+                               [np.zeros((2, 2)), np.ones((3, 2))])
+    assert merged.n_points.tolist() == [5] and merged.points_xy_m[0].shape == (5, 2)
