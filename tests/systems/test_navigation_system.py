@@ -623,7 +623,9 @@ def test_yielding_back_off_goes_no_deeper_into_a_lane_with_back_off_outward():
 def test_the_goal_approach_slows_in_proportion_to_the_distance():
     # the regulator drives within 0.35 m of the goal: at 0.2 m, straight ahead, the approach speed
     # 0.15 m/s (0.8 / s * 0.2 m = 0.16 is more); at 0.1 m, 0.8 * 0.1 = 0.08 m/s; with
-    # approach_gain_per_s 3, 0.15 again (0.3); within the 1 cm stop tolerance it turns instead
+    # approach_gain_per_s 3 (the default), 0.15 again (0.3), and 0.09 m/s at 3 cm
+    assert NavigationConfig().goal.approach_gain_per_s == 3.0
+
     def approach_v(d_m: float, gain: float = 0.8) -> float:
         stack = _straight_stack(1.0)
         stack.config = dataclasses.replace(stack.config, goal=dataclasses.replace(stack.config.goal,
