@@ -211,8 +211,15 @@ class TrackerConfig:
     #: shuttlers of six development episodes (0.28-0.41 m, seen at 4507 detections) -- and the
     #: centre, the radius behind the nearest point, is off by 0.184 m RMS; the known-radius fit
     #: with the 0.9 quantile puts it 0.080 m RMS off, and the constant-velocity filter's velocity
-    #: error away from turns falls from 0.279 to 0.139 m/s RMS. Off: the detection radius,
-    #: smoothed (0.7 / 0.3), and the arc's centre
+    #: error away from turns falls from 0.279 to 0.139 m/s RMS (in closed loop, warehouse 3011 /
+    #: 3030: centre 0.127 -> 0.073 m, velocity 0.260 -> 0.113 m/s RMS). Navigation with it on
+    #: pipelines/navigation.yaml's traffic, paired with the defaults (successes / moving / static /
+    #: timeouts of 270): development seeds 3000-3089 248 / 16 / 1 / 5 against 245 / 21 / 3 / 1
+    #: (hits 15 removed, 10 new, sign test p 0.42); the evaluation blocks 5000-5089 250 / 17 / 1 / 2
+    #: against 250 / 19 / 0 / 1 (12 removed, 10 new; successes 11 better, 11 worse); with the speed
+    #: plan (development) 242 / 14 / 2 / 12 against 249 / 15 / 1 / 5. A better prediction's input,
+    #: no evidence of fewer collisions: off (the detection radius, smoothed 0.7 / 0.3, and the
+    #: arc's centre)
     known_radius_fit: bool = False
     radius_quantile: float = 0.9
     radius_step_m: float = 0.01
