@@ -303,3 +303,12 @@ def test_a_detection_keeps_the_points_it_was_found_from():
     merged = merge_overlapping(np.array([[0.0, 0.0], [0.3, 0.0]]), np.array([0.2, 0.2]), np.array([2, 3]), 1.0,
                                [np.zeros((2, 2)), np.ones((3, 2))])
     assert merged.n_points.tolist() == [5] and merged.points_xy_m[0].shape == (5, 2)
+
+
+@pytest.mark.parametrize("bad", [dict(radius_quantile=1.0), dict(radius_quantile=float("nan")),
+                                 dict(radius_step_m=0.0)])
+def test_the_radius_quantile_settings_are_checked(bad):
+    from slamkit.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="radius_quantile"):
+        TrackerConfig(**bad)
