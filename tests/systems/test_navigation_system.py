@@ -672,8 +672,10 @@ def test_lane_cost_makes_the_global_path_leave_a_moving_tracks_line():
     cells = stack.grid.world_to_cell(np.array([[4.0, 2.0], [4.0, 2.8], [2.2, 2.0], [5.9 - 0.05, 2.7]]))
     assert lanes[cells[:, 1], cells[:, 0]].tolist() == [True, False, False, True]
     assert plan(0.0)[0].planning.lane_cells(person) is None
-    with pytest.raises(ConfigError, match="lane_cost"):
-        dataclasses.replace(stack.config.planning, lane_cost=float("nan"))
+    for key, bad in (("lane_cost", float("nan")), ("lane_cost", -1.0), ("lane_horizon_s", float("nan")),
+                     ("lane_horizon_s", -1.0)):
+        with pytest.raises(ConfigError, match=f"GlobalPlanningConfig.{key}"):
+            dataclasses.replace(stack.config.planning, **{key: bad})
 
 
 def test_a_rollout_held_at_its_end_meets_a_track_walking_into_where_it_stops():

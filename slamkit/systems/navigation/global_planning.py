@@ -151,8 +151,10 @@ class GlobalPlanning:
         """(H, W) the grid cells inside a moving track's lane (see ``lane_cost``); None when
         ``lane_cost`` is 0 or no track moves."""
         stack, c = self.stack, self.config
+        if c.lane_cost <= 0:
+            return None
         moving = stack.moving(tracks)
-        if c.lane_cost <= 0 or not moving.any():
+        if not moving.any():
             return None
         nav, g = stack.config, stack.grid
         xy, span = tracks.xy_m[moving], tracks.span_xy_m[moving]
