@@ -31,10 +31,11 @@ and tracked with a constant-velocity Kalman filter (no oracle obstacle list).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
-from slamkit.errors import ConfigError
+from slamkit.errors import ConfigError, DataError
 from slamkit.geometry.segments import point_segment_distance
 
 
@@ -269,6 +270,20 @@ class Tracks:
             object.__setattr__(self, "span_xy_m", np.stack([xy, xy], axis=1))
 
 
+class ObstacleTracker(Protocol):
+    """What a navigation stack needs of a tracker (:class:`ConstantVelocityTracker`, or an
+    ablation's privileged one): scans' detections in, confirmed tracks out."""
+
+    @property
+    def config(self) -> TrackerConfig: ...
+
+    def reset(self) -> None: ...
+
+    def update(self, t_s: float, detection: Detection) -> None: ...
+
+    def tracks(self) -> Tracks: ...
+
+
 def cv_matrices(dt_s: float, accel_psd: float) -> tuple[np.ndarray, np.ndarray]:
     """F and Q of the constant-velocity model on (x, y, vx, vy) over ``dt_s``."""
     F = np.eye(4)
@@ -443,6 +458,21 @@ class ConstantVelocityTracker:
             self._reversals[i] = max(int(self._reversals[i]), reversals)
             self._speed[i] = max(float(self._speed[i]), speed)
             del self._lanes[k]
+
+    def states(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Every track's (confirmed or not) centre (N, 2), velocity (N, 2) and radius (N,)."""
+        return self._x[:, :2].copy(), self._x[:, 2:].copy(), self._r.copy()
+
+    def set_states(self, xy_m: np.ndarray, velocity_mps: np.ndarray, radius_m: np.ndarray) -> None:
+        """Replace every track's centre, velocity and radius (in the order of :meth:`states`;
+        covariance and motion history stay): privileged perception sets the truth (an ablation,
+        :mod:`slamkit.experiments.navigation.perception`)."""
+        n = len(self._x)
+        xy, v, r = (np.asarray(a, float) for a in (xy_m, velocity_mps, radius_m))
+        if xy.shape != (n, 2) or v.shape != (n, 2) or r.shape != (n,):
+            raise DataError(f"set_states: {n} tracks, got {xy.shape}, {v.shape}, {r.shape}")
+        self._x = np.column_stack([xy, v])
+        self._r = r.copy()
 
     def tracks(self) -> Tracks:
         ok = self._hits >= self.config.confirm_hits

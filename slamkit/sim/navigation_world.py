@@ -99,6 +99,8 @@ class NavigationPlant:
         self.obstacles = scenario.obstacles.episode()
         self._robot_radius_m = float(robot_radius_m)
         self.obstacles.observe_robot(0.0, self.world_xytheta_body[:2], self._robot_radius_m)
+        #: the last scan's time, pose and noise-free ranges to the map alone (:meth:`discs_seen`)
+        self._last_scan: tuple[float, np.ndarray, np.ndarray] | None = None
 
     def advance(self, command: np.ndarray, dt_s: float, t_end_s: float) -> Odometry:
         """Execute ``command`` (v, omega) for ``dt_s``; the odometry of that period ends at ``t_end_s``."""
@@ -117,8 +119,10 @@ class NavigationPlant:
     def scan(self, t_s: float) -> Scan:
         lid, pose = self.lidar, self.world_xytheta_body
         if self.lidar_blind():
+            self._last_scan = (float(t_s), pose.copy(), np.zeros(len(self.beams)))  # it sees nothing
             return Scan(float(t_s), self.beams, np.full(len(self.beams), np.nan), lid.max_range_m)
         expected = self.caster.scan(pose, self.beams, lid.max_range_m)[0]
+        self._last_scan = (float(t_s), pose.copy(), expected)
         obs = self.obstacles
         if len(obs):
             dyn = cast_circles(np.repeat(pose[None, :2], len(self.beams), axis=0), pose[2] + self.beams,
@@ -128,6 +132,23 @@ class NavigationPlant:
         noisy = lid.beam_model.sample(self.rng, np.where(no_return, lid.max_range_m, expected), lid.max_range_m)
         noisy = np.where(no_return | (noisy >= lid.max_range_m), np.nan, noisy)
         return Scan(float(t_s), self.beams, noisy, lid.max_range_m)
+
+    def discs_seen(self) -> tuple[float, np.ndarray]:
+        """What the last scan saw of the moving discs, for privileged perception (an ablation,
+        :mod:`slamkit.experiments.navigation.perception`): its time and (K,) how many of its
+        noise-free beams end on each disc -- nearer than the map and than every other disc (0
+        each when there was no scan yet or the lidar was blind)."""
+        obs = self.obstacles
+        if self._last_scan is None or not len(obs):
+            return (math.nan if self._last_scan is None else self._last_scan[0]), np.zeros(len(obs), dtype=int)
+        t_s, pose, expected = self._last_scan
+        origins = np.repeat(pose[None, :2], len(self.beams), axis=0)
+        ranges = np.column_stack([cast_circles(origins, pose[2] + self.beams, c[None], [r], self.lidar.max_range_m,
+                                               no_hit=np.inf)
+                                  for c, r in zip(obs.position_at(t_s), obs.radius_m)])  # (N, K)
+        nearest = np.argmin(ranges, axis=1)
+        hit = ranges.min(axis=1) < np.fmin(expected, np.inf)  # no static return: NaN -> inf
+        return t_s, np.bincount(nearest[hit], minlength=len(obs))
 
     def clearance_m(self, t_s: float, robot_radius_m: float, distance_m: np.ndarray) -> tuple[float, float]:
         """(static, moving) distance from the robot's disc to the nearest wall and to the nearest

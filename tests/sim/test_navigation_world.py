@@ -85,3 +85,26 @@ def test_draws_are_seeded(seed):
     a = [p for p, _ in start_goal_draws(grid, np.random.default_rng(seed), route, 0.2, (2.0, 8.0), 20)]
     b = [p for p, _ in start_goal_draws(grid, np.random.default_rng(seed), route, 0.2, (2.0, 8.0), 20)]
     assert len(a) == len(b) > 0 and all(np.array_equal(x, y) for x, y in zip(a, b))
+
+
+def test_discs_seen_counts_the_beams_that_end_on_each_disc_and_not_the_hidden_ones():
+    """The last scan's noise-free beams (1 deg apart, one at 0 deg) per disc, robot at (5, 5)
+    facing +x: a disc of 0.3 m 2 m ahead spans +-asin(0.3 / 2) = +-8.6 deg (17 beams); one of 0.2 m
+    2 m behind spans +-5.7 deg (11 beams); one of 0.3 m 4 m ahead hides behind the first, and one
+    3 m to the left behind a wall 1.5 m away -- 0 beams each."""
+    occ = _room().occupied.copy()
+    occ[int(6.4 / 0.05):int(6.5 / 0.05), int(4.0 / 0.05):int(6.0 / 0.05)] = True  # the wall
+    grid = OccupancyGrid(occ, 0.05, np.zeros(2), name="room")
+    centres = np.array([[7.0, 5.0], [3.0, 5.0], [9.0, 5.0], [5.0, 8.0]])
+    discs = MovingObstacles(centres, centres, np.zeros(4), np.array([0.3, 0.2, 0.3, 0.3]), np.zeros(4))
+    sc = NavigationScenario("room", 0, grid, np.array([5.0, 5.0, 0.0]), np.array([5.0, 5.0, 0.0]),
+                            np.zeros((0, 2)), discs)
+    plant = NavigationPlant(sc, np.random.default_rng(0))
+    t_s, beams = plant.discs_seen()
+    assert np.isnan(t_s) and beams.tolist() == [0, 0, 0, 0]  # no scan yet
+    plant.scan(1.5)
+    t_s, beams = plant.discs_seen()
+    assert t_s == 1.5 and beams.tolist() == [17, 11, 0, 0]
+    plant.blind_boxes_m = np.array([[4.0, 4.0, 6.0, 6.0]])  # a blind scan sees nothing
+    plant.scan(1.6)
+    assert plant.discs_seen()[1].tolist() == [0, 0, 0, 0]

@@ -14,6 +14,7 @@ import numpy as np
 from slamkit.errors import ConfigError
 from slamkit.experiments.navigation.benchmark import episode_benchmark_metrics, scenario_difficulty
 from slamkit.experiments.navigation.map_source import RobotMap, robot_map
+from slamkit.experiments.navigation.perception import PERCEPTION, TruePerception
 from slamkit.geometry.angles import wrap_angle
 from slamkit.maps.distance_field import distance_field_m
 from slamkit.maps.inflation import costmap
@@ -81,6 +82,11 @@ class EpisodeConfig:
     #: boxes (x_min, y_min, x_max, y_max) in the world where the lidar returns nothing, so the
     #: stack runs on odometry alone there (:class:`NavigationPlant`)
     lidar_blind_boxes_m: tuple[tuple[float, float, float, float], ...] = ()
+    #: how the stack perceives the moving discs: ``lidar`` (its own detector and tracker, the
+    #: benchmark), or privileged, an ablation (:mod:`slamkit.experiments.navigation.perception`):
+    #: ``true_detections`` (the true discs each scan saw, tracked by its tracker) or
+    #: ``true_tracks`` (its tracks hold the true discs' states)
+    perception: str = "lidar"
 
     def __post_init__(self) -> None:
         for name in ("dt_s", "max_time_s", "goal_tolerance_m", "heading_tolerance_rad"):
@@ -100,6 +106,8 @@ class EpisodeConfig:
         if len(self.kidnap_xy_m) != 2 or not all(isinstance(v, (int, float)) and math.isfinite(v)
                                                  for v in self.kidnap_xy_m):
             raise ConfigError(f"EpisodeConfig.kidnap_xy_m must be two finite numbers, got {self.kidnap_xy_m!r}")
+        if self.perception not in PERCEPTION:
+            raise ConfigError(f"EpisodeConfig.perception must be one of {', '.join(PERCEPTION)}, got {self.perception!r}")
         for box in self.lidar_blind_boxes_m:
             if not (len(box) == 4 and all(isinstance(v, (int, float)) and math.isfinite(v) for v in box)
                     and box[0] < box[2] and box[1] < box[3]):
@@ -139,10 +147,12 @@ def run_episode(scenario: NavigationScenario, nav_config: NavigationConfig = Nav
     the localisation error is the estimate's against the true pose seen in the map's frame."""
     rng = np.random.default_rng([scenario.seed, 1])
     robot = RobotMap(scenario.grid, "truth") if robot_map is None else robot_map
-    stack = NavigationStack(robot.grid, nav_config, np.random.default_rng([scenario.seed, 2]))
     plant = NavigationPlant(scenario, rng, odometry_sigma_v_mps=config.odometry_sigma_v_mps,
                             odometry_sigma_omega_radps=config.odometry_sigma_omega_radps,
                             lidar_blind_boxes_m=np.asarray(config.lidar_blind_boxes_m, float).reshape(-1, 4))
+    tracker = None if config.perception == "lidar" else \
+        TruePerception(plant, robot, nav_config.tracker, config.perception == "true_tracks")
+    stack = NavigationStack(robot.grid, nav_config, np.random.default_rng([scenario.seed, 2]), tracker)
     sig = np.array([config.initial_sigma_xy_m, config.initial_sigma_xy_m, config.initial_sigma_theta_rad])
     belief = robot.to_map(scenario.start_xytheta) + sig * rng.standard_normal(3)
     stack.reset(belief, np.diag(sig**2))

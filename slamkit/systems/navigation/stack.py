@@ -33,7 +33,8 @@ from slamkit.data.sequence import Event, Odometry, Scan
 from slamkit.data.trajectory import Trajectory
 from slamkit.errors import ConfigError
 from slamkit.estimation.lidar_mcl import LidarMCL
-from slamkit.estimation.obstacle_tracker import ConstantVelocityTracker, Tracks, cluster_points, unexplained_points
+from slamkit.estimation.obstacle_tracker import (ConstantVelocityTracker, ObstacleTracker, Tracks, cluster_points,
+                                                 unexplained_points)
 from slamkit.maps.distance_field import surface_distance_field_m
 from slamkit.maps.occupancy_grid import OccupancyGrid
 from slamkit.systems.navigation.command import CommandStatus, NavigationCommand, speed_capped
@@ -56,7 +57,9 @@ class NavigationStack:
     name = "navigation"
 
     def __init__(self, grid: OccupancyGrid, config: NavigationConfig = NavigationConfig(),
-                 rng: np.random.Generator | None = None):
+                 rng: np.random.Generator | None = None, tracker: ObstacleTracker | None = None):
+        """``tracker``: the moving obstacles' tracker (default the constant-velocity one of
+        ``config.tracker``; an ablation passes a privileged one)."""
         self.grid = grid
         self.config = config
         self.rng = rng if rng is not None else np.random.default_rng(0)
@@ -67,7 +70,7 @@ class NavigationStack:
         # to the occupied cells' centres), so its margins are real on a 10 cm map too
         self.distance = DistanceGrid(surface_distance_field_m(grid),
                                      grid.resolution_m, grid.origin_xy_m)
-        self.tracker = ConstantVelocityTracker(c.tracker)
+        self.tracker: ObstacleTracker = ConstantVelocityTracker(c.tracker) if tracker is None else tracker
         params = default_controller_params(c) if c.controller_params is None else c.controller_params
         self.controller = make_controller(c.controller, dict(params))
         self.planning = GlobalPlanning(self)
