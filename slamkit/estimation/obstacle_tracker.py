@@ -5,7 +5,8 @@ and tracked with a constant-velocity Kalman filter (no oracle obstacle list).
   farther than ``unexplained_m`` from every occupied cell of the map (the map's distance field)
   is unexplained. Unexplained points are split into clusters in scan order wherever two
   neighbours are more than ``cluster_gap_m`` apart (the classic range-image segmentation,
-  e.g. Premebida & Nunes 2005), and clusters of fewer than ``min_points`` are dropped (noise).
+  e.g. Premebida & Nunes 2005; with ``bridged_points`` a point may join across that many stray
+  points before it), and clusters of fewer than ``min_points`` are dropped (noise).
   A cluster is reported as a disc: a lidar sees only the near side of a round obstacle, so the
   radius R is half the cluster's extent (the visible chord; at least ``min_radius_m``) and the
   centre lies R behind the nearest point, on the line of sight through the points' mean.
@@ -34,6 +35,8 @@ from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 
 from slamkit.errors import ConfigError, DataError
 from slamkit.geometry.segments import point_segment_distance
@@ -44,6 +47,16 @@ class DetectorConfig:
     #: an end point farther than this from the map's occupied cells is unexplained
     unexplained_m: float = 0.25
     cluster_gap_m: float = 0.3
+    #: a point joins the cluster of any of the ``1 + bridged_points`` points before it in scan
+    #: order that lies within ``cluster_gap_m`` (0: only its neighbour's, the classic rule), so a
+    #: stray return between two points of one disc -- the beam model's short and random readings,
+    #: 4% of beams, one of a disc's 40 beams at 1 m most scans -- does not cut it in two. Why
+    #: (issue 33): the two pieces each became a disc of part of the arc, centred up to 0.7 m off;
+    #: on the shuttlers of six development episodes (4507 clusters) the centre error of a fit
+    #: with the true radius was 0.069 m RMS with 2.2% of clusters more than 0.1 m off, at 1 m
+    #: range seeing 14-27% of the disc's beams; bridging one point: 3739 clusters, 0.028 m RMS,
+    #: 0.2% (the detector's own centre 0.184 -> 0.117 m RMS)
+    bridged_points: int = 0
     min_points: int = 3
     min_radius_m: float = 0.1
     max_radius_m: float = 1.0
@@ -51,6 +64,8 @@ class DetectorConfig:
     def __post_init__(self) -> None:
         if min(self.unexplained_m, self.cluster_gap_m, self.min_radius_m) <= 0 or self.min_points < 1:
             raise ConfigError("DetectorConfig: distances must be > 0 and min_points >= 1")
+        if not 0 <= self.bridged_points <= 10:
+            raise ConfigError(f"DetectorConfig.bridged_points must lie in [0, 10], got {self.bridged_points}")
 
 
 @dataclass(frozen=True)
@@ -81,16 +96,36 @@ def unexplained_points(world_xytheta_body: np.ndarray, angles_rad: np.ndarray, r
     return pts[np.asarray(map_distance_m(pts)) > threshold_m]
 
 
+def scan_clusters(points_xy_m: np.ndarray, gap_m: float, bridged_points: int = 0) -> np.ndarray:
+    """(M,) cluster labels of scan-ordered points (M, 2): a point joins the cluster of any of the
+    ``1 + bridged_points`` points before it within ``gap_m``; a full 360-degree scan wraps (the
+    last points may continue the first cluster). Labels are numbered in scan order (0 first)."""
+    pts = np.asarray(points_xy_m, float).reshape(-1, 2)
+    n = len(pts)
+    if bridged_points == 0:
+        labels = np.concatenate([[0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1) > gap_m)])
+        if labels[-1] > 0 and np.linalg.norm(pts[-1] - pts[0]) <= gap_m:
+            labels[labels == labels[-1]] = 0
+        return labels
+    j = np.repeat(np.arange(n), bridged_points + 1)
+    i = j - np.tile(np.arange(1, bridged_points + 2), n)
+    wraps = n > bridged_points + 2
+    keep = (i >= 0) | wraps
+    i, j = np.mod(i[keep], n), j[keep]
+    near = np.linalg.norm(pts[i] - pts[j], axis=1) <= gap_m
+    graph = coo_matrix((np.ones(int(near.sum())), (i[near], j[near])), shape=(n, n))
+    _, component = connected_components(graph, directed=False)
+    first = np.full(component.max() + 1, n)
+    np.minimum.at(first, component, np.arange(n))
+    return np.argsort(np.argsort(first))[component]  # components renumbered by their first point
+
+
 def cluster_points(points_xy_m: np.ndarray, sensor_xy_m: np.ndarray, config: DetectorConfig) -> Detection:
     """Scan-ordered points (M, 2) -> discs (see the module docstring)."""
     pts = np.asarray(points_xy_m, float).reshape(-1, 2)
     if len(pts) == 0:
         return Detection(np.zeros((0, 2)), np.zeros(0), np.zeros(0, dtype=int))
-    gaps = np.linalg.norm(np.diff(pts, axis=0), axis=1) > config.cluster_gap_m
-    labels = np.concatenate([[0], np.cumsum(gaps)])
-    # a full 360-degree scan wraps: the last cluster may continue the first
-    if labels[-1] > 0 and np.linalg.norm(pts[-1] - pts[0]) <= config.cluster_gap_m:
-        labels[labels == labels[-1]] = 0
+    labels = scan_clusters(pts, config.cluster_gap_m, config.bridged_points)
     centres, radii, counts, members = [], [], [], []
     for k in np.unique(labels):
         c = pts[labels == k]

@@ -8,8 +8,9 @@ import math
 import numpy as np
 import pytest
 
+from slamkit.errors import ConfigError
 from slamkit.estimation.obstacle_tracker import (ConstantVelocityTracker, DetectorConfig, Detection, TrackerConfig,
-                                                 cluster_points, cv_matrices, merge_overlapping,
+                                                 cluster_points, cv_matrices, merge_overlapping, scan_clusters,
                                                  unexplained_points)
 from slamkit.maps.raycast import cast_circles
 
@@ -52,6 +53,52 @@ def test_clusters_split_at_gaps_and_small_ones_are_noise():
     away = np.array([1.0, 0.05]) / np.linalg.norm([1.0, 0.05])
     assert det.xy_m[0] == pytest.approx(1.05 * away)
     assert det.radius_m[1] == pytest.approx(0.075)
+
+
+def test_a_stray_return_inside_a_discs_arc_cuts_it_in_two_unless_bridged():
+    """A 0.3 m disc 1 m ahead (beams 1 deg apart: +-17 deg hit it, 35 points) whose beam at +3 deg
+    returned short, at 0.3 m: the classic rule sees two pieces of the arc (20 and 14 points; the
+    stray point alone is noise), each a disc of its own chord, and reports the disc enclosing both,
+    0.162 m off the true centre (radius 0.282 m); bridging one point sees the one arc: 0.029 m off
+    (radius 0.271 m, the chord of the visible arc)."""
+    angles = np.deg2rad(np.arange(-30.0, 31.0, 1.0))
+    r = cast_circles(np.zeros((len(angles), 2)), angles, np.array([[1.0, 0.0]]), np.array([0.3]), 10.0)
+    r[np.flatnonzero(np.isclose(angles, np.deg2rad(3.0)))] = 0.3
+    pts = unexplained_points([0.0, 0.0, 0.0], angles, r, 10.0, lambda p: np.full(len(p), 10.0), 0.25)
+    assert len(pts) == 35
+    assert np.bincount(scan_clusters(pts, 0.3, 0)).tolist() == [20, 1, 14]
+    assert np.bincount(scan_clusters(pts, 0.3, 1)).tolist() == [34, 1]
+    for bridged, off_m, radius_m in ((0, 0.1620, 0.2823), (1, 0.0295, 0.2706)):
+        det = cluster_points(pts, np.zeros(2), DetectorConfig(bridged_points=bridged))
+        np.testing.assert_array_equal(det.n_points, [34])
+        assert np.linalg.norm(det.xy_m[0] - [1.0, 0.0]) == pytest.approx(off_m, abs=1e-4)
+        assert det.radius_m[0] == pytest.approx(radius_m, abs=1e-4)
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_bridging_only_joins_the_classic_clusters_and_numbers_them_in_scan_order(seed):
+    """Random scan-ordered points: each cluster with ``bridged_points`` k + 1 is a union of
+    clusters with k (bridging joins, never cuts), k = 0 is the neighbour rule, and labels count
+    up from 0 in the order of each cluster's first point."""
+    rng = np.random.default_rng(seed)
+    pts = np.cumsum(rng.normal(0.0, 0.2, (60, 2)), axis=0)
+    previous = None
+    for k in range(4):
+        labels = scan_clusters(pts, 0.3, k)
+        firsts = [int(np.flatnonzero(labels == c)[0]) for c in range(labels.max() + 1)]
+        assert firsts == sorted(firsts) and set(labels) == set(range(labels.max() + 1))
+        if previous is not None:
+            assert all(len(set(labels[previous == c])) == 1 for c in set(previous))
+        else:
+            gaps = np.linalg.norm(np.diff(pts, axis=0), axis=1) > 0.3
+            wrap = np.linalg.norm(pts[-1] - pts[0]) <= 0.3
+            assert labels.max() + 1 == int(gaps.sum()) + 1 - (bool(wrap) and gaps.any())
+        previous = labels
+
+
+def test_bridged_points_is_checked():
+    with pytest.raises(ConfigError, match="bridged_points must lie in"):
+        DetectorConfig(bridged_points=-1)
 
 
 def test_overlapping_discs_merge_into_the_smallest_enclosing_one():
