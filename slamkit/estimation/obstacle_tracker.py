@@ -55,7 +55,14 @@ class DetectorConfig:
     #: on the shuttlers of six development episodes (4507 clusters) the centre error of a fit
     #: with the true radius was 0.069 m RMS with 2.2% of clusters more than 0.1 m off, at 1 m
     #: range seeing 14-27% of the disc's beams; bridging one point: 3739 clusters, 0.028 m RMS,
-    #: 0.2% (the detector's own centre 0.184 -> 0.117 m RMS)
+    #: 0.2% (the detector's own centre 0.184 -> 0.117 m RMS; replayed through the tracker, its
+    #: tracks' centres 0.143 -> 0.123 m RMS, velocities 0.293 -> 0.217 m/s). Navigation with 1,
+    #: pipelines/navigation.yaml's traffic, paired with 0 (successes / moving / static / timeouts of
+    #: 270): development seeds 3000-3089 258 / 10 / 0 / 2 against 245 / 21 / 3 / 1 (hits 16 removed,
+    #: 5 new, sign test p 0.03; with ``known_radius_fit`` 247 / 20 / 0 / 3, with it and a quicker
+    #: tracker, ``accel_psd`` 2, ``sigma_detection_m`` 0.04: 250 / 12 / 1 / 7); fixed before, the
+    #: evaluation blocks 5000-5089: 251 / 18 / 1 / 0 against 250 / 19 / 0 / 1 (9 removed, 8 new). A
+    #: better detection, no evidence of fewer collisions: off
     bridged_points: int = 0
     min_points: int = 3
     min_radius_m: float = 0.1
