@@ -109,6 +109,8 @@ def scan_clusters(points_xy_m: np.ndarray, gap_m: float, bridged_points: int = 0
     last points may continue the first cluster). Labels are numbered in scan order (0 first)."""
     pts = np.asarray(points_xy_m, float).reshape(-1, 2)
     n = len(pts)
+    if n == 0:
+        return np.zeros(0, dtype=int)
     if bridged_points == 0:
         labels = np.concatenate([[0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1) > gap_m)])
         if labels[-1] > 0 and np.linalg.norm(pts[-1] - pts[0]) <= gap_m:

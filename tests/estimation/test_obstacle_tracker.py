@@ -97,6 +97,7 @@ def test_bridging_only_joins_the_classic_clusters_and_numbers_them_in_scan_order
 
 
 def test_bridged_points_is_checked():
+    assert scan_clusters(np.zeros((0, 2)), 0.3, 1).shape == (0,)
     with pytest.raises(ConfigError, match="bridged_points must lie in"):
         DetectorConfig(bridged_points=-1)
 

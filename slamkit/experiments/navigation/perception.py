@@ -20,14 +20,15 @@ static / timeouts of 270 runs, 3 worlds x 90 seeds):
 |---|---|---|
 | lidar (the stack's own) | 245 / 21 / 3 / 1 | 250 / 19 / 0 / 1 |
 | true_detections | 252 / 12 / 1 / 5 | 251 / 15 / 1 / 3 |
-| true_detections, the tracker set for exact ones (``accel_psd`` 5, ``sigma_detection_m`` 0.02) | 258 / 3 / 0 / 9 | 254 / 8 / 0 / 8 |
+| true_detections, a quick tracker (``accel_psd`` 5, ``sigma_detection_m`` 0.02) | 258 / 3 / 0 / 9 | 254 / 8 / 0 / 8 |
 | true_tracks | 258 / 2 / 0 / 10 | 255 / 5 / 0 / 10 |
 
 With what the lidar sees, seen exactly, the planner keeps the moving hits at 0.7-1.9% (the goal:
-< 2%): the collisions are perception's -- the detector's centres, which force a sluggish
-tracker (with exact detections and a tracker quick enough for them, nearly as good as the truth). The truth is
-the plant's (:meth:`NavigationPlant.discs_seen`), put into the robot's map frame through the
-episode's :class:`RobotMap`.
+< 2%): the collisions are perception's -- the detector's centres, which force a sluggish tracker
+(with exact detections and a tracker quick enough for them, nearly as good as the truth).
+
+The truth is the plant's (:meth:`NavigationPlant.discs_seen`), put into the robot's map frame
+through the episode's :class:`RobotMap`.
 """
 
 from __future__ import annotations
