@@ -71,8 +71,10 @@ class DetectorConfig:
     def __post_init__(self) -> None:
         if min(self.unexplained_m, self.cluster_gap_m, self.min_radius_m) <= 0 or self.min_points < 1:
             raise ConfigError("DetectorConfig: distances must be > 0 and min_points >= 1")
-        if not 0 <= self.bridged_points <= 10:
-            raise ConfigError(f"DetectorConfig.bridged_points must lie in [0, 10], got {self.bridged_points}")
+        if isinstance(self.bridged_points, bool) or not isinstance(self.bridged_points, (int, np.integer)) \
+                or not 0 <= self.bridged_points <= 10:
+            raise ConfigError("DetectorConfig.bridged_points must be a whole number in [0, 10], "
+                              f"got {self.bridged_points!r}")
 
 
 @dataclass(frozen=True)

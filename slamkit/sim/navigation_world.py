@@ -147,7 +147,7 @@ class NavigationPlant:
                                                no_hit=np.inf)
                                   for c, r in zip(obs.position_at(t_s), obs.radius_m)])  # (N, K)
         nearest = np.argmin(ranges, axis=1)
-        hit = ranges.min(axis=1) < np.fmin(expected, np.inf)  # no static return: NaN -> inf
+        hit = ranges[np.arange(len(ranges)), nearest] < np.fmin(expected, np.inf)  # no static return: NaN -> inf
         return t_s, np.bincount(nearest[hit], minlength=len(obs))
 
     def clearance_m(self, t_s: float, robot_radius_m: float, distance_m: np.ndarray) -> tuple[float, float]:

@@ -96,10 +96,11 @@ def test_bridging_only_joins_the_classic_clusters_and_numbers_them_in_scan_order
         previous = labels
 
 
-def test_bridged_points_is_checked():
+@pytest.mark.parametrize("bad", [-1, 11, 1.5, float("nan")])
+def test_bridged_points_is_checked(bad):
     assert scan_clusters(np.zeros((0, 2)), 0.3, 1).shape == (0,)
-    with pytest.raises(ConfigError, match="bridged_points must lie in"):
-        DetectorConfig(bridged_points=-1)
+    with pytest.raises(ConfigError, match="bridged_points must be a whole number in"):
+        DetectorConfig(bridged_points=bad)
 
 
 def test_overlapping_discs_merge_into_the_smallest_enclosing_one():
@@ -356,7 +357,5 @@ def test_a_detection_keeps_the_points_it_was_found_from():
 @pytest.mark.parametrize("bad", [dict(radius_quantile=1.0), dict(radius_quantile=float("nan")),
                                  dict(radius_step_m=0.0)])
 def test_the_radius_quantile_settings_are_checked(bad):
-    from slamkit.errors import ConfigError
-
     with pytest.raises(ConfigError, match="radius_quantile"):
         TrackerConfig(**bad)
