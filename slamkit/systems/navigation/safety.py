@@ -93,7 +93,15 @@ class SafetyConfig:
     #: slows at the far end (turning's reachable set closes the window), then drives on again --
     #: a crossing with no commitment. Leaving such a lane forwards whenever the constant-velocity
     #: prediction allows (the hedges deciding only whether to enter; tried, not kept): development
-    #: 86 / 4 / 0 / 0, evaluation 255 / 12 / 0 / 3 -- the defaults' figures, timeouts traded for hits
+    #: 86 / 4 / 0 / 0, evaluation 255 / 12 / 0 / 3 -- the defaults' figures, timeouts traded for hits.
+    #: With precise tracks (the tracker's ``radius_source: circle_fit`` settings, 2026-12-07) ramped
+    #: is another matter: development seeds 3000-3089 258 / 5 / 0 / 7 against held's 254 / 11 / 0 / 5
+    #: (6 hits removed, none new); fixed before, the evaluation blocks 5000-5089 257 / 7 / 0 / 6
+    #: against 253 / 12 / 1 / 4, and against the shipped stack's 250 / 19 / 0 / 1 hits 14 removed, 2
+    #: new (sign test p 0.004) -- true tracks gave 255 / 5 / 0 / 10; issue 14's seeds 0-29 89 / 0 /
+    #: 0 / 1 of 90. But the social-force setting's first evaluation block falls from 90 / 0 / 0 / 0 of
+    #: 90 to 85 / 4 / 0 / 1 (the circle fits alone: 83 / 5 / 0 / 2; the tracker's field): both stay
+    #: off
     evasion: str = "held"
     evade_horizon_s: float = 3.0
     evade_grid: tuple[int, int] = (9, 11)
