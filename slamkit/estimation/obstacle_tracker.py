@@ -42,6 +42,13 @@ from slamkit.errors import ConfigError, DataError
 from slamkit.geometry.segments import point_segment_distance
 
 
+def _check_whole_number(name: str, value: object, low: int, high: int) -> None:
+    """A setting used as a count or an index must be an int in [low, high] (1.5 or True from a
+    YAML file would pass a range check and fail later, mid-run)."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not low <= value <= high:
+        raise ConfigError(f"{name} must be a whole number in [{low}, {high}], got {value!r}")
+
+
 @dataclass(frozen=True)
 class DetectorConfig:
     #: an end point farther than this from the map's occupied cells is unexplained
@@ -71,10 +78,7 @@ class DetectorConfig:
     def __post_init__(self) -> None:
         if min(self.unexplained_m, self.cluster_gap_m, self.min_radius_m) <= 0 or self.min_points < 1:
             raise ConfigError("DetectorConfig: distances must be > 0 and min_points >= 1")
-        if isinstance(self.bridged_points, bool) or not isinstance(self.bridged_points, (int, np.integer)) \
-                or not 0 <= self.bridged_points <= 10:
-            raise ConfigError("DetectorConfig.bridged_points must be a whole number in [0, 10], "
-                              f"got {self.bridged_points!r}")
+        _check_whole_number("DetectorConfig.bridged_points", self.bridged_points, 0, 10)
 
 
 @dataclass(frozen=True)
@@ -201,7 +205,7 @@ def fit_centre_known_radius(points_xy_m: np.ndarray, radius_m: float, centre0_xy
     may be nearer than the arc's own points) is refused: ``centre0_xy_m``.
     With ``robust_scale_m`` the squares are Cauchy's, log(1 + (d / s)^2), by iteratively
     reweighted Gauss-Newton: a stray return a few scales off the arc pulls the centre little."""
-    p = np.asarray(points_xy_m, float).reshape(-1, 2)
+    p = _finite_points(points_xy_m, "fit_centre_known_radius")
     x = np.asarray(centre0_xy_m, float).reshape(2).copy()
     for _ in range(iterations if robust_scale_m is None else 3 * iterations):
         d = p - x
@@ -229,6 +233,14 @@ def behind_arc(centre_xy_m: np.ndarray, points_xy_m: np.ndarray, sensor_xy_m: np
                 > np.median(np.linalg.norm(np.asarray(points_xy_m, float).reshape(-1, 2) - sensor, axis=1)))
 
 
+def _finite_points(points_xy_m: np.ndarray, caller: str) -> np.ndarray:
+    p = np.asarray(points_xy_m, float).reshape(-1, 2)
+    if not np.all(np.isfinite(p)):
+        raise DataError(f"{caller}: the points must be finite, got {int((~np.isfinite(p)).any(axis=1).sum())} "
+                        "with a NaN or an infinity")
+    return p
+
+
 def _cauchy_weights(residual_m: np.ndarray, scale_m: float | None) -> np.ndarray:
     """IRLS weights of Cauchy's loss at scale ``scale_m`` (None: least squares, all 1)."""
     if scale_m is None:
@@ -244,7 +256,7 @@ def fit_circle(points_xy_m: np.ndarray, iterations: int = 20,
     algebraic fit (Kasa 1976), which alone is biased towards small circles on a short arc;
     ``robust_scale_m`` as in :func:`fit_centre_known_radius`. NaN radius when the points are
     (nearly) on a line or too few."""
-    p = np.asarray(points_xy_m, float).reshape(-1, 2)
+    p = _finite_points(points_xy_m, "fit_circle")
     nan = (np.full(2, np.nan), float("nan"), float("nan"))
     if len(p) < 3:
         return nan
@@ -376,10 +388,11 @@ class TrackerConfig:
         if self.radius_source not in ("extent", "circle_fit"):
             raise ConfigError("TrackerConfig.radius_source must be 'extent' or 'circle_fit', "
                               f"got {self.radius_source!r}")
-        if not (self.circle_fit_min_points >= 3 and self.circle_fit_window >= 1 and self.circle_fit_max_rms_m > 0
-                and self.circle_fit_max_radius_m > 0):
-            raise ConfigError("TrackerConfig: circle_fit_min_points >= 3, circle_fit_window >= 1, "
-                              "circle_fit_max_rms_m and circle_fit_max_radius_m > 0 needed")
+        _check_whole_number("TrackerConfig.circle_fit_min_points", self.circle_fit_min_points, 3, 10**6)
+        _check_whole_number("TrackerConfig.circle_fit_window", self.circle_fit_window, 1, 10**6)
+        if not (self.circle_fit_max_rms_m > 0 and self.circle_fit_max_radius_m > 0):
+            raise ConfigError("TrackerConfig: circle_fit_max_rms_m and circle_fit_max_radius_m must be > 0, got "
+                              f"{self.circle_fit_max_rms_m!r}, {self.circle_fit_max_radius_m!r}")
         if self.fit_robust_scale_m is not None and not self.fit_robust_scale_m > 0:
             raise ConfigError(f"TrackerConfig.fit_robust_scale_m must be > 0 or None, got {self.fit_robust_scale_m!r}")
         if not 0.0 < self.radius_quantile < 1.0 or not self.radius_step_m > 0:
@@ -509,7 +522,7 @@ class ConstantVelocityTracker:
                     below = float(zr[j] < self._r[i])
                     self._r[i] = max(self._r[i] + c.radius_step_m * (c.radius_quantile - below), 1e-3)
                 else:
-                    sample = self._circle_fit_radius(detection, j)
+                    sample = self._circle_fit(detection, j)[1]
                     if np.isfinite(sample):
                         self._r_fits[i].append(sample)
                         del self._r_fits[i][:-c.circle_fit_window]
@@ -539,11 +552,9 @@ class ConstantVelocityTracker:
             if c.known_radius_fit and c.radius_source == "circle_fit" and len(detection.points_xy_m) == n_det \
                     and detection.sensor_xy_m is not None:
                 for k, j in enumerate(new):  # born at its circle fit's centre and radius: no jump at the next scan
-                    radius = self._circle_fit_radius(detection, j)
+                    centre, radius = self._circle_fit(detection, j)
                     if np.isfinite(radius):
-                        born_r[k], born_fits[k] = radius, [radius]
-                        born_xy[k] = fit_centre_known_radius(detection.points_xy_m[j], radius, z[j],
-                                                             detection.sensor_xy_m, robust_scale_m=c.fit_robust_scale_m)
+                        born_xy[k], born_r[k], born_fits[k] = centre, radius, [radius]
             x0 = np.column_stack([born_xy, np.zeros((len(new), 2))])
             P0 = np.diag([c.sigma_detection_m**2] * 2 + [c.initial_speed_sigma_mps**2] * 2)
             self._x = np.vstack([self._x, x0])
@@ -568,22 +579,25 @@ class ConstantVelocityTracker:
         starts = [detection.xy_m[j]] + ([self._x[i, :2]] if c.fit_robust_scale_m is not None else [])
         fits = [fit_centre_known_radius(pts, r, x0, detection.sensor_xy_m, robust_scale_m=c.fit_robust_scale_m)
                 for x0 in starts]
-        scale = c.fit_robust_scale_m or 1.0
-        cost = [float(np.sum(np.log1p(((np.linalg.norm(pts - x, axis=1) - r) / scale) ** 2))) for x in fits]
+        if len(fits) == 1:
+            return fits[0]
+        cost = [float(np.sum(np.log1p(((np.linalg.norm(pts - x, axis=1) - r) / c.fit_robust_scale_m) ** 2)))
+                for x in fits]
         return fits[int(np.argmin(cost))]
 
-    def _circle_fit_radius(self, detection: Detection, j: int) -> float:
-        """The radius of detection ``j``'s circle fit when it passes ``radius_source``'s checks; NaN: none."""
+    def _circle_fit(self, detection: Detection, j: int) -> tuple[np.ndarray, float]:
+        """Detection ``j``'s circle fit (centre, radius) when it passes ``radius_source``'s checks;
+        NaN radius: none."""
         c = self.config
         pts = detection.points_xy_m[j]
+        none = (np.full(2, np.nan), float("nan"))
         if len(pts) < c.circle_fit_min_points:
-            return float("nan")
+            return none
         centre, radius, rms = fit_circle(pts, robust_scale_m=c.fit_robust_scale_m)
-        sensor = np.asarray(detection.sensor_xy_m, float)
         if not np.isfinite(radius) or rms > c.circle_fit_max_rms_m or not c.circle_fit_max_radius_m >= radius > 0 \
-                or not behind_arc(centre, pts, sensor):
-            return float("nan")
-        return radius
+                or not behind_arc(centre, pts, detection.sensor_xy_m):
+            return none
+        return centre, radius
 
     def _remember_motion(self, updated: np.ndarray) -> None:
         """The motion history of the tracks just updated (see the module docstring)."""

@@ -443,6 +443,8 @@ def test_a_tracks_radius_from_circle_fits_is_the_discs_within_a_centimetre(seed)
 
 
 @pytest.mark.parametrize("bad", [dict(radius_source="fit"), dict(circle_fit_min_points=2), dict(circle_fit_window=0),
+                                 dict(circle_fit_window=20.5), dict(circle_fit_window=True),
+                                 dict(circle_fit_min_points=6.5),
                                  dict(circle_fit_max_rms_m=0.0), dict(circle_fit_max_radius_m=float("nan")),
                                  dict(fit_robust_scale_m=0.0), dict(fit_robust_scale_m=float("nan"))])
 def test_the_circle_fit_settings_are_checked(bad):
@@ -465,3 +467,14 @@ def test_a_track_is_born_at_its_first_detections_circle_fit():
     extent = ConstantVelocityTracker(TrackerConfig(known_radius_fit=True))
     extent.update(0.0, det)
     np.testing.assert_allclose(extent.states()[0][0], det.xy_m[0])
+
+
+@pytest.mark.parametrize("fit", ["fit_circle", "fit_centre_known_radius"])
+def test_the_circle_fits_refuse_points_that_are_not_finite(fit):
+    import slamkit.estimation.obstacle_tracker as tracker_module
+    from slamkit.errors import DataError
+
+    pts = np.array([[0.0, 1.0], [1.0, 2.0], [np.nan, 3.0], [2.0, np.inf]])
+    args = (pts,) if fit == "fit_circle" else (pts, 0.3, np.zeros(2), np.array([5.0, 5.0]))
+    with pytest.raises(DataError, match=f"{fit}: the points must be finite, got 2"):
+        getattr(tracker_module, fit)(*args)
