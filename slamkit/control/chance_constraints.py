@@ -19,6 +19,8 @@ direction (the largest eigenvalue: the field does not say which way the wall is)
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from slamkit.control.protocols import DistanceGrid, LocalWorld
@@ -58,8 +60,8 @@ def tightened_world(world: LocalWorld, robot_xy_m: np.ndarray, pose_cov_xy: np.n
         radii = radii + k * np.sqrt(np.maximum(var, 0.0))
     if distance is None and world.distance is not None:
         distance = tightened_distance(world.distance, cov, k_sigma=k)
-    return LocalWorld(world.circle_xy_m, radii, world.circle_velocity_mps,
-                      distance if distance is not None else world.distance, world.t_s, world.circle_growth_mps)
+    return dataclasses.replace(world, circle_radius_m=radii,
+                               distance=distance if distance is not None else world.distance)
 
 
 def worst_sigma_m(pose_cov_xy: np.ndarray) -> float:

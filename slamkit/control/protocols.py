@@ -131,7 +131,9 @@ class LocalWorld:
     time (None: 0, the plain constant-velocity prediction). A tracked obstacle may stop, turn or
     reverse: with centre x + (1 - lam) v t and radius r + lam |v| t the disc holds every place
     it can reach at speed |v| when lam = 1 (the reachable set), the constant-velocity guess
-    when lam = 0."""
+    when lam = 0. ``circle_growth_max_m`` (K,) where each disc's growth stops (None: never; a
+    standing person who may set off is a hazard within a step or two, not anywhere it could
+    walk to within the horizon)."""
 
     circle_xy_m: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     circle_radius_m: np.ndarray = field(default_factory=lambda: np.zeros(0))
@@ -139,6 +141,7 @@ class LocalWorld:
     distance: DistanceGrid | None = None
     t_s: float = 0.0
     circle_growth_mps: np.ndarray | None = None
+    circle_growth_max_m: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         c = np.asarray(self.circle_xy_m, dtype=float).reshape(-1, 2)
@@ -147,9 +150,13 @@ class LocalWorld:
              else np.asarray(self.circle_velocity_mps, dtype=float).reshape(-1, 2))
         g = (np.zeros_like(r) if self.circle_growth_mps is None
              else np.asarray(self.circle_growth_mps, dtype=float).reshape(-1))
-        if not (len(c) == len(r) == len(v) == len(g)):
+        g_max = (np.full_like(r, np.inf) if self.circle_growth_max_m is None
+                 else np.asarray(self.circle_growth_max_m, dtype=float).reshape(-1))
+        if not (len(c) == len(r) == len(v) == len(g) == len(g_max)):
             raise ControlError(f"LocalWorld: {len(c)} circle centres, {len(r)} radii, {len(v)} velocities, "
-                               f"{len(g)} growth rates")
+                               f"{len(g)} growth rates, {len(g_max)} growth limits")
+        if np.isnan(g_max).any() or np.any(g_max < 0):
+            raise ControlError("LocalWorld.circle_growth_max_m must be >= 0 (inf: no limit)")
         bad = ~(np.isfinite(c).all(axis=1) & np.isfinite(r) & np.isfinite(v).all(axis=1) & np.isfinite(g))
         if bad.any():
             k = int(np.flatnonzero(bad)[0])
@@ -161,6 +168,7 @@ class LocalWorld:
         object.__setattr__(self, "circle_radius_m", _ro(r.copy()))
         object.__setattr__(self, "circle_velocity_mps", _ro(v.copy()))
         object.__setattr__(self, "circle_growth_mps", _ro(g.copy()))
+        object.__setattr__(self, "circle_growth_max_m", _ro(g_max.copy()))
 
     @property
     def num_circles(self) -> int:
@@ -172,9 +180,10 @@ class LocalWorld:
         return self.circle_xy_m[None, :, :] + dt[:, None, None] * self.circle_velocity_mps[None, :, :]
 
     def radii_at(self, dt_s: np.ndarray) -> np.ndarray:
-        """The predicted discs' radii: (T,) time offsets -> (T, K), r + growth * dt."""
+        """The predicted discs' radii: (T,) time offsets -> (T, K), r + min(growth * dt, growth max)."""
         dt = np.asarray(dt_s, dtype=float).reshape(-1)
-        return self.circle_radius_m[None, :] + np.maximum(dt, 0.0)[:, None] * self.circle_growth_mps[None, :]
+        grown = np.maximum(dt, 0.0)[:, None] * self.circle_growth_mps[None, :]
+        return self.circle_radius_m[None, :] + np.minimum(grown, self.circle_growth_max_m[None, :])
 
     def clearance_m(self, xy_m: np.ndarray, dt_s: np.ndarray | float = 0.0) -> np.ndarray:
         """Distance from points (..., T, 2) to the nearest obstacle surface, the circles predicted

@@ -68,6 +68,25 @@ def test_a_hedged_prediction_grows_the_disc_with_the_look_ahead_time():
         LocalWorld([[2.0, 0.0]], [0.3], circle_growth_mps=[-0.1])
 
 
+def test_a_disc_stops_growing_at_its_growth_limit():
+    from slamkit.control.chance_constraints import tightened_world
+    from slamkit.control.protocols import LocalWorld
+
+    # two standing 0.3 m discs growing at 0.2 m/s, the first up to 0.1 m: at 0.25 s both are
+    # 0.35 m, at 2 s the first is 0.4 m (limited from 0.5 s on) and the second 0.7 m
+    world = LocalWorld([[2.0, 0.0], [0.0, 2.0]], [0.3, 0.3], circle_growth_mps=[0.2, 0.2],
+                       circle_growth_max_m=[0.1, np.inf])
+    np.testing.assert_allclose(world.radii_at([0.0, 0.25, 2.0]), [[0.3, 0.3], [0.35, 0.35], [0.4, 0.7]])
+    np.testing.assert_allclose(world.clearance_m(np.array([[0.0, 0.0]]), [2.0]), [1.3])
+    # the chance tightening keeps the limits (it rebuilds the world with wider discs)
+    tight = tightened_world(world, [0.0, 0.0], np.diag([0.01, 0.01]), k_sigma=1.0)
+    np.testing.assert_allclose(tight.radii_at([2.0]), [[0.5, 0.8]])
+    assert LocalWorld([[2.0, 0.0]], [0.3]).circle_growth_max_m.tolist() == [np.inf]
+    for bad in ([-0.1], [np.nan], [0.1, 0.2]):
+        with pytest.raises(ControlError, match="growth"):
+            LocalWorld([[2.0, 0.0]], [0.3], circle_growth_max_m=bad)
+
+
 def test_rollout_profiles_of_held_commands_are_the_exact_arcs():
     from slamkit.control.rollout import rollout_arcs, rollout_profiles
 

@@ -217,6 +217,28 @@ def test_local_world_hedges_the_prediction_of_tracks_seen_reversing():
     np.testing.assert_allclose(plain.circle_growth_mps, [0.0, 0.0])
 
 
+def test_local_world_grows_a_standing_track_that_may_set_off():
+    # a 0.3 m person standing (0.05 m/s: below blocking_speed_mps 0.15) and one walking at
+    # 0.4 m/s. standing_growth_mps 0.2 up to 0.15 m: the standing disc grows 0.1 m by 0.5 s and
+    # stops at 0.45 m from 0.75 s on; the walking one keeps the plain prediction (its 0.25 m
+    # moving margin, no growth). Off by default
+    stack = _straight_stack(1.0)
+    tracks = _tracks([[3.0, 2.6], [3.0, 3.5]], [[0.05, 0.0], [0.0, -0.4]], [0.3, 0.3])
+    plain = stack.local_world(tracks)
+    np.testing.assert_allclose(plain.radii_at([2.0]), [[0.3, 0.55]])
+    stack.config = dataclasses.replace(stack.config, standing_growth_mps=0.2, standing_growth_max_m=0.15)
+    world = stack.local_world(tracks)
+    np.testing.assert_allclose(world.circle_growth_mps, [0.2, 0.0])
+    np.testing.assert_allclose(world.radii_at([0.5, 0.75, 2.0]), [[0.4, 0.55], [0.45, 0.55], [0.45, 0.55]])
+    # no limit: over the whole look-ahead (0.7 m at 2 s)
+    stack.config = dataclasses.replace(stack.config, standing_growth_max_m=None)
+    np.testing.assert_allclose(stack.local_world(tracks).radii_at([2.0]), [[0.7, 0.55]])
+    for key, bad in (("standing_growth_mps", -0.1), ("standing_growth_mps", float("nan")),
+                     ("standing_growth_max_m", -0.1), ("standing_growth_max_m", float("nan"))):
+        with pytest.raises(ConfigError, match=f"NavigationConfig.{key}"):
+            dataclasses.replace(stack.config, **{key: bad})
+
+
 def test_wall_turns_predict_a_track_turning_back_short_of_a_wall():
     # the room's bottom wall has its surface at y = 0.1. A 0.3 m person at (3, 1.02) walking at it
     # at 0.5 m/s: its centre would come within half its radius (0.15 m) of the wall at

@@ -300,7 +300,8 @@ class SafetyGuard:
         return LocalWorld(np.vstack([world.circle_xy_m, world.circle_xy_m[k]]),
                           np.concatenate([world.circle_radius_m, world.circle_radius_m[k]]),
                           np.vstack([world.circle_velocity_mps, -tracks.velocity_mps[k]]), world.distance, world.t_s,
-                          np.concatenate([world.circle_growth_mps, world.circle_growth_mps[k]]))
+                          np.concatenate([world.circle_growth_mps, world.circle_growth_mps[k]]),
+                          np.concatenate([world.circle_growth_max_m, world.circle_growth_max_m[k]]))
 
     def escapable(self, pose: np.ndarray, command: np.ndarray, world: LocalWorld, t_s: float) -> bool:
         """Whether, driving ``command`` for ``escape_reaction_s``, the robot still has a ramped

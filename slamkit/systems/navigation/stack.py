@@ -282,6 +282,8 @@ class NavigationStack:
         ``turning``: a track slower than its typical speed is turning or stopping, so its way on
         is unknown: the missing fraction of its typical speed, 1 - |v| / typical, is the least
         hedge it gets (a shuttler at its turn, |v| ~ 0, is predicted by its reachable set).
+        A standing track may set off: its disc grows at ``standing_growth_mps`` up to
+        ``standing_growth_max_m``.
         A moving track whose prediction runs into a wall within ``wall_turn_horizon_s`` is also
         predicted turning back there (:meth:`wall_turns`; ``wall_turn_horizon_s``: another
         horizon than the config's): one more disc per such track, after the tracks' own
@@ -296,14 +298,17 @@ class NavigationStack:
             lam = np.maximum(lam, np.clip(1.0 - speed_now / np.maximum(speed, 1e-9), 0.0, 1.0))
         xy, radius = tracks.xy_m, tracks.radius_m + c.moving_margin_m * moving
         velocity, growth = (1.0 - lam)[:, None] * tracks.velocity_mps, lam * speed
+        growth = np.where(moving, growth, np.maximum(growth, c.standing_growth_mps))
+        standing_max = math.inf if c.standing_growth_max_m is None else c.standing_growth_max_m
+        growth_max = np.where(moving, math.inf, standing_max)
         k, t_wall = self.wall_turns(xy, velocity, tracks.radius_m, moving, wall_turn_horizon_s)
         if len(k):
             # the turn back is the predicted path mirrored where it turns: a disc that starts as far
             # beyond that point as the track is before it and comes back at the same speed
             xy = np.vstack([xy, xy[k] + 2.0 * t_wall[:, None] * velocity[k]])
             radius, velocity = np.concatenate([radius, radius[k]]), np.vstack([velocity, -velocity[k]])
-            growth = np.concatenate([growth, growth[k]])
-        return LocalWorld(xy, radius, velocity, self.distance, t_s, growth)
+            growth, growth_max = np.concatenate([growth, growth[k]]), np.concatenate([growth_max, growth_max[k]])
+        return LocalWorld(xy, radius, velocity, self.distance, t_s, growth, growth_max)
 
     def wall_turns(self, xy_m: np.ndarray, velocity_mps: np.ndarray, radius_m: np.ndarray,
                    moving: np.ndarray, horizon_s: float | None = None) -> tuple[np.ndarray, np.ndarray]:
