@@ -147,7 +147,7 @@ class NavigationConfig:
     #: look-ahead) the social block was 88 / 0 / 0 / 2 as well, but with the robot waiting 90 s
     #: 0.94 m from a standing person (Willow 5020: the grown disc closes the passage). The
     #: two timeouts are the freezing robot's: a slow person walking ahead (warehouse 5010) is
-    #: followed, not overtaken, and Willow 5020 waits beside a standing one until it leaves
+    #: followed, not overtaken; Willow 5020 waits 70 s 0.73 m from a standing track
     standing_growth_mps: float = 0.0
     standing_growth_max_m: float | None = None
     #: how far short of a wall it turns: the wall range of the social-force model (Helbing &
