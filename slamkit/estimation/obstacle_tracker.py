@@ -69,7 +69,8 @@ class DetectorConfig:
     #: 5 new, sign test p 0.03; with ``known_radius_fit`` 247 / 20 / 0 / 3, with it and a quicker
     #: tracker, ``accel_psd`` 2, ``sigma_detection_m`` 0.04: 250 / 12 / 1 / 7); fixed before, the
     #: evaluation blocks 5000-5089: 251 / 18 / 1 / 0 against 250 / 19 / 0 / 1 (9 removed, 8 new). A
-    #: better detection, no evidence of fewer collisions: off
+    #: better detection, no evidence of fewer collisions alone; with the circle-fit tracker the
+    #: navigation stack's default (NavigationConfig's detector; TrackerConfig.radius_source)
     bridged_points: int = 0
     min_points: int = 3
     min_radius_m: float = 0.1
@@ -374,7 +375,11 @@ class TrackerConfig:
     #: Of its 11 development hits (traced), 6 came with the track within 2 cm and
     #: 0.06 m/s of the truth for the last 3 s -- the robot braking, creeping in recovery or turning
     #: on the spot at its goal while a disc drove into it: the planner's -- and 5 within 1 s of a
-    #: shuttler turning back towards the robot (the track's velocity flips a scan or two late)
+    #: shuttler turning back towards the robot (the track's velocity flips a scan or two late).
+    #: The navigation stack's default since 2026-12-07 (NavigationConfig's tracker), with the
+    #: ramped evasion and standing tracks that may set off, which removed the social-force hits:
+    #: evaluation blocks 261 / 4 / 0 / 5 (NavigationConfig.standing_growth_mps has the figures);
+    #: this class's own default stays the extent
     radius_source: str = "extent"
     circle_fit_min_points: int = 6
     circle_fit_max_rms_m: float = 0.03

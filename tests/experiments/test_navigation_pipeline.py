@@ -84,12 +84,16 @@ def test_a_short_run_writes_the_results_folder(tmp_path):
 #: track swapped lanes where two shuttlers met and kept the old lane's span, 2026-11-25): office
 #: 1.0 / 0 / 0, warehouse 1.0 / 0 / 0, Willow 1.0 / 0 / 0 (seed 13 reached in 76.8 s); final error
 #: mean 0.99 / 0.95 / 1.05 cm, max 1.46 / 1.35 / 1.60 cm; -0.3 / +0.2 / +0.0 s on the seeds both reach.
-MEASURED = (("office", 0.99, 0, 0), ("warehouse", 0.99, 0, 0), ("willow", 0.99, 0, 0))
+#: With issue 33's defaults (precise perception, the ramped evasion, standing tracks that may set
+#: off; 2026-12-07, one run per seed): office 1.0 / 0 / 0, warehouse 1.0 / 0 / 0, Willow 0.967 / 0 / 0
+#: (seed 16 at the 90 s limit); final error mean 0.75 / 0.81 / 0.75 cm, max 1.32 / 1.43 / 1.48 cm.
+MEASURED = (("office", 0.99, 0, 0), ("warehouse", 0.99, 0, 0), ("willow", 0.96, 0, 0))
 #: (mean, max) final position error over the successes per world, every world (measured above)
 MEASURED_FINAL_ERROR_M = (0.0125, 0.02)
-#: over the 90 runs: at least 90 successes and no moving collision (main before the hedge: 81 and
-#: 6; with it 83 and 3; before span_restart_m 88 and 1), so a bound's slack cannot hide a loss elsewhere
-MEASURED_ALL_WORLDS = (90, 0)
+#: over the 90 runs: at least 89 successes and no moving collision (main before the hedge: 81 and
+#: 6; with it 83 and 3; before span_restart_m 88 and 1; then 90 and 0 until issue 33's defaults),
+#: so a bound's slack cannot hide a loss elsewhere
+MEASURED_ALL_WORLDS = (89, 0)
 #: the issue's goals: success >= 95 %, no static collision, moving collisions < 2 % of the runs
 GOALS = (0.95, 0, 0.02)
 
@@ -143,24 +147,29 @@ def test_navigation_goals_30_seeds_per_world(navigation_30_seeds):
 
 
 #: issue 33: pipelines/navigation.yaml's evaluation blocks (seeds 5000-5089 per world, never used
-#: while changing the code), measured once 2026-12-06 on main at 9c3d558 (the stack as it was;
-#: one process): (world, block) -> (successes of 30, static, moving collisions, timeouts). Office
-#: 30/0/0/0, 29/0/1/0, 25/0/5/0; warehouse 28/0/2/0, 28/0/2/0, 28/0/2/0; Willow 28/0/2/0,
-#: 28/0/2/0, 26/0/3/1: 250/270 (0.926 [0.888, 0.952] Wilson), 0 static (0.000 [0.000, 0.014]),
-#: 19 moving (0.070 [0.046, 0.107]), 1 timeout (0.004 [0.001, 0.021]). Failures not looked at.
-#: History: the blocks were 1000-1089 (2026-11-28 at 8713452: 255/270, 0 static, 12 moving,
-#: 3 timeouts) until stops 38-39 measured them repeatedly while choosing designs, which made
-#: them development seeds. The goals (>= 95% per block, moving < 2%) are not met; these are
-#: regression bounds.
+#: while changing the code), measured 2026-12-07 with issue 33's defaults (precise perception, the
+#: ramped evasion, standing tracks that may set off; the switch decided before this run: at least
+#: the old defaults' 250 successes, no static and at most 9 moving collisions): (world, block) ->
+#: (successes of 30, static, moving collisions, timeouts). Office 30/0/0/0, 30/0/0/0, 27/0/1/2;
+#: warehouse 30/0/0/0, 30/0/0/0, 29/0/1/0; Willow 29/0/0/1, 29/0/0/1, 27/0/2/1: 261/270
+#: (0.967 [0.938, 0.982] Wilson), 0 static, 4 moving (0.015 [0.006, 0.037]), 5 timeouts
+#: (0.019 [0.008, 0.043]). Paired with the old defaults on the same seeds: 14 successes gained,
+#: 3 lost (sign test p 0.013); 15 moving hits removed, none new.
+#: History: the old defaults (2026-12-06, 9c3d558) office 30/0/0/0, 29/0/1/0, 25/0/5/0; warehouse
+#: 28/0/2/0 x 3; Willow 28/0/2/0, 28/0/2/0, 26/0/3/1: 250/270, 19 moving, 1 timeout. Before that
+#: the blocks were 1000-1089 (2026-11-28 at 8713452: 255/270, 0 static, 12 moving, 3 timeouts)
+#: until stops 38-39 measured them repeatedly while choosing designs, which made them development
+#: seeds; stops 45-47 ran three pre-fixed comparisons on 5000-5089 (none looked at). The goals
+#: (>= 95% per block, moving < 2%): moving met, two blocks at 27/30; these are regression bounds.
 MEASURED_EVALUATION = {
-    ("office", "eval1"): (30, 0, 0, 0), ("office", "eval2"): (29, 0, 1, 0), ("office", "eval3"): (25, 0, 5, 0),
-    ("warehouse", "eval1"): (28, 0, 2, 0), ("warehouse", "eval2"): (28, 0, 2, 0),
-    ("warehouse", "eval3"): (28, 0, 2, 0), ("willow", "eval1"): (28, 0, 2, 0), ("willow", "eval2"): (28, 0, 2, 0),
-    ("willow", "eval3"): (26, 0, 3, 1),
+    ("office", "eval1"): (30, 0, 0, 0), ("office", "eval2"): (30, 0, 0, 0), ("office", "eval3"): (27, 0, 1, 2),
+    ("warehouse", "eval1"): (30, 0, 0, 0), ("warehouse", "eval2"): (30, 0, 0, 0),
+    ("warehouse", "eval3"): (29, 0, 1, 0), ("willow", "eval1"): (29, 0, 0, 1), ("willow", "eval2"): (29, 0, 0, 1),
+    ("willow", "eval3"): (27, 0, 2, 1),
 }
-#: over the 270: at least 250 successes, at most 19 moving collisions (a bound's slack per block
+#: over the 270: at least 261 successes, at most 4 moving collisions (a bound's slack per block
 #: cannot hide a loss elsewhere)
-MEASURED_EVALUATION_ALL = (250, 19)
+MEASURED_EVALUATION_ALL = (261, 4)
 
 
 @pytest.mark.slow
@@ -189,12 +198,14 @@ def test_navigation_evaluation_blocks(tmp_path):
 
 #: issue 33's second traffic setting, pipelines/navigation_social.yaml (social-force people,
 #: reversing forklifts), first evaluation block (seeds 5000-5029 per world), measured once
-#: 2026-12-06 at 9c3d558: (world -> successes of 30, static, moving collisions, timeouts). Office
-#: 30/0/0/0, warehouse 30/0/0/0, Willow 30/0/0/0: 90/90 (1.000 [0.959, 1.000] Wilson), 0 moving
-#: (0.000 [0.000, 0.041]); beside it the constant-velocity shuttles on the same seeds gave
-#: 30/0/0/0, 28/0/2/0, 28/0/2/0 = 86/90, 4 moving (above). History: on 1000-1029 (2026-11-28,
-#: 2ae0f36) 27/0/3/0, 30/0/0/0, 28/0/2/0. One block of 30 per world: regression bounds, not a claim.
-MEASURED_SOCIAL_FORCE_EVAL1 = {"office": (30, 0, 0, 0), "warehouse": (30, 0, 0, 0), "willow": (30, 0, 0, 0)}
+#: 2026-12-07 with issue 33's defaults: (world -> successes of 30, static, moving collisions,
+#: timeouts). Office 30/0/0/0, warehouse 29/0/0/1, Willow 29/0/0/1: 88/90 (0.978 [0.923, 0.994]
+#: Wilson), 0 moving (0.000 [0.000, 0.041]), 2 timeouts (a slow person walking ahead is followed,
+#: not overtaken; NavigationConfig.standing_growth_mps). History: the old defaults (2026-12-06,
+#: 9c3d558) 30/0/0/0 in every world; the precise perception and ramped evasion without the
+#: standing growth 30/0/0/0, 27/0/3/0, 28/0/1/1; on 1000-1029 (2026-11-28, 2ae0f36) 27/0/3/0,
+#: 30/0/0/0, 28/0/2/0. One block of 30 per world: regression bounds, not a claim.
+MEASURED_SOCIAL_FORCE_EVAL1 = {"office": (30, 0, 0, 0), "warehouse": (29, 0, 0, 1), "willow": (29, 0, 0, 1)}
 
 
 @pytest.mark.slow

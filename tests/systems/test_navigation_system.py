@@ -221,11 +221,13 @@ def test_local_world_grows_a_standing_track_that_may_set_off():
     # a 0.3 m person standing (0.05 m/s: below blocking_speed_mps 0.15) and one walking at
     # 0.4 m/s. standing_growth_mps 0.2 up to 0.15 m: the standing disc grows 0.1 m by 0.5 s and
     # stops at 0.45 m from 0.75 s on; the walking one keeps the plain prediction (its 0.25 m
-    # moving margin, no growth). Off by default
+    # moving margin, no growth). With 0 the standing disc stays as it is
     stack = _straight_stack(1.0)
     tracks = _tracks([[3.0, 2.6], [3.0, 3.5]], [[0.05, 0.0], [0.0, -0.4]], [0.3, 0.3])
-    plain = stack.local_world(tracks)
-    np.testing.assert_allclose(plain.radii_at([2.0]), [[0.3, 0.55]])
+    stack.config = dataclasses.replace(stack.config, standing_growth_mps=0.0)
+    np.testing.assert_allclose(stack.local_world(tracks).radii_at([2.0]), [[0.3, 0.55]])
+    # the defaults: 0.2 m/s up to 0.2 m
+    assert (NavigationConfig().standing_growth_mps, NavigationConfig().standing_growth_max_m) == (0.2, 0.2)
     stack.config = dataclasses.replace(stack.config, standing_growth_mps=0.2, standing_growth_max_m=0.15)
     world = stack.local_world(tracks)
     np.testing.assert_allclose(world.circle_growth_mps, [0.2, 0.0])
@@ -233,6 +235,13 @@ def test_local_world_grows_a_standing_track_that_may_set_off():
     # no limit: over the whole look-ahead (0.7 m at 2 s)
     stack.config = dataclasses.replace(stack.config, standing_growth_max_m=None)
     np.testing.assert_allclose(stack.local_world(tracks).radii_at([2.0]), [[0.7, 0.55]])
+    # a hedge that grows a standing track faster keeps its own, unlimited rate: hedge 1 of a typical
+    # speed of 0.5 m/s (a shuttler slowed at its turn), 0.5 m/s, 1.3 m at 2 s
+    stack.config = dataclasses.replace(stack.config, standing_growth_max_m=0.15, prediction_hedge=1.0)
+    slowed = dataclasses.replace(tracks, speed_typical_mps=np.array([0.5, 0.4]))
+    world = stack.local_world(slowed)
+    np.testing.assert_allclose(world.circle_growth_mps, [0.5, 0.4])
+    np.testing.assert_allclose(world.radii_at([2.0]), [[1.3, 1.35]])
     for key, bad in (("standing_growth_mps", -0.1), ("standing_growth_mps", float("nan")),
                      ("standing_growth_max_m", -0.1), ("standing_growth_max_m", float("nan"))):
         with pytest.raises(ConfigError, match=f"NavigationConfig.{key}"):
@@ -467,7 +476,8 @@ def test_evasion_never_runs_into_a_wall_while_an_arc_stays_clear():
     state = RobotState(pose, np.array([0.3, 0.0]), 0.0)
     out = stack.controller.compute(state, Reference(stack.path, speed_mps=0.5), world)
     assert out.status.value == "fallback_brake"
-    # the default evasion (held arcs only) takes (0.4, -0.03)
+    # the held evasion (held arcs only; SafetyConfig's own default) takes (0.4, -0.03)
+    stack.config = dataclasses.replace(stack.config, safety=SafetyConfig())
     cmd = stack.safety.evade(state, world, out)
     assert cmd == pytest.approx([0.4, -0.03], abs=1e-9)
     held = rollout_arcs(pose, cmd[None], 0.1, 20)[0]
@@ -499,6 +509,7 @@ def test_ramped_evasion_turns_a_backing_robot_round_before_it_is_run_into():
     out = ControlOutput(np.zeros(2), ControlStatus.FALLBACK_BRAKE, candidates_xytheta=arcs, chosen=-1)
     held_clear = world.clearance_m(arcs[..., :2], 0.1 * np.arange(21)) - stack.config.robot_radius_m
     assert np.argmax(held_clear <= 0.0, axis=1).max() == 8 and (held_clear <= 0.0).any(axis=1).all()
+    stack.config = dataclasses.replace(stack.config, safety=SafetyConfig())  # held: SafetyConfig's own default
     assert stack.safety.evade(state, world, out) == pytest.approx([0.0, 0.0])
     assert stack.safety.evasion_xytheta is None
     stack.config = dataclasses.replace(stack.config, safety=SafetyConfig(evasion="ramped"))

@@ -100,8 +100,10 @@ class SafetyConfig:
     #: against 253 / 12 / 1 / 4, and against the shipped stack's 250 / 19 / 0 / 1 hits 14 removed, 2
     #: new (sign test p 0.004) -- true tracks gave 255 / 5 / 0 / 10; issue 14's seeds 0-29 89 / 0 /
     #: 0 / 1 of 90. But the social-force setting's first evaluation block falls from 90 / 0 / 0 / 0 of
-    #: 90 to 85 / 4 / 0 / 1 (the circle fits alone: 83 / 5 / 0 / 2; the tracker's field): both stay
-    #: off
+    #: 90 to 85 / 4 / 0 / 1 (the circle fits alone: 83 / 5 / 0 / 2; the tracker's field). With
+    #: standing tracks that may set off as well (NavigationConfig.standing_growth_mps: 88 / 0 / 0 / 2
+    #: there) the three are the navigation stack's defaults since 2026-12-07 (NavigationConfig's
+    #: safety section); this class's own default stays held
     evasion: str = "held"
     evade_horizon_s: float = 3.0
     evade_grid: tuple[int, int] = (9, 11)

@@ -283,7 +283,7 @@ class NavigationStack:
         is unknown: the missing fraction of its typical speed, 1 - |v| / typical, is the least
         hedge it gets (a shuttler at its turn, |v| ~ 0, is predicted by its reachable set).
         A standing track may set off: its disc grows at ``standing_growth_mps`` up to
-        ``standing_growth_max_m``.
+        ``standing_growth_max_m`` (unless its hedge grows it faster).
         A moving track whose prediction runs into a wall within ``wall_turn_horizon_s`` is also
         predicted turning back there (:meth:`wall_turns`; ``wall_turn_horizon_s``: another
         horizon than the config's): one more disc per such track, after the tracks' own
@@ -298,9 +298,12 @@ class NavigationStack:
             lam = np.maximum(lam, np.clip(1.0 - speed_now / np.maximum(speed, 1e-9), 0.0, 1.0))
         xy, radius = tracks.xy_m, tracks.radius_m + c.moving_margin_m * moving
         velocity, growth = (1.0 - lam)[:, None] * tracks.velocity_mps, lam * speed
-        growth = np.where(moving, growth, np.maximum(growth, c.standing_growth_mps))
+        # a standing track grows at the larger of its hedge's rate (unlimited) and the standing rate
+        # (limited): a shuttler slowed at its turn keeps yielding's reachable set
+        standing = ~moving & (growth < c.standing_growth_mps)
+        growth = np.where(standing, c.standing_growth_mps, growth)
         standing_max = math.inf if c.standing_growth_max_m is None else c.standing_growth_max_m
-        growth_max = np.where(moving, math.inf, standing_max)
+        growth_max = np.where(standing, standing_max, math.inf)
         k, t_wall = self.wall_turns(xy, velocity, tracks.radius_m, moving, wall_turn_horizon_s)
         if len(k):
             # the turn back is the predicted path mirrored where it turns: a disc that starts as far
