@@ -202,7 +202,8 @@ class NavigationConfig:
         if not 0.0 <= self.wall_turn_horizon_s <= 20.0:
             raise ConfigError(f"NavigationConfig.wall_turn_horizon_s must lie in [0, 20] s, got {self.wall_turn_horizon_s}")
         if not 0.0 <= self.standing_growth_mps <= 2.0:
-            raise ConfigError(f"NavigationConfig.standing_growth_mps must lie in [0, 2] m/s, got {self.standing_growth_mps}")
+            raise ConfigError(f"NavigationConfig.standing_growth_mps must lie in [0, 2] m/s, "
+                              f"got {self.standing_growth_mps}")
         if self.standing_growth_max_m is not None and not 0.0 <= self.standing_growth_max_m <= 5.0:
             raise ConfigError(f"NavigationConfig.standing_growth_max_m must lie in [0, 5] m or be None, "
                               f"got {self.standing_growth_max_m}")
