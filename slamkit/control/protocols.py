@@ -15,6 +15,7 @@ moving-obstacle objects are flattened into plain arrays here by the caller.
 
 from __future__ import annotations
 
+import dataclasses
 import enum
 from dataclasses import dataclass, field
 from typing import Any, Mapping, Protocol, runtime_checkable
@@ -173,6 +174,18 @@ class LocalWorld:
     @property
     def num_circles(self) -> int:
         return len(self.circle_radius_m)
+
+    def with_copies(self, k: np.ndarray, xy_m: np.ndarray, velocity_mps: np.ndarray) -> LocalWorld:
+        """This world with a copy of each disc ``k`` (J,) appended, at the centres ``xy_m`` (J, 2)
+        moving at ``velocity_mps`` (J, 2): its radius, growth and growth limit kept (a second
+        guess of where the same obstacle goes)."""
+        k = np.asarray(k, dtype=int).reshape(-1)
+        return dataclasses.replace(
+            self, circle_xy_m=np.vstack([self.circle_xy_m, np.asarray(xy_m, float).reshape(-1, 2)]),
+            circle_radius_m=np.concatenate([self.circle_radius_m, self.circle_radius_m[k]]),
+            circle_velocity_mps=np.vstack([self.circle_velocity_mps, np.asarray(velocity_mps, float).reshape(-1, 2)]),
+            circle_growth_mps=np.concatenate([self.circle_growth_mps, self.circle_growth_mps[k]]),
+            circle_growth_max_m=np.concatenate([self.circle_growth_max_m, self.circle_growth_max_m[k]]))
 
     def circles_at(self, dt_s: np.ndarray) -> np.ndarray:
         """Constant-velocity prediction: (T,) time offsets -> (T, K, 2) centres."""

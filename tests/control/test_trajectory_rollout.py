@@ -82,6 +82,12 @@ def test_a_disc_stops_growing_at_its_growth_limit():
     tight = tightened_world(world, [0.0, 0.0], np.diag([0.01, 0.01]), k_sigma=1.0)
     np.testing.assert_allclose(tight.radii_at([2.0]), [[0.5, 0.8]])
     assert LocalWorld([[2.0, 0.0]], [0.3]).circle_growth_max_m.tolist() == [np.inf]
+    # a copy of the first disc elsewhere (a second guess of the same obstacle) keeps its radius,
+    # growth and limit: at (1, 1) coming at (0, -0.5) m/s, 0.4 m at 2 s, centre (1, 0)
+    more = world.with_copies([0], [[1.0, 1.0]], [[0.0, -0.5]])
+    assert more.num_circles == 3 and world.num_circles == 2
+    np.testing.assert_allclose(more.radii_at([2.0]), [[0.4, 0.7, 0.4]])
+    np.testing.assert_allclose(more.circles_at([2.0])[0, 2], [1.0, 0.0])
     for bad in ([-0.1], [np.nan], [0.1, 0.2]):
         with pytest.raises(ControlError, match="growth"):
             LocalWorld([[2.0, 0.0]], [0.3], circle_growth_max_m=bad)

@@ -7,6 +7,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+import yaml
 
 from slamkit.data.estimate import LatestBelief
 from slamkit.data.sequence import Odometry
@@ -233,8 +234,15 @@ def test_local_world_grows_a_standing_track_that_may_set_off():
     np.testing.assert_allclose(world.circle_growth_mps, [0.2, 0.0])
     np.testing.assert_allclose(world.radii_at([0.5, 0.75, 2.0]), [[0.4, 0.55], [0.45, 0.55], [0.45, 0.55]])
     # no limit: over the whole look-ahead (0.7 m at 2 s)
-    stack.config = dataclasses.replace(stack.config, standing_growth_max_m=None)
+    stack.config = dataclasses.replace(stack.config, standing_growth_max_m=float("inf"))
     np.testing.assert_allclose(stack.local_world(tracks).radii_at([2.0]), [[0.7, 0.55]])
+    # from a pipeline's YAML: `.inf` switches the limit off; null keeps the default; a string is refused
+    from slamkit.config import build
+
+    assert build(NavigationConfig, yaml.safe_load("standing_growth_max_m: .inf")).standing_growth_max_m == float("inf")
+    assert build(NavigationConfig, yaml.safe_load("standing_growth_max_m: null")).standing_growth_max_m == 0.2
+    with pytest.raises(ConfigError, match="standing_growth_max_m"):
+        build(NavigationConfig, {"standing_growth_max_m": "none"})
     # a hedge that grows a standing track faster keeps its own, unlimited rate: hedge 1 of a typical
     # speed of 0.5 m/s (a shuttler slowed at its turn), 0.5 m/s, 1.3 m at 2 s
     stack.config = dataclasses.replace(stack.config, standing_growth_max_m=0.15, prediction_hedge=1.0)

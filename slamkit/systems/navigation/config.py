@@ -154,7 +154,7 @@ class NavigationConfig:
     wall_turn_horizon_s: float = 0.0
     #: a standing track (slower than ``blocking_speed_mps``) may set off: its disc grows at this
     #: rate over the look-ahead (m/s; 0: it stays where it is) up to ``standing_growth_max_m``
-    #: (None: over the whole look-ahead). Why (issue 33): on social-force traffic a forklift
+    #: (m; inf, ``.inf`` in YAML: over the whole look-ahead). Why (issue 33): on social-force traffic a forklift
     #: dwelling at its route's end, never seen moving, set off into the robot passing it 0.15 m
     #: clear at 0.65 m/s (warehouse 5018; forklifts accelerate at 0.6 m/s^2 and ignore the robot).
     #: Measured with the precise perception and the ramped evasion (TrackerConfig.radius_source),
@@ -172,7 +172,7 @@ class NavigationConfig:
     #: successes gained, 3 lost, sign test p 0.013; 15 hits removed, none new); development
     #: 256 / 5 / 0 / 9 against 245 / 21 / 3 / 1; seeds 0-29 89 / 0 / 0 / 1 against 90 / 0 / 0 / 0
     standing_growth_mps: float = 0.2
-    standing_growth_max_m: float | None = 0.2
+    standing_growth_max_m: float = 0.2
     #: how far short of a wall it turns: the wall range of the social-force model (Helbing &
     #: Molnar 1995, ``slamkit.sim.social_force``: people keep about this far from walls)
     wall_turn_clearance_m: float = 0.2
@@ -204,8 +204,8 @@ class NavigationConfig:
         if not 0.0 <= self.standing_growth_mps <= 2.0:
             raise ConfigError(f"NavigationConfig.standing_growth_mps must lie in [0, 2] m/s, "
                               f"got {self.standing_growth_mps}")
-        if self.standing_growth_max_m is not None and not 0.0 <= self.standing_growth_max_m <= 5.0:
-            raise ConfigError(f"NavigationConfig.standing_growth_max_m must lie in [0, 5] m or be None, "
+        if not self.standing_growth_max_m >= 0.0:
+            raise ConfigError(f"NavigationConfig.standing_growth_max_m must be >= 0 m (inf: no limit), "
                               f"got {self.standing_growth_max_m}")
         if not 0.0 <= self.wall_turn_clearance_m <= 2.0:
             raise ConfigError(f"NavigationConfig.wall_turn_clearance_m must lie in [0, 2] m, got {self.wall_turn_clearance_m}")

@@ -299,11 +299,7 @@ class SafetyGuard:
         """``world`` (built from ``tracks`` in their order, :meth:`NavigationStack.local_world`)
         with a second disc for every moving track: the same one turned back now, at its speed."""
         k = np.flatnonzero(self.stack.moving(tracks))
-        return LocalWorld(np.vstack([world.circle_xy_m, world.circle_xy_m[k]]),
-                          np.concatenate([world.circle_radius_m, world.circle_radius_m[k]]),
-                          np.vstack([world.circle_velocity_mps, -tracks.velocity_mps[k]]), world.distance, world.t_s,
-                          np.concatenate([world.circle_growth_mps, world.circle_growth_mps[k]]),
-                          np.concatenate([world.circle_growth_max_m, world.circle_growth_max_m[k]]))
+        return world.with_copies(k, world.circle_xy_m[k], -tracks.velocity_mps[k])
 
     def escapable(self, pose: np.ndarray, command: np.ndarray, world: LocalWorld, t_s: float) -> bool:
         """Whether, driving ``command`` for ``escape_reaction_s``, the robot still has a ramped

@@ -302,16 +302,12 @@ class NavigationStack:
         # (limited): a shuttler slowed at its turn keeps yielding's reachable set
         standing = ~moving & (growth < c.standing_growth_mps)
         growth = np.where(standing, c.standing_growth_mps, growth)
-        standing_max = math.inf if c.standing_growth_max_m is None else c.standing_growth_max_m
-        growth_max = np.where(standing, standing_max, math.inf)
+        growth_max = np.where(standing, c.standing_growth_max_m, math.inf)
+        world = LocalWorld(xy, radius, velocity, self.distance, t_s, growth, growth_max)
         k, t_wall = self.wall_turns(xy, velocity, tracks.radius_m, moving, wall_turn_horizon_s)
-        if len(k):
-            # the turn back is the predicted path mirrored where it turns: a disc that starts as far
-            # beyond that point as the track is before it and comes back at the same speed
-            xy = np.vstack([xy, xy[k] + 2.0 * t_wall[:, None] * velocity[k]])
-            radius, velocity = np.concatenate([radius, radius[k]]), np.vstack([velocity, -velocity[k]])
-            growth, growth_max = np.concatenate([growth, growth[k]]), np.concatenate([growth_max, growth_max[k]])
-        return LocalWorld(xy, radius, velocity, self.distance, t_s, growth, growth_max)
+        # the turn back is the predicted path mirrored where it turns: a disc that starts as far
+        # beyond that point as the track is before it and comes back at the same speed
+        return world.with_copies(k, xy[k] + 2.0 * t_wall[:, None] * velocity[k], -velocity[k]) if len(k) else world
 
     def wall_turns(self, xy_m: np.ndarray, velocity_mps: np.ndarray, radius_m: np.ndarray,
                    moving: np.ndarray, horizon_s: float | None = None) -> tuple[np.ndarray, np.ndarray]:
