@@ -341,6 +341,55 @@ def test_yielding_to_a_shuttler_that_may_turn_back():
     # one never seen reversing is still predicted with its constant velocity
     assert stack.yield_decision(pose, Tracks(**away)).v_max_mps == np.inf
 
+def test_a_robot_without_progress_for_its_patience_yields_to_the_constant_velocity_prediction_with_less_slack():
+    from slamkit.estimation.obstacle_tracker import Tracks
+
+    # the shuttler of test_yielding_to_a_shuttler_that_may_turn_back with reversed_hedge 1: the
+    # robot stops. With patience_s 5, after 5 s without getting 0.5 m nearer the goal along its
+    # path it predicts the shuttler at constant velocity (walking away: no yield) until it gains
+    # 0.5 m on where it was then
+    stack = _straight_stack(2.05)
+    stack.config = dataclasses.replace(stack.config, yielding=dataclasses.replace(
+        stack.config.yielding, reversed_hedge=1.0, patience_s=5.0))
+    pose = np.array([2.05, 2.0, 0.0])
+    away = Tracks(np.arange(1), np.array([[3.0, 1.0]]), np.array([[0.0, -0.5]]), np.array([0.3]),
+                  np.eye(4)[None], reversals=np.array([1]))
+    for t_s, v_max in ((0.0, 0.0), (4.9, 0.0), (5.0, np.inf), (8.0, np.inf)):
+        stack._t_s = t_s  # creeping 0.4 m on along the path meanwhile: no gain
+        assert stack.yield_decision(pose + [0.05 * t_s, 0.0, 0.0], away).v_max_mps == v_max, t_s
+    assert (stack.yielding.progress_reference_m, stack.yielding.progress_since_s) == (2.95, 0.0)
+    # 0.5 m along its path from the 2.95 m left at 0 s restarts the clock; then 0.45 m more does
+    # not, nor does backing off and coming back
+    for t_s, remaining_m, impatient in ((8.5, 2.45, False), (13.4, 2.0, False), (13.5, 2.6, True), (14.0, 2.01, True),
+                                        (14.5, 1.95, False)):
+        stack._t_s = t_s
+        stack.yielding.watch_progress(remaining_m)
+        assert stack.yielding.impatient == impatient, t_s
+    assert (stack.yielding.progress_reference_m, stack.yielding.progress_since_s) == (1.95, 14.5)
+    # the crossing person of test_yielding_stops_short_of_a_crossing_track 0.5 m further up: its
+    # sweep meets the path about 1 s after the robot at cruise speed would be there -- within the
+    # 2 s slack, so the robot stops short of it (the first sample no waiting place is x = 2.425:
+    # gap 0.375 m, v = sqrt(2 * 0.5 * 0.325)); impatient, it keeps 0.5 s (escape_slack_s): it goes
+    later = _tracks([[3.0, 4.0]], [[0.0, -0.5]], [0.3])
+    stack.yielding.reset()
+    stack._t_s = 20.0
+    assert stack.yield_decision(np.array([2.05, 2.0, 0.0]), later).v_max_mps == pytest.approx(np.sqrt(0.325), abs=1e-9)
+    stack._t_s = 25.0
+    assert stack.yield_decision(np.array([2.05, 2.0, 0.0]), later).v_max_mps == np.inf
+    # never impatient by default; the settings are checked
+    assert YieldingConfig().patience_s == 0.0
+    never = NavigationStack(_room(), NavigationConfig())
+    never.reset([2.05, 2.0, 0.0], np.diag([1e-4, 1e-4, 1e-4]))
+    never.path = np.array([[2.05, 2.0], [5.0, 2.0]])
+    for t_s in (0.0, 1000.0):  # 1000 s without progress
+        never._t_s = t_s
+        assert never.yield_decision(np.array([2.05, 2.0, 0.0]), later).v_max_mps == pytest.approx(np.sqrt(0.325), abs=1e-9)
+    assert not never.yielding.impatient
+    for key, bad in (("patience_s", -1.0), ("patience_s", float("nan")), ("patience_progress_m", 0.0)):
+        with pytest.raises(ConfigError, match=f"YieldingConfig.{key}"):
+            dataclasses.replace(stack.config.yielding, **{key: bad})
+
+
 def test_speed_plan_creeps_to_its_waiting_place_and_falls_back_to_the_gate_when_it_cannot_stop():
     # the person of the yielding example, on the path (x = 3) from 1.5 to 4.5 s; its sweep (grown by
     # 0.5 s each way) covers the path from x = 2.25 m, and within the 3 s waiting horizon the path

@@ -76,6 +76,49 @@ def test_an_infeasible_chance_margin_falls_back_to_the_largest_feasible_one():
     assert np.isnan(NavigationStack(_wall_with_gap()).planned_collision_probability_max)  # fixed inflation
 
 
+def test_narrow_passages_plans_a_passage_narrower_than_the_path_margin_with_the_widest_margin_that_fits():
+    # the gap's middle row is 0.30 m from the wall cells' centres: the costmap's inscribed radius
+    # 0.2 + 0.15 closes it and no other way exists. The local planner needs 0.2 + its 0.05 m from
+    # the walls' surface, half a cell (2.5 cm) nearer than their cells' centres, so the path margin
+    # may be lowered to 0.08 m (whole centimetres, not under 0.075); it is lowered to the widest that leaves the
+    # gap open, 0.09 m (inscribed 0.29; 0.30 reaches the wall cells) -- not the bare map, whose
+    # path grazes the wall cells
+    none = Tracks(np.zeros(0, int), np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0), np.zeros((0, 4, 4)))
+    narrowing = NavigationConfig(planning=GlobalPlanningConfig(narrow_passages=True))
+    stack = NavigationStack(_wall_with_gap(), narrowing)
+    stack.reset([1.0, 1.0, 0.0], np.diag([1e-4, 1e-4, 1e-4]))
+    stack.set_goal([5.0, 3.0, 0.0])
+    assert stack.planning.plan(np.array([1.0, 1.0, 0.0]), np.diag([1e-4, 1e-4, 0.0]), none, np.zeros(0, int))
+    assert (stack.narrowed_plans, stack.bare_map_plans) == (1, 0)
+    assert stack.planning.path_margin_m == pytest.approx(0.09, abs=1e-9)
+    in_gap = stack.path[np.abs(stack.path[:, 0] - 3.075) <= 0.1]
+    assert len(in_gap) and np.allclose(in_gap[:, 1], 2.025)  # the gap's middle row, 0.30 m from both sides
+    # a gap of 0.45 m (middle 0.25 m from the wall cells, under 0.28) the local planner cannot pass: the bare map
+    occ = _wall_with_gap().occupied.copy()
+    occ[35, 60:63] = occ[45, 60:63] = True
+    narrow = NavigationStack(OccupancyGrid(occ, 0.05), narrowing)
+    narrow.reset([1.0, 1.0, 0.0], np.diag([1e-4, 1e-4, 1e-4]))
+    narrow.set_goal([5.0, 3.0, 0.0])
+    assert narrow.planning.plan(np.array([1.0, 1.0, 0.0]), np.diag([1e-4, 1e-4, 0.0]), none, np.zeros(0, int))
+    assert (narrow.narrowed_plans, narrow.bare_map_plans) == (0, 1) and np.isnan(narrow.planning.path_margin_m)
+    # a robot standing 0.3 m from a wall (inside the 0.35 m inscribed radius) in open space plans
+    # its way out with the configured margin beyond its neighbourhood: no bare map
+    open_ = NavigationStack(_wall_with_gap(), narrowing)
+    open_.reset([1.0, 0.4, 0.0], np.diag([1e-4, 1e-4, 1e-4]))
+    open_.set_goal([1.5, 3.0, 0.0])
+    assert open_.planning.plan(np.array([1.0, 0.4, 0.0]), np.diag([1e-4, 1e-4, 0.0]), none, np.zeros(0, int))
+    assert (open_.narrowed_plans, open_.bare_map_plans) == (1, 0) and open_.planning.path_margin_m == 0.15
+    clearance = open_.distance.query(open_.path)[0]
+    assert clearance[5:].min() > 0.35  # off the wall within its first few cells
+    # off (the default): the bare map for the gap, its path grazing the wall cells
+    bare = NavigationStack(_wall_with_gap(), NavigationConfig())
+    bare.reset([1.0, 1.0, 0.0], np.diag([1e-4, 1e-4, 1e-4]))
+    bare.set_goal([5.0, 3.0, 0.0])
+    assert bare.planning.plan(np.array([1.0, 1.0, 0.0]), np.diag([1e-4, 1e-4, 0.0]), none, np.zeros(0, int))
+    assert (bare.narrowed_plans, bare.bare_map_plans) == (0, 1)
+    assert bare.distance.query(bare.path)[0].min() < 0.1
+
+
 def test_paired_variants_table_differences_by_seed():
     from slamkit.experiments.navigation import Episode, _variants, paired_variants_markdown
 

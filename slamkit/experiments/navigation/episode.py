@@ -225,6 +225,9 @@ def run_episode(scenario: NavigationScenario, nav_config: NavigationConfig = Nav
         # a plan settled for, and how many plans lowered k to find a path
         "chance_probability_max": stack.planned_collision_probability_max,
         "chance_fallback_plans": float(stack.chance_fallbacks),
+        # plans through a passage narrower than the path margin, and plans on the bare map
+        "narrowed_plans": float(stack.narrowed_plans),
+        "bare_map_plans": float(stack.bare_map_plans),
         #: MCL updates that injected particles (augmented MCL; 0 when it is off)
         "localisation_injections": float(stack.mcl.injections),
         **layer_timing_summary(stack.timings_s),

@@ -10,6 +10,12 @@ cells whose cost changed and the moved start, :meth:`GlobalPlanning.search`). Th
 confirmed, slow track within ``block_lookahead_m`` of the path ahead, :meth:`blocking_tracks`,
 whose disc is then blocked in the costmap), and after a recovery (:mod:`.recovery`).
 
+Where the costmap's margin leaves no path (a passage narrower than the robot plus
+``path_margin_m``, or the estimate standing inside that margin), the path is planned on the bare
+map's free cells -- or, with ``narrow_passages``, on the widest margin that leaves one, no lower
+than the local planner's own (:meth:`GlobalPlanning.narrowed`), the bare map only where even that
+fails.
+
 Chance margins (``NavigationConfig.uncertainty``, see the package docstring): with
 ``"covariance"`` the costmap's inscribed radius grows by k sigma (cached per whole centimetre,
 :meth:`cell_cost`), lowered by bisection when it leaves no path (``chance_k``); with
@@ -66,6 +72,19 @@ class GlobalPlanningConfig:
     #: Off: no evidence of fewer collisions, the hits move rather than go
     lane_cost: float = 0.0
     lane_horizon_s: float = 6.0
+    #: where the costmap's margin leaves no path, plan with the widest margin that leaves one,
+    #: no lower than the local planner's own (:meth:`GlobalPlanning.narrowed`), before the bare
+    #: map -- whose path grazes walls and threads gaps narrower than the robot, where the local
+    #: planner stalls (issue 33: Willow development seed 3007 stood 80 s at a 0.62 m passage, its
+    #: plans alternating between two bare-map paths). Measured on development seeds 3000-3089 x 3
+    #: worlds, paired with the defaults' 256 / 5 / 0 / 9 (successes / moving / static / timeouts):
+    #: 258 / 5 / 0 / 7 (4 better -- office 3000, Willow 3007 / 3030 / 3066 -- 2 worse, sign test
+    #: p 0.69; office 3012 / 3088 lost where the bare-map path had happened to pass beside a
+    #: shuttler's lane), the same moving hits; on the social-force block 5000-5029 87 / 1 / 0 / 2
+    #: against 88 / 0 / 0 / 2 (Willow 5028: through the passage it could not pass before, the robot
+    #: met a person head-on coming round a corner). Off: the gate fixed before the run (no new
+    #: moving hit on the social block) was not met
+    narrow_passages: bool = False
 
     def __post_init__(self) -> None:
         if not self.replan_period_s > 0:
@@ -106,6 +125,13 @@ class GlobalPlanning:
         #: smallest value over the run, and how many plans had to lower it (see plan)
         self.chance_k = self.chance_k_min = chance_sigma_multiplier(self.stack.config.collision_probability)
         self.chance_fallbacks = 0
+        #: plans whose path margin had to be lowered (:meth:`narrowed`), and plans on the bare
+        #: map (not even the local planner's margin left a path)
+        self.narrowed_plans = 0
+        self.bare_map_plans = 0
+        #: the path margin the last plan kept beyond the robot radius (``path_margin_m``, less
+        #: when narrowed; nan on the bare map)
+        self.path_margin_m = self.config.path_margin_m
 
     def sigma_key(self, cov: np.ndarray) -> int:
         """The covariance-aware margin k sigma in whole centimetres (0 with fixed inflation), so
@@ -183,17 +209,18 @@ class GlobalPlanning:
         lanes = self.lane_cells(tracks)
         start_cell = g.world_to_cell(pose[None, :2])[0]
 
-        def plan(margin_cm: int):
+        def plan(margin_cm: int, start_margin_cm: int = 0):
             cost = self.cell_cost(margin_cm)
-            if margin_cm > 0:
-                # the estimate itself may sit inside the chance margin (near a wall with a wide
-                # belief): within the margin of the start the fixed costmap applies, so the robot
-                # can plan its way out instead of lowering k for the whole map
-                n = int(math.ceil(0.01 * margin_cm / g.resolution_m)) + 1
+            if margin_cm > start_margin_cm:
+                # the estimate itself may sit inside the margin (near a wall with a wide belief,
+                # or pushed there by traffic): within the margin of the start the costmap of
+                # ``start_margin_cm`` applies, so the robot can plan its way out instead of
+                # lowering the margin for the whole map
+                n = int(math.ceil(0.01 * (margin_cm - start_margin_cm) / g.resolution_m)) + 1
                 y0, y1 = max(start_cell[1] - n, 0), min(start_cell[1] + n + 1, g.height)
                 x0, x1 = max(start_cell[0] - n, 0), min(start_cell[0] + n + 1, g.width)
                 cost = cost.copy()
-                cost[y0:y1, x0:x1] = self.cell_cost(0)[y0:y1, x0:x1]
+                cost[y0:y1, x0:x1] = self.cell_cost(start_margin_cm)[y0:y1, x0:x1]
             if lanes is not None:
                 cost = cost + self.config.lane_cost * lanes
             if blocked is not None:
@@ -218,11 +245,17 @@ class GlobalPlanning:
             k = chance_sigma_multiplier(nav.collision_probability)
             self.chance_k = k if got >= want else k * got / want
             self.chance_k_min = min(self.chance_k_min, self.chance_k)
+        self.path_margin_m = self.config.path_margin_m
+        if not res.solved and self.config.narrow_passages:
+            res = self.narrowed(plan) or res
         if not res.solved:
-            # the start may sit inside the inflated margin (after a brush past a wall or a jump
-            # of the estimate): plan on the bare map's free cells instead
+            # not even the robot's disc and the local planner's margin fit (the start inside
+            # them after a brush past a wall, or a jump of the estimate): plan on the bare map's
+            # free cells instead
             res = self.planner.plan(PlanningProblem(g, pose[:2], stack.goal[:2]))
             self.searched_cost = None
+            self.bare_map_plans += res.solved
+            self.path_margin_m = math.nan
         stack.timings_s["global_planner"].append(time.perf_counter() - t0)
         self.last_plan_s = stack.now_s
         if not res.solved:
@@ -230,6 +263,38 @@ class GlobalPlanning:
         stack.path = res.path[:, :2]
         self.replans += 1
         return True
+
+    def narrowed(self, plan) -> PlanResult | None:
+        """The plan with the widest path margin that leaves one, when the configured margin leaves
+        none (a passage narrower than the robot plus ``path_margin_m``, or the start inside that
+        margin): the margin is lowered by bisection over whole centimetres, no lower than the
+        local planner's own safety margin (a path it cannot follow is no path), with the start's
+        neighbourhood planned on that least margin (None: not even that leaves a path). Counted
+        in ``narrowed_plans``, the margin kept in ``path_margin_m``.
+        ``plan(margin_cm, start_margin_cm)`` is :meth:`plan`'s search on the costmap of
+        ``path_margin_m + margin_cm`` cm."""
+        # the costmap measures to the occupied cells' centres, the local planner to their surface
+        least_m = (float(getattr(self.stack.controller.config, "safety_margin_m", 0.0))
+                   + 0.5 * self.stack.grid.resolution_m)
+        floor_cm = -int(math.floor(100.0 * max(self.config.path_margin_m - least_m, 0.0) + 1e-9))
+        if floor_cm == 0:
+            return None
+        res, lo = plan(0, floor_cm), 0
+        if not res.solved:
+            res, lo = plan(floor_cm, floor_cm), floor_cm
+            if not res.solved:
+                return None
+            hi = 0
+            while hi - lo > 1:
+                mid = (lo + hi) // 2
+                mid_res = plan(mid, floor_cm)
+                if mid_res.solved:
+                    res, lo = mid_res, mid
+                else:
+                    hi = mid
+        self.narrowed_plans += 1
+        self.path_margin_m = self.config.path_margin_m + 0.01 * lo
+        return res
 
     def search(self, start_xy: np.ndarray, cost: np.ndarray) -> PlanResult:
         """The global search on ``cost``: from scratch, or -- for an incremental planner (D* Lite,

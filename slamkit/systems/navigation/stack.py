@@ -102,6 +102,7 @@ class NavigationStack:
         self.planning.last_plan_s = -math.inf
         self.regulator.phase = CommandStatus.DRIVING
         self.planning.searched_cost = None
+        self.yielding.progress_reference_m = math.inf  # progress is towards this goal
 
     def current_pose(self) -> tuple[np.ndarray, np.ndarray]:
         """(3,) estimated world_xytheta_body and its (3, 3) covariance."""
@@ -159,6 +160,14 @@ class NavigationStack:
     @property
     def planned_collision_probability_max(self) -> float:
         return self.planning.planned_collision_probability_max
+
+    @property
+    def narrowed_plans(self) -> int:
+        return self.planning.narrowed_plans
+
+    @property
+    def bare_map_plans(self) -> int:
+        return self.planning.bare_map_plans
 
     @property
     def recoveries(self) -> int:
