@@ -14,7 +14,8 @@ from slamkit.data.sequence import Odometry
 from slamkit.errors import ConfigError
 from slamkit.experiments.navigation import EpisodeConfig, make_navigation_scenario, run_episode
 from slamkit.maps.occupancy_grid import OccupancyGrid
-from slamkit.systems.navigation import CommandStatus, NavigationConfig, NavigationStack, SafetyConfig, YieldingConfig
+from slamkit.systems.navigation import (CommandStatus, GlobalPlanningConfig, NavigationConfig, NavigationStack,
+                                       SafetyConfig, YieldingConfig)
 
 
 def _room() -> OccupancyGrid:
@@ -764,6 +765,46 @@ def test_lane_cost_makes_the_global_path_leave_a_moving_tracks_line():
     assert plan(0.0)[0].planning.lane_cells(person) is None
     for key, bad in (("lane_cost", float("nan")), ("lane_cost", -1.0), ("lane_horizon_s", float("nan")),
                      ("lane_horizon_s", -1.0)):
+        with pytest.raises(ConfigError, match=f"GlobalPlanningConfig.{key}"):
+            dataclasses.replace(stack.config.planning, **{key: bad})
+
+
+def test_a_robot_without_progress_for_detour_after_s_plans_round_the_lanes():
+    from slamkit.geometry.segments import point_segment_distance
+
+    # the person of test_lane_cost_makes_the_global_path_leave_a_moving_tracks_line, lane_cost 0,
+    # detour_after_s 10: while the robot makes progress its path runs 2.75 m inside the lane; after
+    # 10 s without 0.5 m of progress the lanes cost detour_lane_cost (2, those cells three times)
+    # and it keeps beside the lane; 0.5 m of progress ends that
+    stack = NavigationStack(_room())
+    stack.config = dataclasses.replace(stack.config, planning=dataclasses.replace(stack.config.planning,
+                                                                                  detour_after_s=10.0))
+    stack.reset([1.0, 2.0, 0.0], np.diag([1e-4, 1e-4, 1e-4]))
+    stack.set_goal([5.0, 2.0, 0.0])
+    person = _tracks([[3.0, 2.0]], [[0.5, 0.0]], [0.3])
+    pose = np.array([1.0, 2.0, 0.0])
+
+    def in_lane_m() -> float:
+        assert stack.planning.plan(pose, np.diag([1e-4] * 3), person, np.zeros(0, int))
+        inside = point_segment_distance(stack.path, np.array([[3.0, 2.0]]), np.array([[6.0, 2.0]]))[:, 0] <= 0.75
+        step = np.linalg.norm(np.diff(stack.path, axis=0), axis=1)
+        return float(step[inside[1:] & inside[:-1]].sum())
+
+    stack.yielding.watch_progress(4.0)  # 4 m of path left at 0 s
+    for t_s, cost in ((0.0, 0.0), (9.9, 0.0), (10.0, 2.0)):
+        stack._t_s = t_s
+        assert stack.planning.lane_cost() == cost, t_s
+    assert in_lane_m() < 1.0
+    stack._t_s = 10.5
+    stack.yielding.watch_progress(3.5)
+    assert stack.planning.lane_cost() == 0.0 and in_lane_m() == pytest.approx(2.75, abs=0.06)
+    # lane_cost when larger keeps its own value; never with the default 0
+    stack.config = dataclasses.replace(stack.config, planning=dataclasses.replace(stack.config.planning, lane_cost=3.0))
+    stack._t_s = 30.0
+    assert stack.planning.lane_cost() == 3.0
+    assert GlobalPlanningConfig().detour_after_s == 0.0
+    for key, bad in (("detour_after_s", -1.0), ("detour_after_s", float("nan")), ("detour_lane_cost", float("inf")),
+                     ("detour_lane_cost", -0.5)):
         with pytest.raises(ConfigError, match=f"GlobalPlanningConfig.{key}"):
             dataclasses.replace(stack.config.planning, **{key: bad})
 

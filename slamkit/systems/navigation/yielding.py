@@ -242,10 +242,14 @@ class Yielding:
             self.progress_reference_m, self.progress_since_s = remaining_m, self.stack.now_s
 
     @property
+    def stalled_s(self) -> float:
+        """How long the robot has not gained ``patience_progress_m`` towards the goal."""
+        return self.stack.now_s - self.progress_since_s
+
+    @property
     def impatient(self) -> bool:
         """The robot has not gained ``patience_progress_m`` towards the goal for ``patience_s``."""
-        patience_s = self.config.patience_s
-        return patience_s > 0 and self.stack.now_s - self.progress_since_s >= patience_s
+        return self.config.patience_s > 0 and self.stalled_s >= self.config.patience_s
 
     def record_trail(self, pose: np.ndarray, back_off_xy_m: np.ndarray | None) -> None:
         """Extend the trail by the estimate every 5 cm; backing off, forget the part of it the
