@@ -7,7 +7,8 @@ from __future__ import annotations
 import numpy as np
 
 
-def _arc_length(path_xy_m: np.ndarray) -> np.ndarray:
+def arc_length_m(path_xy_m: np.ndarray) -> np.ndarray:
+    """(N,) the arc length at each vertex of the polyline (N, 2), 0 at the first."""
     seg = np.linalg.norm(np.diff(path_xy_m, axis=0), axis=1)
     return np.concatenate([[0.0], np.cumsum(seg)])
 
@@ -23,7 +24,7 @@ def project_on_path(path_xy_m: np.ndarray, xy_m: np.ndarray) -> float:
     t = np.clip(np.einsum("ij,ij->i", np.asarray(xy_m, float)[None, :] - a, ab) / den, 0.0, 1.0)
     proj = a + t[:, None] * ab
     i = int(np.argmin(np.linalg.norm(proj - xy_m, axis=1)))
-    s = _arc_length(path)
+    s = arc_length_m(path)
     return float(s[i] + t[i] * np.sqrt(den[i]))
 
 
@@ -38,7 +39,7 @@ def project_many(path_xy_m: np.ndarray, xy_m: np.ndarray) -> np.ndarray:
     t = np.clip(np.einsum("kij,ij->ki", pts[:, None, :] - a, ab) / den, 0.0, 1.0)  # (K, S)
     proj = a + t[..., None] * ab
     i = np.argmin(np.linalg.norm(proj - pts[:, None, :], axis=2), axis=1)
-    s = _arc_length(path)
+    s = arc_length_m(path)
     return s[i] + t[np.arange(len(pts)), i] * np.sqrt(den[i])
 
 
@@ -46,7 +47,7 @@ def crop(path_xy_m: np.ndarray, s_lo_m: float, s_hi_m: float) -> np.ndarray:
     """The vertices of the polyline spanning arc lengths [s_lo, s_hi] (one extra vertex each
     side), so per-candidate projections only look at the nearby part of a long path."""
     path = np.asarray(path_xy_m, dtype=float)
-    s = _arc_length(path)
+    s = arc_length_m(path)
     lo = max(int(np.searchsorted(s, s_lo_m, side="right")) - 1, 0)
     hi = min(int(np.searchsorted(s, s_hi_m, side="left")) + 1, len(path))
     return path[lo:max(hi, lo + 1)]
@@ -58,7 +59,7 @@ def point_at(path_xy_m: np.ndarray, s_m: np.ndarray) -> np.ndarray:
     s_query = np.asarray(s_m, dtype=float)
     if len(path) == 1:
         return np.broadcast_to(path[0], s_query.shape + (2,)).copy()
-    s = _arc_length(path)
+    s = arc_length_m(path)
     q = np.clip(s_query, 0.0, s[-1])
     return np.stack([np.interp(q, s, path[:, 0]), np.interp(q, s, path[:, 1])], axis=-1)
 

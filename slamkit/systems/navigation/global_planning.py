@@ -198,8 +198,8 @@ class GlobalPlanning:
         return c.lane_cost
 
     def lane_cells(self, tracks: Tracks) -> np.ndarray | None:
-        """(H, W) the grid cells inside a moving track's lane (see ``lane_cost``); None when
-        ``lane_cost`` is 0 or no track moves."""
+        """(H, W) the grid cells inside a moving track's lane (see ``lane_cost``); None when the
+        lane cost of the moment (:meth:`lane_cost`, the detour's included) is 0 or no track moves."""
         stack, c = self.stack, self.config
         if self.lane_cost() <= 0:
             return None

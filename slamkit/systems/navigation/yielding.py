@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from slamkit.control.path_following import point_at, project_on_path
+from slamkit.control.path_following import arc_length_m, point_at, project_on_path
 from slamkit.errors import ConfigError
 from slamkit.estimation.obstacle_tracker import Tracks
 from slamkit.geometry.angles import wrap_angle
@@ -349,7 +349,7 @@ class Yielding:
         if stack.path is None:
             return YieldDecision(math.inf)
         s0 = project_on_path(stack.path, pose[:2])
-        self.watch_progress(float(np.linalg.norm(np.diff(stack.path, axis=0), axis=1).sum()) - s0)
+        self.watch_progress(float(arc_length_m(stack.path)[-1]) - s0)
         if not moving.any():
             return YieldDecision(math.inf)
         s = s0 + np.arange(0.0, 2.0 * c.lookahead_m, 0.5 * stack.grid.resolution_m + 0.05)
