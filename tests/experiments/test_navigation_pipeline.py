@@ -87,6 +87,7 @@ def test_a_short_run_writes_the_results_folder(tmp_path):
 #: With issue 33's defaults (precise perception, the ramped evasion, standing tracks that may set
 #: off; 2026-12-07, one run per seed): office 1.0 / 0 / 0, warehouse 1.0 / 0 / 0, Willow 0.967 / 0 / 0
 #: (seed 16 at the 90 s limit); final error mean 0.75 / 0.81 / 0.75 cm, max 1.32 / 1.43 / 1.48 cm.
+#: With the detour round lanes (detour_after_s 10, 2026-12-07): the same outcomes run for run.
 MEASURED = (("office", 0.99, 0, 0), ("warehouse", 0.99, 0, 0), ("willow", 0.96, 0, 0))
 #: (mean, max) final position error over the successes per world, every world (measured above)
 MEASURED_FINAL_ERROR_M = (0.0125, 0.02)
@@ -161,15 +162,21 @@ def test_navigation_goals_30_seeds_per_world(navigation_30_seeds):
 #: until stops 38-39 measured them repeatedly while choosing designs, which made them development
 #: seeds; stops 45-47 ran three pre-fixed comparisons on 5000-5089 (none looked at). The goals
 #: (>= 95% per block, moving < 2%): moving met, two blocks at 27/30; these are regression bounds.
+#: Then (2026-12-07, the gate fixed before the run: >= 262 successes, no static, <= 5 moving hits)
+#: the detour round lanes after 10 s without progress (GlobalPlanningConfig.detour_after_s),
+#: paired with the above in the same run (which reproduced it run for run): office 30/0/0/0,
+#: 30/0/0/0, 27/0/1/2; warehouse 30/0/0/0 x 3; Willow 29/0/0/1, 29/0/0/1, 28/0/1/1: 263/270
+#: (0.974 [0.947, 0.987]), 0 static, 2 moving (0.007 [0.002, 0.027]), 5 timeouts; 2 successes
+#: gained (warehouse 5064, Willow 5068, both moving hits before), none lost.
 MEASURED_EVALUATION = {
     ("office", "eval1"): (30, 0, 0, 0), ("office", "eval2"): (30, 0, 0, 0), ("office", "eval3"): (27, 0, 1, 2),
     ("warehouse", "eval1"): (30, 0, 0, 0), ("warehouse", "eval2"): (30, 0, 0, 0),
-    ("warehouse", "eval3"): (29, 0, 1, 0), ("willow", "eval1"): (29, 0, 0, 1), ("willow", "eval2"): (29, 0, 0, 1),
-    ("willow", "eval3"): (27, 0, 2, 1),
+    ("warehouse", "eval3"): (30, 0, 0, 0), ("willow", "eval1"): (29, 0, 0, 1), ("willow", "eval2"): (29, 0, 0, 1),
+    ("willow", "eval3"): (28, 0, 1, 1),
 }
-#: over the 270: at least 261 successes, at most 4 moving collisions (a bound's slack per block
+#: over the 270: at least 263 successes, at most 2 moving collisions (a bound's slack per block
 #: cannot hide a loss elsewhere)
-MEASURED_EVALUATION_ALL = (261, 4)
+MEASURED_EVALUATION_ALL = (263, 2)
 
 
 @pytest.mark.slow

@@ -798,11 +798,15 @@ def test_a_robot_without_progress_for_detour_after_s_plans_round_the_lanes():
     stack._t_s = 10.5
     stack.yielding.watch_progress(3.5)
     assert stack.planning.lane_cost() == 0.0 and in_lane_m() == pytest.approx(2.75, abs=0.06)
-    # lane_cost when larger keeps its own value; never with the default 0
+    # lane_cost when larger keeps its own value; detour_after_s 0 never detours (10 s is the default)
     stack.config = dataclasses.replace(stack.config, planning=dataclasses.replace(stack.config.planning, lane_cost=3.0))
     stack._t_s = 30.0
     assert stack.planning.lane_cost() == 3.0
-    assert GlobalPlanningConfig().detour_after_s == 0.0
+    stack.config = dataclasses.replace(stack.config, planning=dataclasses.replace(
+        stack.config.planning, lane_cost=0.0, detour_after_s=0.0))
+    stack._t_s = 1000.0
+    assert stack.yielding.stalled_s == 989.5 and stack.planning.lane_cost() == 0.0  # last gain at 10.5 s
+    assert GlobalPlanningConfig().detour_after_s == 10.0
     for key, bad in (("detour_after_s", -1.0), ("detour_after_s", float("nan")), ("detour_lane_cost", float("inf")),
                      ("detour_lane_cost", -0.5)):
         with pytest.raises(ConfigError, match=f"GlobalPlanningConfig.{key}"):
