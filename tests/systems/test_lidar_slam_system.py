@@ -459,6 +459,10 @@ def test_benchmark_goals(name, prior):
         # block's 15 m wall along the bottom corridor is straight (two steps of ~5 cm): curvature
         # -0.0045 1/m, line residual 0.032 m (-0.0039, 0.031); a graph that bends the loops fails here (odometry edges' information
         # x 0.1: -0.016 1/m, 0.10 m; no robust kernel: -0.009 1/m, 0.069 m)
+        # Failing since a78dd5d (the odometry check's re-match; git bisect, 2026-12-08): there left
+        # +0.054 / +0.074, bottom -0.0104 1/m, 0.081 m; at 1f70139 left +0.052 / NaN (no scan keeps
+        # 2.5 m of it after trimming), bottom the same -- the bottom wall is torn about 0.28 m at
+        # x = -0.5 m in that map: a defect to fix, not a bound to move
         for side, box in INTEL_INNER_WALLS.items():
             in_map, in_scans, _ = wall_curvature(res, box, "y")
             assert abs(in_scans) > 0.03, side
@@ -511,6 +515,13 @@ def test_revisits_after_drift_beyond_the_fixed_radius():
       closures, 46 far ones refused; precision 0.981, recall 0.608 (with the check after every
       gap, the matcher started the first scan after a blackout from the pose before it: 1.585 m)
 
+    The fixed radius's figure above was measured before that gap rule, which helps it too: since
+    a2b835e (found by git bisect, 2026-12-08) it gives 0.087 m / 102 there and, at 1f70139,
+    0.0962 +- 0.391 m, 120 relations above 0.5 m (max 3.20 m), precision 0.986, recall 0.546;
+    the drift region with the global matcher 0.0703 +- 0.324 m, 74 above 0.5 m (max 2.52 m),
+    precision 0.983, recall 0.607. The baseline's bounds below are those measured figures' (the
+    test asserted 150 and 0.15 m, unmet since a2b835e).
+
     Closer to the clean figure, not at it: some drifted stretches are still not tied back."""
     seq, relations = _log("intel")
     bad = lidar_blackouts(seq, 4, 45.0, 2, np.deg2rad(0.4), 1.05)
@@ -523,5 +534,5 @@ def test_revisits_after_drift_beyond_the_fixed_radius():
     new = run_slam(bad, None, with_loops(region_probability=0.99, global_after_local_closure=True),
                    relations=relations)
     old_bad, new_bad = int(np.sum(old.relations.errors_m > 0.5)), int(np.sum(new.relations.errors_m > 0.5))
-    assert old_bad > 150 and old.metrics["relation_trans_mean_m"] > 0.15
+    assert old_bad >= 110 and old.metrics["relation_trans_mean_m"] > 0.09
     assert new_bad < old_bad / 1.5 and new.metrics["relation_trans_mean_m"] < 0.12
