@@ -461,8 +461,8 @@ def test_benchmark_goals(name, prior):
         # x 0.1: -0.016 1/m, 0.10 m; no robust kernel: -0.009 1/m, 0.069 m)
         # Failing since a78dd5d (the odometry check's re-match; git bisect, 2026-12-08): there left
         # +0.054 / +0.074, bottom -0.0104 1/m, 0.081 m; at 1f70139 left +0.052 / NaN (no scan keeps
-        # 2.5 m of it after trimming), bottom the same -- the bottom wall is torn about 0.28 m at
-        # x = -0.5 m in that map: a defect to fix, not a bound to move
+        # 2.5 m of it after trimming), bottom the same -- the bottom wall shows a 0.28 m step at
+        # x = -0.5 m in that map (a tear, by the look of it): a defect to fix, not a bound to move
         for side, box in INTEL_INNER_WALLS.items():
             in_map, in_scans, _ = wall_curvature(res, box, "y")
             assert abs(in_scans) > 0.03, side
