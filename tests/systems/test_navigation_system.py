@@ -735,34 +735,45 @@ def test_the_goal_approach_slows_in_proportion_to_the_distance():
             dataclasses.replace(NavigationConfig().goal, approach_gain_per_s=bad)
 
 
-def test_lane_cost_makes_the_global_path_leave_a_moving_tracks_line():
+#: the lane examples' person: 0.3 m at (3, 2) walking +x at 0.5 m/s, along the straight path from
+#: (1, 2) to the goal (5, 2); its lane is its way over 6 s, (3, 2)-(6, 2), grown by its radius, the
+#: 0.25 m moving margin and the robot's 0.2 m (0.75 m)
+LANE_PERSON_XY_M, LANE_PERSON_VELOCITY_MPS, LANE_PERSON_RADIUS_M = [[3.0, 2.0]], [[0.5, 0.0]], [0.3]
+
+
+def _lane_example(**planning) -> NavigationStack:
+    """A stack in the room at (1, 2) with the goal (5, 2) and ``planning`` fields set."""
+    stack = NavigationStack(_room())
+    stack.config = dataclasses.replace(stack.config, planning=dataclasses.replace(stack.config.planning, **planning))
+    stack.reset([1.0, 2.0, 0.0], np.diag([1e-4, 1e-4, 1e-4]))
+    stack.set_goal([5.0, 2.0, 0.0])
+    return stack
+
+
+def _planned_length_and_in_lane_m(stack: NavigationStack, person) -> tuple[float, float]:
+    """Plan from (1, 2) and return the path's length and the length of it inside the person's lane."""
     from slamkit.geometry.segments import point_segment_distance
 
-    # a 0.3 m person at (3, 2) walking +x at 0.5 m/s, along the straight path from (1, 2) to the
-    # goal (5, 2): its lane is its way over 6 s, (3, 2)-(6, 2), grown by its radius, the 0.25 m
-    # moving margin and the robot's 0.2 m (0.75 m). Without lane_cost the path runs 2.75 m inside
-    # it (x from 2.25 to the goal); with lane_cost 1 (those cells cost twice) it keeps beside the
-    # lane (y ~ 2.78) and enters it only for the goal: under 1 m inside, 0.6 m longer in all
-    def plan(lane_cost: float):
-        stack = NavigationStack(_room())
-        stack.config = dataclasses.replace(stack.config, planning=dataclasses.replace(stack.config.planning,
-                                                                                      lane_cost=lane_cost))
-        stack.reset([1.0, 2.0, 0.0], np.diag([1e-4, 1e-4, 1e-4]))
-        stack.set_goal([5.0, 2.0, 0.0])
-        person = _tracks([[3.0, 2.0]], [[0.5, 0.0]], [0.3])
-        assert stack.planning.plan(np.array([1.0, 2.0, 0.0]), np.diag([1e-4] * 3), person, np.zeros(0, int))
-        inside = point_segment_distance(stack.path, np.array([[3.0, 2.0]]), np.array([[6.0, 2.0]]))[:, 0] <= 0.75
-        step = np.linalg.norm(np.diff(stack.path, axis=0), axis=1)
-        return stack, person, float(step.sum()), float(step[inside[1:] & inside[:-1]].sum())
+    assert stack.planning.plan(np.array([1.0, 2.0, 0.0]), np.diag([1e-4] * 3), person, np.zeros(0, int))
+    inside = point_segment_distance(stack.path, np.array([[3.0, 2.0]]), np.array([[6.0, 2.0]]))[:, 0] <= 0.75
+    step = np.linalg.norm(np.diff(stack.path, axis=0), axis=1)
+    return float(step.sum()), float(step[inside[1:] & inside[:-1]].sum())
 
-    _, _, length, in_lane = plan(0.0)
+
+def test_lane_cost_makes_the_global_path_leave_a_moving_tracks_line():
+    # Without lane_cost the path runs 2.75 m inside the person's lane (x from 2.25 to the goal);
+    # with lane_cost 1 (those cells cost twice) it keeps beside the lane (y ~ 2.78) and enters it
+    # only for the goal: under 1 m inside, 0.6 m longer in all
+    person = _tracks(LANE_PERSON_XY_M, LANE_PERSON_VELOCITY_MPS, LANE_PERSON_RADIUS_M)
+    length, in_lane = _planned_length_and_in_lane_m(_lane_example(lane_cost=0.0), person)
     assert length == pytest.approx(4.0, abs=0.06) and in_lane == pytest.approx(2.75, abs=0.06)
-    stack, person, length_lane, in_lane = plan(1.0)
+    stack = _lane_example(lane_cost=1.0)
+    length_lane, in_lane = _planned_length_and_in_lane_m(stack, person)
     assert in_lane < 1.0 and length_lane - length == pytest.approx(0.6, abs=0.1)
     lanes = stack.planning.lane_cells(person)
     cells = stack.grid.world_to_cell(np.array([[4.0, 2.0], [4.0, 2.8], [2.2, 2.0], [5.9 - 0.05, 2.7]]))
     assert lanes[cells[:, 1], cells[:, 0]].tolist() == [True, False, False, True]
-    assert plan(0.0)[0].planning.lane_cells(person) is None
+    assert _lane_example(lane_cost=0.0).planning.lane_cells(person) is None
     for key, bad in (("lane_cost", float("nan")), ("lane_cost", -1.0), ("lane_horizon_s", float("nan")),
                      ("lane_horizon_s", -1.0)):
         with pytest.raises(ConfigError, match=f"GlobalPlanningConfig.{key}"):
@@ -770,34 +781,21 @@ def test_lane_cost_makes_the_global_path_leave_a_moving_tracks_line():
 
 
 def test_a_robot_without_progress_for_detour_after_s_plans_round_the_lanes():
-    from slamkit.geometry.segments import point_segment_distance
-
-    # the person of test_lane_cost_makes_the_global_path_leave_a_moving_tracks_line, lane_cost 0,
-    # detour_after_s 10: while the robot makes progress its path runs 2.75 m inside the lane; after
-    # 10 s without 0.5 m of progress the lanes cost detour_lane_cost (2, those cells three times)
-    # and it keeps beside the lane; 0.5 m of progress ends that
-    stack = NavigationStack(_room())
-    stack.config = dataclasses.replace(stack.config, planning=dataclasses.replace(stack.config.planning,
-                                                                                  detour_after_s=10.0))
-    stack.reset([1.0, 2.0, 0.0], np.diag([1e-4, 1e-4, 1e-4]))
-    stack.set_goal([5.0, 2.0, 0.0])
-    person = _tracks([[3.0, 2.0]], [[0.5, 0.0]], [0.3])
-    pose = np.array([1.0, 2.0, 0.0])
-
-    def in_lane_m() -> float:
-        assert stack.planning.plan(pose, np.diag([1e-4] * 3), person, np.zeros(0, int))
-        inside = point_segment_distance(stack.path, np.array([[3.0, 2.0]]), np.array([[6.0, 2.0]]))[:, 0] <= 0.75
-        step = np.linalg.norm(np.diff(stack.path, axis=0), axis=1)
-        return float(step[inside[1:] & inside[:-1]].sum())
-
+    # the lane example with lane_cost 0 and detour_after_s 10: while the robot makes progress its
+    # path runs 2.75 m inside the lane; after 10 s without 0.5 m of progress the lanes cost
+    # detour_lane_cost (2, those cells three times) and it keeps beside the lane; 0.5 m of
+    # progress ends that
+    stack = _lane_example(lane_cost=0.0, detour_after_s=10.0)
+    person = _tracks(LANE_PERSON_XY_M, LANE_PERSON_VELOCITY_MPS, LANE_PERSON_RADIUS_M)
     stack.yielding.watch_progress(4.0)  # 4 m of path left at 0 s
     for t_s, cost in ((0.0, 0.0), (9.9, 0.0), (10.0, 2.0)):
         stack._t_s = t_s
         assert stack.planning.lane_cost() == cost, t_s
-    assert in_lane_m() < 1.0
+    assert _planned_length_and_in_lane_m(stack, person)[1] < 1.0
     stack._t_s = 10.5
     stack.yielding.watch_progress(3.5)
-    assert stack.planning.lane_cost() == 0.0 and in_lane_m() == pytest.approx(2.75, abs=0.06)
+    assert stack.planning.lane_cost() == 0.0
+    assert _planned_length_and_in_lane_m(stack, person)[1] == pytest.approx(2.75, abs=0.06)
     # lane_cost when larger keeps its own value; detour_after_s 0 never detours (10 s is the default)
     stack.config = dataclasses.replace(stack.config, planning=dataclasses.replace(stack.config.planning, lane_cost=3.0))
     stack._t_s = 30.0
