@@ -83,7 +83,10 @@ class GlobalPlanningConfig:
     #: shuttler's lane), the same moving hits; on the social-force block 5000-5029 87 / 1 / 0 / 2
     #: against 88 / 0 / 0 / 2 (Willow 5028: through the passage it could not pass before, the robot
     #: met a person head-on coming round a corner). Off: the gate fixed before the run (no new
-    #: moving hit on the social block) was not met
+    #: moving hit on the social block) was not met. Again with ``detour_after_s`` on (2026-12-08),
+    #: paired with the defaults' 259 / 5 / 0 / 6 on the same seeds: 262 / 4 / 0 / 4 (3 better --
+    #: Willow 3007 / 3044 / 3066 -- none worse; office 3012 / 3088 no longer lost); the social
+    #: block 87 / 1 / 0 / 2 against 88 / 0 / 0 / 2, the same Willow 5028 hit: the same gate, unmet
     narrow_passages: bool = False
     #: a robot that has not got ``yielding.patience_progress_m`` nearer the goal along its path
     #: for this long (waiting for traffic that leaves no window, :meth:`Yielding.stalled_s`)
