@@ -45,8 +45,8 @@ import numpy as np
 
 from slamkit.geometry.angles import wrap_angle
 from slamkit.control.path_following import crop, point_at, project_many, project_on_path
-from slamkit.control.protocols import (non_finite_brake, ControlOutput, ControlStatus, LocalWorld, Reference,
-                                       RobotState, brake_command)
+from slamkit.control.protocols import (non_finite_brake, ControlOutput, ControlStatus, DistanceGrid, LocalWorld,
+                                       Reference, RobotState, brake_command)
 from slamkit.control.rollout import distance_to_collision, rollout_arcs, trajectory_clearance
 from slamkit.errors import ControlError
 
@@ -75,6 +75,19 @@ class DWAConfig:
     w_progress: float = 1.0
     path_cap_m: float = 1.0
     lookahead_m: float = 1.0
+    #: the heading term's target no further along the path than the robot sees it: the last path
+    #: point before the first one its disc plus ``safety_margin_m`` cannot reach in a straight line
+    #: through the static map (:meth:`DWAController.visible_s`). Where the path hooks round an
+    #: obstacle the carrot ``lookahead_m`` ahead lies behind it, the heading term turns the robot to
+    #: face it through the obstacle, and no admissible arc drives (issue 33: Willow development seed
+    #: 3060 turned on the spot and recovered for 50 s beside a one-cell obstacle the path hooked
+    #: round, and reached the goal in 27 s with it). Measured in the navigation stack (the course's
+    #: weights) on development seeds 3000-3089 x 3 worlds, paired with the defaults' 259 / 5 / 0 / 6
+    #: (successes / moving / static / timeouts, 2026-12-08): 260 / 6 / 0 / 4 -- 6 better (office
+    #: 3052, Willow 3044 / 3054 / 3060 / 3066 / 3080), 5 worse (moving hits office 3012, warehouse
+    #: 3000, Willow 3020; timeouts Willow 3040 / 3079). False (the plain carrot): no evidence that
+    #: it helps the stack as a whole
+    line_of_sight_target: bool = False
     goal_tolerance_m: float = 0.2
 
     def __post_init__(self) -> None:
@@ -118,6 +131,23 @@ class DWAController:
         vv, ww = np.meshgrid(v, w, indexing="ij")
         return np.column_stack([vv.ravel(), ww.ravel()])
 
+    def visible_s(self, path_xy_m: np.ndarray, xy_m: np.ndarray, distance: DistanceGrid, step_m: float = 0.05) -> float:
+        """How far along ``path_xy_m`` the robot at ``xy_m`` sees it: the arc length of the last
+        point (every ``step_m`` from the robot's projection, up to ``lookahead_m`` plus the
+        horizon's reach) before the first one it cannot reach in a straight line with its disc
+        plus ``safety_margin_m`` clear of ``distance`` all the way (points <= 3 cm apart; a robot
+        already closer to a wall than that needs only its present clearance); inf (no limit)
+        when the first is not."""
+        c = self.config
+        s0 = project_on_path(path_xy_m, xy_m)
+        s = s0 + np.arange(step_m, c.lookahead_m + c.v_max_mps * c.horizon_s + 1e-9, step_m)
+        ahead = point_at(path_xy_m, s)
+        frac = np.linspace(0.0, 1.0, 41)[1:, None, None]
+        lines = xy_m[None, None, :] + frac * (ahead[None] - xy_m[None, None, :])
+        need_m = min(c.robot_radius_m + c.safety_margin_m, float(distance.query(xy_m)[0]) - 1e-3)
+        seen = np.logical_and.accumulate((distance.query(lines)[0] > need_m).all(axis=0))
+        return float(s[np.flatnonzero(seen)[-1]]) if seen[0] else np.inf
+
     def rollouts(self, state: RobotState, cand: np.ndarray, steps: int) -> np.ndarray:
         """(K, 2) candidates -> (K, steps + 1, 3) poses: each command held over the horizon."""
         return rollout_arcs(state.world_xytheta_body, cand, self.config.rollout_dt_s, steps)
@@ -149,7 +179,10 @@ class DWAController:
         s_robot = project_on_path(reference.path_xy_m, xy)
         local = crop(reference.path_xy_m, s_robot - 0.5, s_robot + horizon_len + c.path_cap_m + 0.5)
         s_end = project_many(local, traj[:, -1, :2])
-        target = point_at(local, s_end + c.lookahead_m)
+        s_target = s_end + c.lookahead_m
+        if c.line_of_sight_target and world.distance is not None:
+            s_target = np.maximum(np.minimum(s_target, self.visible_s(local, xy, world.distance)), s_end)
+        target = point_at(local, s_target)
         to_target = target - traj[:, -1, :2]
         bearing = np.arctan2(to_target[:, 1], to_target[:, 0])
         heading = 1.0 - np.abs(wrap_angle(bearing - traj[:, -1, 2])) / np.pi

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from slamkit.control.dwa import DWAConfig, DWAController, dynamic_window
-from slamkit.control.protocols import ControlStatus, LocalWorld, Reference, RobotState
+from slamkit.control.protocols import ControlStatus, DistanceGrid, LocalWorld, Reference, RobotState
 from slamkit.control.rollout import distance_to_collision, rollout_arcs, trajectory_clearance
 
 
@@ -95,3 +95,25 @@ def test_heads_for_goal_in_free_space():
                                   Reference([[0.0, 0.0], [5.0, 0.0]]), LocalWorld())
     # straight ahead, fastest speed in the window [0.3, 0.5] (a = 1 m/s^2)
     np.testing.assert_allclose(out.command, [0.5, 0.0])
+
+
+def test_line_of_sight_target_stops_where_the_path_turns_out_of_sight():
+    """A path east 2 m, then north, hooking round a post at P = (1.6, 0.6); the robot at the
+    start needs its disc plus margin (0.2 + 0.05 m) clear. The line from the robot to (2, y)
+    passes P at |1.2 - 1.6 y| / sqrt(4 + y^2), which falls to 0.25 m at y = 0.4298 (the root of
+    2.4975 y^2 - 3.84 y + 1.19 = 0): path points every 5 cm are seen up to (2, 0.40), arc length
+    2.40 m -- though (2, 1.2) and beyond are seen again past the post's other side, the sight
+    ends at the first point hidden. The heading target of every rollout is held there."""
+    res = 0.01
+    xs = np.arange(-1.0, 4.0, res) + res / 2
+    gx, gy = np.meshgrid(xs, xs)
+    grid = DistanceGrid(np.hypot(gx - 1.6, gy - 0.6), res, origin_xy_m=np.array([-1.0, -1.0]))
+    path = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 3.0]])
+    cfg = DWAConfig(robot_radius_m=0.2, safety_margin_m=0.05, v_max_mps=1.0, horizon_s=2.0, lookahead_m=1.0)
+    dwa = DWAController(cfg)
+    assert dwa.visible_s(path, np.zeros(2), grid) == pytest.approx(2.40)
+    # a robot already within the margin of the post needs only the clearance it has
+    assert dwa.visible_s(path, np.array([1.6, 0.38]), grid) > 2.4
+    # nothing in the way: no limit short of the reach (1 + 1 x 2 m beyond the projection)
+    assert dwa.visible_s(path, np.zeros(2), DistanceGrid(np.full((500, 500), 5.0), res, np.array([-1.0, -1.0]))) \
+        == pytest.approx(3.0)
