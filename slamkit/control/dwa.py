@@ -135,9 +135,9 @@ class DWAController:
         """How far along ``path_xy_m`` the robot at ``xy_m`` sees it: the arc length of the last
         point (every ``step_m`` from the robot's projection, up to ``lookahead_m`` plus the
         horizon's reach) before the first one it cannot reach in a straight line with its disc
-        plus ``safety_margin_m`` clear of ``distance`` all the way (points <= 3 cm apart; a robot
-        already closer to a wall than that needs only its present clearance); inf (no limit)
-        when the first is not."""
+        plus ``safety_margin_m`` clear of ``distance`` all the way (40 points on each line, <= 7
+        cm apart: a miss of 3.5 cm adds < 3 mm to a 0.25 m clearance; a robot already closer to a
+        wall than that needs only its present clearance); inf (no limit) when the first is not."""
         c = self.config
         s0 = project_on_path(path_xy_m, xy_m)
         s = s0 + np.arange(step_m, c.lookahead_m + c.v_max_mps * c.horizon_s + 1e-9, step_m)
