@@ -944,3 +944,24 @@ def test_escape_check_keeps_an_escape_from_a_person_turning_back():
     for bad in (-0.1, 5.0, float("nan")):
         with pytest.raises(ConfigError, match="escape_reaction_s"):
             SafetyConfig(escape_reaction_s=bad)
+
+
+def test_a_line_of_sight_carrot_leads_dwa_round_a_hook_where_the_plain_carrot_stalls():
+    """Willow development seed 3060 (issue 33): the path hooks round a one-cell obstacle, DWA's
+    plain carrot lies behind it and the robot turns on the spot between recoveries until the 90 s
+    limit (measured: 6 recoveries, 0.16 m short); with ``line_of_sight_target`` the carrot stays
+    where the robot sees the path and it drives round the hook (measured: 27.6 s, no recovery,
+    final error 1.0 cm). Both with the course's DWA weights, as the stack's default."""
+    from slamkit.experiments.navigation.run import willow_yaml
+    from slamkit.systems.navigation import default_controller_params
+
+    sc = make_navigation_scenario(3060, "willow", willow_yaml("willow"))
+    outcome = {}
+    for on in (False, True):
+        nav = dataclasses.replace(NavigationConfig(), controller_params={
+            **default_controller_params(NavigationConfig()), "line_of_sight_target": on})
+        outcome[on] = run_episode(sc, nav, EpisodeConfig()).metrics
+    assert outcome[False]["timeout"] == 1.0 and outcome[False]["recoveries"] >= 4
+    m = outcome[True]
+    assert m["success"] == 1.0 and m["recoveries"] == 0.0 and m["time_s"] < 40.0
+    assert m["collision_static"] == 0.0 and m["collision_moving"] == 0.0
