@@ -34,6 +34,7 @@ import typing
 from pathlib import Path
 from typing import Annotated, Any, Literal, Mapping
 
+import numpy as np
 import pydantic
 import yaml
 from pydantic import ConfigDict, Field
@@ -373,11 +374,14 @@ def _dataclass_in(hint: Any) -> type | None:
 
 def _numeric_hint(hint: Any) -> str | None:
     """What a numeric field's type asks for: "number" (``float``, ``int``, either ``| None``),
-    "numbers" (a tuple of them), else None (any other type is the dataclass's to check)."""
+    "numbers" (a tuple of them), "bool" (``bool``, ``| None``: a switch, where any string or
+    number would otherwise count as on), else None (any other type is the dataclass's to check)."""
     args = [a for a in (typing.get_args(hint) if typing.get_origin(hint) in (typing.Union, types.UnionType)
                         else (hint,)) if a is not type(None)]
     if args and all(a in (int, float) for a in args):
         return "number"
+    if args == [bool]:
+        return "bool"
     if len(args) == 1 and typing.get_origin(args[0]) is tuple:
         items = [a for a in typing.get_args(args[0]) if a is not Ellipsis]
         if items and all(a in (int, float) for a in items):
@@ -473,6 +477,8 @@ def build(cls: type[T], data: Mapping[str, Any] | None, where: str | None = None
                 raise ConfigError(f"{here}: expected a number, got {value!r}")
             if wants == "numbers" and not _are_numbers(value):
                 raise ConfigError(f"{here}: expected a list of numbers, got {value!r}")
+            if wants == "bool" and not isinstance(value, (bool, np.bool_)):
+                raise ConfigError(f"{here}: expected true or false, got {value!r}")
             value = _tupled(value)
         kwargs[key] = value
     try:

@@ -3,6 +3,8 @@ dataclasses (issue 30) -- defaults never restated, nested sections over their de
 
 from __future__ import annotations
 
+import re
+
 from dataclasses import dataclass, field
 
 import pytest
@@ -105,6 +107,25 @@ def test_a_number_field_refuses_what_is_not_a_number_by_name():
                          "sigmas": np.array([0.1, 0.1, 0.05]), "label": "b"})
     assert (out.speed_mps, out.count, out.maybe_s, out.label) == (2, 4, 0.5, "b")
     np.testing.assert_array_equal(out.sigmas, [0.1, 0.1, 0.05])
+
+
+def test_a_switch_refuses_what_is_not_true_or_false_by_name():
+    """A bool field given a string or a number would count as on (``"no"`` and ``nan`` are
+    truthy): refused by name; null keeps the default, numpy's bools pass."""
+    import numpy as np
+
+    @dataclass(frozen=True)
+    class Switches:
+        on: bool = False
+        maybe: bool | None = None
+
+    for bad in ("no", "abc", 1, 0, float("nan")):
+        with pytest.raises(ConfigError, match=rf"^sw\.on: expected true or false, got {re.escape(repr(bad))}$"):
+            build(Switches, {"on": bad}, "sw")
+    with pytest.raises(ConfigError, match=r"^sw\.maybe: expected true or false, got 'yes'$"):
+        build(Switches, {"maybe": "yes"}, "sw")
+    assert build(Switches, {"on": None}).on is False
+    assert build(Switches, {"on": True, "maybe": np.bool_(False)}) == Switches(True, False)
 
 
 def test_a_value_error_of_the_dataclass_is_a_config_error_naming_where():
