@@ -103,7 +103,7 @@ def test_line_of_sight_target_stops_where_the_path_turns_out_of_sight():
     passes P at |1.2 - 1.6 y| / sqrt(4 + y^2), which falls to 0.25 m at y = 0.4298 (the root of
     2.4975 y^2 - 3.84 y + 1.19 = 0): path points every 5 cm are seen up to (2, 0.40), arc length
     2.40 m -- though (2, 1.2) and beyond are seen again past the post's other side, the sight
-    ends at the first point hidden. The heading target of every rollout is held there."""
+    ends at the first point hidden."""
     res = 0.01
     xs = np.arange(-1.0, 4.0, res) + res / 2
     gx, gy = np.meshgrid(xs, xs)
@@ -112,8 +112,10 @@ def test_line_of_sight_target_stops_where_the_path_turns_out_of_sight():
     cfg = DWAConfig(robot_radius_m=0.2, safety_margin_m=0.05, v_max_mps=1.0, horizon_s=2.0, lookahead_m=1.0)
     dwa = DWAController(cfg)
     assert dwa.visible_s(path, np.zeros(2), grid) == pytest.approx(2.40)
-    # a robot already within the margin of the post needs only the clearance it has
-    assert dwa.visible_s(path, np.array([1.6, 0.38]), grid) > 2.4
+    # a robot at (1.6, 0.38), 0.22 m below the post, needs only the clearance it has (else even
+    # the first point would be hidden: no limit): the line to (2, y) passes P at 0.088 /
+    # sqrt(0.16 + (y - 0.38)^2), 0.219 m at y = 0.418, so the sight ends at (2, 0.40) again
+    assert dwa.visible_s(path, np.array([1.6, 0.38]), grid) == pytest.approx(2.40)
     # nothing in the way: no limit short of the reach (1 + 1 x 2 m beyond the projection)
     assert dwa.visible_s(path, np.zeros(2), DistanceGrid(np.full((500, 500), 5.0), res, np.array([-1.0, -1.0]))) \
         == pytest.approx(3.0)

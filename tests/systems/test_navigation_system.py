@@ -13,9 +13,10 @@ from slamkit.data.estimate import LatestBelief
 from slamkit.data.sequence import Odometry
 from slamkit.errors import ConfigError
 from slamkit.experiments.navigation import EpisodeConfig, make_navigation_scenario, run_episode
+from slamkit.experiments.navigation.run import willow_yaml
 from slamkit.maps.occupancy_grid import OccupancyGrid
 from slamkit.systems.navigation import (CommandStatus, GlobalPlanningConfig, NavigationConfig, NavigationStack,
-                                       SafetyConfig, YieldingConfig)
+                                       SafetyConfig, YieldingConfig, default_controller_params)
 
 
 def _room() -> OccupancyGrid:
@@ -952,9 +953,6 @@ def test_a_line_of_sight_carrot_leads_dwa_round_a_hook_where_the_plain_carrot_st
     limit (measured: 6 recoveries, 0.16 m short); with ``line_of_sight_target`` the carrot stays
     where the robot sees the path and it drives round the hook (measured: 27.6 s, no recovery,
     final error 1.0 cm). Both with the course's DWA weights, as the stack's default."""
-    from slamkit.experiments.navigation.run import willow_yaml
-    from slamkit.systems.navigation import default_controller_params
-
     sc = make_navigation_scenario(3060, "willow", willow_yaml("willow"))
     outcome = {}
     for on in (False, True):
